@@ -1,0 +1,1 @@
+"""ngc-gen: Neural Generalized Cylinders with EDM latent diffusion."""
