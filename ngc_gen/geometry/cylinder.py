@@ -1,0 +1,266 @@
+"""Generalized cylinder: a curve, a frame field, key radii/twists and end caps.
+
+Relative coordinates (u, a, b) of a world point q (DESIGN.md section 2): t* = argmin |q - C(t)|
+over normalised arc length, p = C(t*), a = (q - p).y / r_y(t*), b = (q - p).z / r_z(t*), u = 2t* - 1;
+past an end, s = distance along the end tangent and u = -1 - s/l0 or 1 + s/l1. Inside iff
+max(|u| - 1, 0)^2 + a^2 + b^2 <= 1.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from .arclength import ArcLength
+from .arrays import DEFAULT_CHUNK, as_tensor, check_points, chunked, dot
+from .closest import Polyline, closest_parameter
+from .curves import Curve, curve_from_dict
+from .errors import GeometryError
+from .frames import FrameField
+from .interp import interp
+
+GC_KEYS = {"name", "curve", "up", "keys", "caps"}
+KEY_KEYS = {"t", "radii", "twist"}
+
+
+@dataclass(frozen=True)
+class Key:
+    """A key frame at normalised arc length t: radii (r_y, r_z) and twist in degrees."""
+
+    t: float
+    radii: tuple[float, float]
+    twist: float = 0.0
+
+    def to_dict(self) -> dict:
+        return {"t": float(self.t), "radii": [float(r) for r in self.radii],
+                "twist": float(self.twist)}
+
+
+def _parse_key(d, name: str, i: int) -> Key:
+    field = f"keys[{i}]"
+    if not isinstance(d, dict):
+        raise GeometryError(f"each key must be a mapping {{t, radii, twist}}, got {d!r}",
+                            name, field)
+    unknown = set(d) - KEY_KEYS
+    if unknown:
+        raise GeometryError(f"unknown key fields {sorted(unknown)}; allowed {sorted(KEY_KEYS)}",
+                            name, field)
+    if "radii" not in d:
+        raise GeometryError("key has no 'radii' ([r_y, r_z] or one number)", name, field)
+    try:
+        t = float(d.get("t", 0.0))
+        r = d["radii"]
+        radii = (float(r), float(r)) if np.isscalar(r) else tuple(float(x) for x in r)
+        twist = float(d.get("twist", 0.0))
+    except (TypeError, ValueError) as e:
+        raise GeometryError(f"key values must be numbers ({e})", name, field) from None
+    if len(radii) != 2:
+        raise GeometryError(f"radii must be [r_y, r_z], got {list(radii)}", name,
+                            field + ".radii")
+    if not all(np.isfinite(radii)) or min(radii) <= 0:
+        raise GeometryError(f"radii must be positive and finite, got {list(radii)}", name,
+                            field + ".radii")
+    if not (0.0 <= t <= 1.0):
+        raise GeometryError(f"t must lie in [0, 1], got {t}", name, field + ".t")
+    if not np.isfinite(twist):
+        raise GeometryError(f"twist must be finite, got {twist}", name, field + ".twist")
+    return Key(t, radii, twist)
+
+
+class GeneralizedCylinder:
+    """A GC around a smooth curve; all queries are batched and vectorised.
+
+    Points may be numpy arrays or torch tensors of shape (N, 3), float32 or float64; results
+    come back in the same type and float dtype. Work is done in float64 in chunks of
+    `chunk` points so memory stays bounded for millions of points.
+    """
+
+    def __init__(self, curve: Curve, keys: list[Key], caps=(0.1, 0.1), up=None,
+                 name: str = "gc", segments: int = 128, chunk: int = DEFAULT_CHUNK):
+        self.name = str(name)
+        self.curve = curve
+        if not keys:
+            raise GeometryError("needs at least one key with radii", self.name, "keys")
+        keys = sorted(keys, key=lambda k: k.t)
+        ts = [k.t for k in keys]
+        if len(set(ts)) != len(ts):
+            raise GeometryError(f"two keys share the same t ({ts})", self.name, "keys")
+        self.keys = keys
+        try:
+            caps = tuple(float(c) for c in caps)
+        except (TypeError, ValueError):
+            raise GeometryError(f"caps must be two numbers [l0, l1], got {caps!r}",
+                                self.name, "caps") from None
+        if len(caps) != 2 or not all(np.isfinite(caps)) or min(caps) <= 0:
+            raise GeometryError(f"caps must be two positive lengths [l0, l1] (use e.g. 1e-3 for "
+                                f"a nearly flat end), got {list(caps)}", self.name, "caps")
+        self.caps = caps
+        try:
+            self.arc = ArcLength(curve)
+        except GeometryError as e:
+            raise GeometryError(str(e).split(": ", 1)[-1], self.name, e.field) from None
+        self.frame_field = FrameField(curve, up, gc_name=self.name)
+        self.up = self.frame_field.up
+        self.segments = segments
+        self.chunk = chunk
+        self._key_t = torch.tensor(ts, dtype=torch.float64)
+        self._key_r = torch.tensor([k.radii for k in keys], dtype=torch.float64)
+        self._key_w = torch.tensor([math.radians(k.twist) for k in keys], dtype=torch.float64)
+        t = torch.linspace(0.0, 1.0, segments + 1, dtype=torch.float64)
+        poly_s = self.arc.s_of_t(t)
+        self.polyline = Polyline(curve.evaluate(poly_s)[0], poly_s)
+        self._twisted = any(k.twist != 0.0 for k in keys)
+
+    # ---- construction / serialisation -------------------------------------------------------
+    @classmethod
+    def from_dict(cls, d: dict, **kwargs) -> "GeneralizedCylinder":
+        """Build from the annotation dict of DESIGN.md (twist in degrees)."""
+        if not isinstance(d, dict):
+            raise GeometryError(f"a GC must be a mapping, got {type(d).__name__}")
+        name = str(d.get("name", "gc"))
+        unknown = set(d) - GC_KEYS
+        if unknown:
+            raise GeometryError(f"unknown fields {sorted(unknown)}; allowed {sorted(GC_KEYS)}",
+                                name)
+        for required in ("curve", "keys"):
+            if required not in d:
+                raise GeometryError(f"missing required field '{required}'", name, required)
+        try:
+            curve = curve_from_dict(d["curve"])
+        except GeometryError as e:
+            raise GeometryError(str(e).split(": ", 1)[-1], name, e.field) from None
+        keys = d["keys"]
+        if not isinstance(keys, list):
+            raise GeometryError("keys must be a list of {t, radii, twist}", name, "keys")
+        keys = [_parse_key(k, name, i) for i, k in enumerate(keys)]
+        return cls(curve, keys, caps=d.get("caps", (0.1, 0.1)), up=d.get("up"), name=name,
+                   **kwargs)
+
+    def to_dict(self) -> dict:
+        return {"name": self.name, "curve": self.curve.to_dict(),
+                "up": [float(x) for x in self.up],
+                "keys": [k.to_dict() for k in self.keys],
+                "caps": [float(c) for c in self.caps]}
+
+    def replace(self, curve: Curve | None = None, keys: list[Key] | None = None, caps=None,
+                up=None, name: str | None = None) -> "GeneralizedCylinder":
+        """A new GC with some parts replaced (GCs are immutable values)."""
+        return GeneralizedCylinder(curve or self.curve, keys if keys is not None else self.keys,
+                                   caps if caps is not None else self.caps,
+                                   up if up is not None else self.up, name or self.name,
+                                   self.segments, self.chunk)
+
+    def transformed(self, R, t) -> "GeneralizedCylinder":
+        """The GC under the rigid motion x -> R x + t (R a rotation); relative coords invariant."""
+        R = np.asarray(R, dtype=np.float64)
+        return self.replace(curve=self.curve.transformed(R, t), up=R @ self.up)
+
+    @property
+    def length(self) -> float:
+        return self.arc.length
+
+    # ---- profiles --------------------------------------------------------------------------
+    def radii_at(self, t: torch.Tensor) -> torch.Tensor:
+        """(N,) normalised arc length -> (N, 2) radii, lerped between keys, clamped at ends."""
+        if len(self.keys) == 1:
+            return self._key_r.to(t.device).expand(len(t), 2)
+        return interp(t, self._key_t.to(t.device), self._key_r.to(t.device))
+
+    def twist_at(self, t: torch.Tensor) -> torch.Tensor:
+        """(N,) -> (N,) twist angle in radians, lerped between keys."""
+        if len(self.keys) == 1:
+            return self._key_w.to(t.device).expand(len(t))
+        return interp(t, self._key_t.to(t.device), self._key_w.to(t.device))
+
+    def frame(self, s: torch.Tensor, t: torch.Tensor):
+        """Point, unit tangent, normal, binormal at curve parameter s (t its arc length)."""
+        C, d1, _ = self.curve.evaluate(s)
+        T = d1 / torch.sqrt(dot(d1, d1))[:, None]
+        N, B = self.frame_field.frames(s, T, self.twist_at(t) if self._twisted else None)
+        return C, T, N, B
+
+    # ---- relative coordinates --------------------------------------------------------------
+    def _to_relative(self, q: torch.Tensor) -> torch.Tensor:
+        s = closest_parameter(self.curve, q, self.polyline)
+        t = self.arc.t_of_s(s)
+        C, T, N, B = self.frame(s, t)
+        d = q - C
+        along = dot(d, T)
+        start, end = s <= 0.0, s >= 1.0
+        # past an end: distance along the end tangent, offset perpendicular to it
+        cap = torch.where(start, -along, torch.where(end, along, torch.zeros_like(along)))
+        off = d - torch.where(start | end, along, torch.zeros_like(along))[:, None] * T
+        u = 2.0 * t - 1.0
+        u = torch.where(start, -1.0 - cap / self.caps[0], u)
+        u = torch.where(end, 1.0 + cap / self.caps[1], u)
+        r = self.radii_at(t)
+        return torch.stack([u, dot(off, N) / r[:, 0], dot(off, B) / r[:, 1]], 1)
+
+    def _to_world(self, rel: torch.Tensor) -> torch.Tensor:
+        u, a, b = rel.unbind(1)
+        t = ((u.clamp(-1.0, 1.0) + 1.0) / 2.0)
+        s = self.arc.s_of_t(t)
+        s = torch.where(u <= -1.0, torch.zeros_like(s), torch.where(u >= 1.0, torch.ones_like(s), s))
+        t = torch.where(u <= -1.0, torch.zeros_like(t), torch.where(u >= 1.0, torch.ones_like(t), t))
+        C, T, N, B = self.frame(s, t)
+        cap = torch.where(u < -1.0, (u + 1.0) * self.caps[0],
+                          torch.where(u > 1.0, (u - 1.0) * self.caps[1], torch.zeros_like(u)))
+        r = self.radii_at(t)
+        return C + cap[:, None] * T + (a * r[:, 0])[:, None] * N + (b * r[:, 1])[:, None] * B
+
+    def to_relative(self, points):
+        """points (N, 3) -> (N, 3) [u, a, b]; u in [-2, 2] for points inside."""
+        q, back = as_tensor(points)
+        check_points(q)
+        return back(chunked(self._to_relative, q, self.chunk))
+
+    def to_world(self, rel):
+        """[u, a, b] (N, 3) -> world points (N, 3); inverse of to_relative inside the GC."""
+        x, back = as_tensor(rel)
+        check_points(x, "relative coordinates")
+        return back(chunked(self._to_world, x, self.chunk))
+
+    @staticmethod
+    def inside_relative(rel):
+        """(N, 3) relative coords -> (N,) bool: max(|u|-1, 0)^2 + a^2 + b^2 <= 1."""
+        if isinstance(rel, torch.Tensor):
+            e = torch.clamp(rel[:, 0].abs() - 1.0, min=0.0)
+        else:
+            e = np.clip(np.abs(rel[:, 0]) - 1.0, 0.0, None)
+        return e * e + rel[:, 1] ** 2 + rel[:, 2] ** 2 <= 1.0
+
+    def contains(self, points):
+        """points (N, 3) -> (N,) bool inside the GC (tube plus half-ellipsoid caps)."""
+        q, _ = as_tensor(points)
+        check_points(q)
+        lo, hi = (torch.as_tensor(b, device=q.device) for b in self.bounds())
+        inside = torch.zeros(len(q), dtype=torch.bool, device=q.device)
+        cand = torch.nonzero(((q >= lo) & (q <= hi)).all(1)).squeeze(1)
+        if len(cand):
+            rel = chunked(self._to_relative, q[cand], self.chunk)
+            inside[cand] = self.inside_relative(rel)
+        return inside if isinstance(points, torch.Tensor) else inside.cpu().numpy()
+
+    def bounds(self, samples: int = 256) -> tuple[np.ndarray, np.ndarray]:
+        """Conservative axis-aligned box (lo, hi) of the GC including caps."""
+        if getattr(self, "_bounds", None) is None:
+            t = torch.linspace(0.0, 1.0, samples + 1, dtype=torch.float64)
+            s = self.arc.s_of_t(t)
+            C, T, N, B = self.frame(s, t)
+            r = self.radii_at(t)
+            # extent of an ellipse with axes r_y N, r_z B along each world axis
+            ext = torch.sqrt((r[:, :1] * N) ** 2 + (r[:, 1:] * B) ** 2)
+            lo, hi = (C - ext).min(0).values, (C + ext).max(0).values
+            for i, l in ((0, self.caps[0]), (-1, self.caps[1])):  # full end ellipsoids
+                e = torch.sqrt((l * T[i]) ** 2 + (r[i, 0] * N[i]) ** 2 + (r[i, 1] * B[i]) ** 2)
+                lo, hi = torch.minimum(lo, C[i] - e), torch.maximum(hi, C[i] + e)
+            step = torch.linalg.norm(C[1:] - C[:-1], dim=1).max()
+            pad = step + 0.02 * r.max()
+            self._bounds = ((lo - pad).numpy(), (hi + pad).numpy())
+        return self._bounds[0].copy(), self._bounds[1].copy()
+
+    def __repr__(self) -> str:
+        return (f"GeneralizedCylinder(name={self.name!r}, {self.curve.kind} degree/points="
+                f"{len(self.curve.points)}, length={self.length:.4g}, keys={len(self.keys)})")
