@@ -1,0 +1,163 @@
+import numpy as np
+import pytest
+import torch
+from scipy.spatial.transform import Rotation
+
+from ngc_gen.geometry import GeneralizedCylinder, GeometryError
+from ngc_gen.geometry.arrays import GeometryShapeError
+
+from .conftest import inside_rel_samples, random_gc_dict
+
+
+@pytest.mark.parametrize("kind", ["bezier", "spline"])
+def test_round_trip_random_gcs(rng, kind):
+    for trial in range(12):
+        gc = GeneralizedCylinder.from_dict(random_gc_dict(rng, degree=trial % 5 + 1, kind=kind))
+        rel = inside_rel_samples(rng, 3000)
+        q = gc.to_world(rel)
+        rel2 = gc.to_relative(q)
+        assert np.abs(gc.to_world(rel2) - q).max() < 1e-5, gc
+        assert np.abs(rel2 - rel).max() < 1e-5, gc
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_round_trip_dtypes_and_types(rng, dtype):
+    gc = GeneralizedCylinder.from_dict(random_gc_dict(rng, degree=3))
+    q = gc.to_world(inside_rel_samples(rng, 2000)).astype(dtype)
+    rel = gc.to_relative(q)
+    assert isinstance(rel, np.ndarray) and rel.dtype == dtype
+    assert np.abs(gc.to_world(rel) - q).max() < 1e-5
+    qt = torch.from_numpy(q)
+    relt = gc.to_relative(qt)
+    assert isinstance(relt, torch.Tensor) and relt.dtype == qt.dtype
+    assert torch.allclose(relt, torch.from_numpy(rel), atol=1e-6)
+    inside = gc.contains(qt)
+    assert isinstance(inside, torch.Tensor) and inside.dtype == torch.bool
+
+
+def test_closest_point_matches_brute_force(rng):
+    for trial in range(8):
+        gc = GeneralizedCylinder.from_dict(random_gc_dict(rng, degree=trial % 5 + 1))
+        rel = inside_rel_samples(rng, 2000)
+        rel = rel[np.abs(rel[:, 0]) < 1]  # tube part: the foot point is interior
+        q = gc.to_world(rel)
+        rel2 = gc.to_relative(q)
+        foot = gc.to_world(np.stack([rel2[:, 0], 0 * rel2[:, 0], 0 * rel2[:, 0]], 1))
+        s = torch.linspace(0, 1, 200_001, dtype=torch.float64)
+        dense = gc.curve.evaluate(s)[0].numpy()
+        from scipy.spatial import cKDTree
+        brute, _ = cKDTree(dense).query(q)
+        ours = np.linalg.norm(q - foot, axis=1)
+        # dense sampling is within (spacing/2)^2 / (2 r) of the truth: ours may only be smaller
+        assert np.all(ours <= brute + 1e-6)
+        assert np.all(brute - ours < 1e-5)
+
+
+def test_rigid_motion_leaves_relative_coordinates_unchanged(rng):
+    gc = GeneralizedCylinder.from_dict(random_gc_dict(rng, degree=4))
+    q = gc.to_world(inside_rel_samples(rng, 3000))
+    R = Rotation.random(random_state=7).as_matrix()
+    t = np.array([0.3, -0.2, 0.5])
+    moved = gc.transformed(R, t)
+    np.testing.assert_allclose(moved.to_relative(q @ R.T + t), gc.to_relative(q), atol=1e-8)
+
+
+def test_straight_unit_gc_is_affine():
+    L = 1.6
+    gc = GeneralizedCylinder.from_dict({
+        "name": "bar", "curve": {"type": "bezier", "points": [[-0.8, 0, 0], [0.8, 0, 0]]},
+        "up": [0, 0, 1], "keys": [{"t": 0, "radii": [1, 1]}], "caps": [1, 1]})
+    rng = np.random.default_rng(0)
+    rel = inside_rel_samples(rng, 2000)
+    rel = rel[np.abs(rel[:, 0]) <= 1]
+    w = gc.to_world(rel)
+    # world = A rel + c with x = -0.8 + (u+1)/2 L, y = a (frame y from up=z ... rotated: y = z x x)
+    A, *_ = np.linalg.lstsq(np.c_[rel, np.ones(len(rel))], w, rcond=None)
+    np.testing.assert_allclose(np.c_[rel, np.ones(len(rel))] @ A, w, atol=1e-9)
+    np.testing.assert_allclose(A[0], [L / 2, 0, 0], atol=1e-9)
+    np.testing.assert_allclose(A[3], [0, 0, 0], atol=1e-9)
+    np.testing.assert_allclose(np.abs(A[1:3]), [[0, 0, 1], [0, 1, 0]], atol=1e-9)
+
+
+def test_contains_matches_analytic_capsule():
+    ry, rz, l0, l1 = 0.2, 0.1, 0.15, 0.3
+    gc = GeneralizedCylinder.from_dict({
+        "name": "c", "curve": {"type": "bezier", "points": [[-0.5, 0, 0], [0.0, 0, 0], [0.5, 0, 0]]},
+        "up": [0, 1, 0], "keys": [{"t": 0, "radii": [ry, rz]}], "caps": [l0, l1]})
+    rng = np.random.default_rng(3)
+    q = rng.uniform([-1, -0.3, -0.3], [1, 0.3, 0.3], (100_000, 3))
+    x, y, z = q.T
+    e = np.where(x < -0.5, (x + 0.5) / l0, np.where(x > 0.5, (x - 0.5) / l1, 0.0))
+    analytic = e ** 2 + (y / ry) ** 2 + (z / rz) ** 2 <= 1
+    ours = gc.contains(q)
+    assert analytic.sum() > 5000
+    assert np.mean(ours == analytic) > 0.9999  # disagreements only within rounding of the boundary
+
+
+def test_bounds_enclose_the_gc(rng):
+    for _ in range(5):
+        gc = GeneralizedCylinder.from_dict(random_gc_dict(rng))
+        lo, hi = gc.bounds()
+        rel = inside_rel_samples(rng, 5000)
+        rel[:, 1:] /= np.linalg.norm(rel[:, 1:], axis=1, keepdims=True).clip(1, None)
+        w = gc.to_world(rel)
+        assert np.all(w >= lo) and np.all(w <= hi)
+
+
+def test_twist_360_equals_no_twist(rng):
+    d = random_gc_dict(rng, degree=3)
+    d["keys"] = [{"t": 0, "radii": [0.05, 0.03], "twist": 0}, {"t": 1, "radii": [0.05, 0.03], "twist": 0}]
+    a = GeneralizedCylinder.from_dict(d)
+    d["keys"][1]["twist"] = 360
+    b = GeneralizedCylinder.from_dict(d)
+    mid = np.array([[0.0, 0.6, 0.3]])  # half way the 360-degree twist has turned 180 degrees
+    assert np.linalg.norm(b.to_world(mid) - a.to_world(mid)) > 0.02
+    ends = np.array([[1.0, 0.5, 0.5], [-1.0, 0.5, 0.5], [1.5, 0.3, -0.2], [-1.5, 0.1, 0.4]])
+    np.testing.assert_allclose(b.to_world(ends), a.to_world(ends), atol=1e-9)
+
+
+def test_dict_round_trip(rng):
+    d = random_gc_dict(rng, kind="spline")
+    gc = GeneralizedCylinder.from_dict(d)
+    gc2 = GeneralizedCylinder.from_dict(gc.to_dict())
+    q = gc.to_world(inside_rel_samples(rng, 500))
+    np.testing.assert_array_equal(gc2.to_relative(q), gc.to_relative(q))
+
+
+def test_chunking_does_not_change_results(rng):
+    d = random_gc_dict(rng, degree=2)
+    q = rng.uniform(-1, 1, (5000, 3))
+    big = GeneralizedCylinder.from_dict(d).to_relative(q)
+    small = GeneralizedCylinder.from_dict(d, chunk=97).to_relative(q)
+    np.testing.assert_array_equal(big, small)
+
+
+BASE = {"name": "leg", "curve": {"type": "bezier", "points": [[0, 0, 0], [1, 0, 0]]},
+        "up": [0, 0, 1], "keys": [{"t": 0, "radii": [0.1, 0.1]}], "caps": [0.1, 0.1]}
+
+
+@pytest.mark.parametrize("change, field, words", [
+    ({"curve": {"type": "bezier", "points": [[0, 0, 0], [0, 0, 0]]}}, "curve.points", "zero length"),
+    ({"curve": {"type": "bezier", "points": [[0, 0, 0]]}}, "curve.points", "at least 2"),
+    ({"curve": {"type": "spline", "points": [[0, 0, 0], [0, 0, 0], [1, 0, 0]]}}, "curve.points", "coincide"),
+    ({"curve": {"type": "nurbs", "points": [[0, 0, 0], [1, 0, 0]]}}, "curve.type", "unknown curve type"),
+    ({"curve": {"type": "bezier", "points": [[0, 0, float("nan")], [1, 0, 0]]}}, "curve.points", "NaN"),
+    ({"keys": [{"t": 0, "radii": [0.0, 0.1]}]}, "keys[0].radii", "positive"),
+    ({"keys": [{"t": 1.5, "radii": [0.1, 0.1]}]}, "keys[0].t", "[0, 1]"),
+    ({"keys": []}, "keys", "at least one key"),
+    ({"caps": [0.0, 0.1]}, "caps", "positive"),
+    ({"up": [1, 0, 0]}, "up", "parallel"),
+    ({"radius": 3}, None, "unknown fields"),
+])
+def test_bad_gc_gives_clear_error(change, field, words):
+    d = {**BASE, **change}
+    with pytest.raises(GeometryError) as e:
+        GeneralizedCylinder.from_dict(d)
+    assert e.value.gc_name == "leg" and e.value.field == field
+    assert words in str(e.value) and "leg" in str(e.value)
+
+
+def test_bad_point_shape():
+    gc = GeneralizedCylinder.from_dict(BASE)
+    with pytest.raises(GeometryShapeError):
+        gc.to_relative(np.zeros((10, 2)))
