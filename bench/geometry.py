@@ -1,0 +1,143 @@
+"""Geometry benchmark: relative-coordinate throughput and data preparation time per shape.
+
+    python bench/geometry.py            # prints a table, writes bench/results/geometry.json
+
+Throughput: 1M float32 points uniform in the bounding box of a curved 128-segment Bezier GC,
+best of 3 after a warm-up. Baseline in the same run: the plain polyline projection over all
+128 segments (DESIGN.md's alternative), with its round-trip error next to ours.
+Preparation: `prepare_shape` from scratch (empty cache) for 100k samples on the shipped shapes.
+"""
+from __future__ import annotations
+
+import json
+import os
+import platform
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from ngc_gen.geometry import GeneralizedCylinder  # noqa: E402
+
+GC = {"name": "bench", "curve": {"type": "bezier", "points": [[-0.6, 0, 0], [-0.2, 0.4, 0.1],
+                                                              [0.2, -0.3, 0.2], [0.6, 0.1, 0]]},
+      "up": [0, 0, 1], "keys": [{"t": 0, "radii": [0.12, 0.09], "twist": 0},
+                                {"t": 1, "radii": [0.07, 0.06], "twist": 90}],
+      "caps": [0.06, 0.08]}
+
+
+def best_of(fn, repeats=3):
+    fn()  # warm-up
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return min(times)
+
+
+def polyline_relative(gc, q, chunk=1 << 14):
+    """Baseline: project onto all segments of the 128-segment polyline, keep the nearest,
+    offset in the frame at that parameter (no smooth-curve refinement)."""
+    x, ps = gc.polyline.x.float(), gc.polyline.s.float()
+    A, AB = x[:-1], x[1:] - x[:-1]
+    out = []
+    for i in range(0, len(q), chunk):
+        p = q[i:i + chunk]
+        lam = (((p[:, None] - A) * AB).sum(-1) / (AB * AB).sum(-1)).clamp(0, 1)
+        d = ((A + lam[..., None] * AB - p[:, None]) ** 2).sum(-1)
+        j = d.argmin(1)
+        lj = lam.gather(1, j[:, None])[:, 0]
+        s = (ps[j] + lj * (ps[j + 1] - ps[j])).double()
+        foot = (A[j] + lj[:, None] * AB[j]).double()
+        t = gc.arc.t_of_s(s)
+        _, _, N, B = gc.frame(s, t)
+        r = gc.radii_at(t)
+        off = p.double() - foot
+        out.append(torch.stack([2 * t - 1, (off * N).sum(1) / r[:, 0], (off * B).sum(1) / r[:, 1]], 1))
+    return torch.cat(out)
+
+
+def bench_relcoords(n=1_000_000):
+    gc = GeneralizedCylinder.from_dict(GC)
+    lo, hi = gc.bounds()
+    rng = np.random.default_rng(0)
+    q = rng.uniform(lo, hi, (n, 3)).astype(np.float32)
+    ours = best_of(lambda: gc.to_relative(q))
+    qt = torch.from_numpy(q)
+    base = best_of(lambda: polyline_relative(gc, qt), repeats=1)
+    # round-trip error on points inside the tube, both methods
+    rel = np.stack([rng.uniform(-1, 1, 200_000), rng.uniform(-.7, .7, 200_000),
+                    rng.uniform(-.7, .7, 200_000)], 1)
+    inside = gc.to_world(rel)
+    err_ours = float(np.abs(gc.to_world(gc.to_relative(inside)) - inside).max())
+    err_poly = float(np.abs(gc.to_world(polyline_relative(gc, torch.from_numpy(inside).float())
+                                        .numpy()) - inside).max())
+    return {"relcoords_points_per_s": n / ours, "relcoords_s_per_1M": ours,
+            "polyline_points_per_s": n / base, "speedup_vs_polyline": base / ours,
+            "roundtrip_err_newton": err_ours, "roundtrip_err_polyline": err_poly}
+
+
+def bench_prepare():
+    from ngc_gen.data.annotations import load_annotation
+    from ngc_gen.data.auto_gc import auto_annotation
+    from ngc_gen.data.prepare import PrepareSettings, prepare_shape
+
+    shapes = [load_annotation(ROOT / "datasets/ant/ant.yaml"),
+              load_annotation(ROOT / "datasets/airplane/airplane.yaml"),
+              auto_annotation("pyvista:ant.ply")]
+    try:
+        from ngc_gen.data.creatures import make_creature  # noqa: F401
+        from ngc_gen.data.creatures import build_creatures
+        with tempfile.TemporaryDirectory() as d:
+            build_creatures(Path(d), 2, seed=0)
+            shapes += [load_annotation(p) for p in sorted(Path(d).glob("*.yaml"))]
+            return _time_prepare(shapes, PrepareSettings(n_samples=100_000), prepare_shape)
+    except ImportError:
+        return _time_prepare(shapes, PrepareSettings(n_samples=100_000), prepare_shape)
+
+
+def _time_prepare(shapes, settings, prepare_shape):
+    per = {}
+    with tempfile.TemporaryDirectory() as cache:
+        for ann in shapes:
+            t0 = time.perf_counter()
+            prep = prepare_shape(ann, settings, Path(cache))
+            per[f"{ann.name} ({len(ann.gcs)} GC)"] = {"s": time.perf_counter() - t0,
+                                                     "coverage": float(prep.coverage)}
+    return {"prepare_s_per_shape": float(np.mean([v["s"] for v in per.values()])),
+            "prepare_n_samples": settings.n_samples, "prepare_shapes": per}
+
+
+def main():
+    torch.set_num_threads(os.cpu_count() or 1)
+    res = {"machine": {"cpus": os.cpu_count(), "torch_threads": torch.get_num_threads(),
+                       "python": platform.python_version(), "torch": torch.__version__}}
+    res.update(bench_relcoords())
+    res.update(bench_prepare())
+    print(f"relative coords : {res['relcoords_points_per_s'] / 1e6:.2f} M points/s "
+          f"(float32, 1M points, 128 segments; target >= 2)")
+    print(f"  baseline polyline over all segments: {res['polyline_points_per_s'] / 1e6:.2f} M/s "
+          f"-> ours is {res['speedup_vs_polyline']:.1f}x faster")
+    print(f"  round-trip error: newton {res['roundtrip_err_newton']:.2e}, "
+          f"polyline {res['roundtrip_err_polyline']:.2e}")
+    print(f"prepare         : {res['prepare_s_per_shape']:.2f} s/shape for "
+          f"{res['prepare_n_samples']} samples (target <= 2)")
+    for k, v in res["prepare_shapes"].items():
+        print(f"  {k:28s} {v['s']:.2f} s  coverage {v['coverage']:.5f}")
+    out = ROOT / "bench/results/geometry.json"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_suffix(".json.tmp")
+    tmp.write_text(json.dumps(res, indent=2))
+    os.replace(tmp, out)
+    print(f"saved {out.relative_to(ROOT)}")
+
+
+if __name__ == "__main__":
+    main()

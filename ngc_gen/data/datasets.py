@@ -1,0 +1,83 @@
+"""Datasets: each resolves to a list of shape annotations (mesh + GCs) to prepare and fit.
+
+Instantiated from `conf/data/*.yaml` by Hydra (`_target_`). `shapes()` is the one method the
+rest of the pipeline uses.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from .annotations import Annotation, load_annotation
+from .auto_gc import auto_annotation
+from .errors import DataError
+
+MESH_SUFFIXES = {".obj", ".ply", ".stl", ".off", ".glb", ".gltf"}
+
+
+class AnnotatedShapes:
+    """A fixed list of annotation YAML files (the shipped `ant` and `airplane`)."""
+
+    def __init__(self, name: str, annotations: list[str]):
+        self.name = name
+        self.annotations = [Path(a) for a in annotations]
+
+    def shapes(self) -> list[Annotation]:
+        return [load_annotation(a) for a in self.annotations]
+
+
+class AutoGCShapes:
+    """Meshes with one automatic GC each (e.g. the ant's single-GC variant)."""
+
+    def __init__(self, name: str, meshes: list[str], bound: float = 0.8):
+        self.name = name
+        self.meshes = list(meshes)
+        self.bound = bound
+
+    def shapes(self) -> list[Annotation]:
+        return [auto_annotation(m, bound=self.bound) for m in self.meshes]
+
+
+class MeshFolder:
+    """Any directory of meshes; `<name>.yaml` beside a mesh annotates it, else an auto GC."""
+
+    def __init__(self, name: str, path: str, bound: float = 0.8):
+        self.name = name
+        self.path = Path(path)
+        self.bound = bound
+
+    def shapes(self) -> list[Annotation]:
+        if not self.path.is_dir():
+            raise DataError(f"mesh folder {self.path} does not exist",
+                            fix="pass data.path=/path/to/your/meshes")
+        meshes = sorted(p for p in self.path.iterdir() if p.suffix.lower() in MESH_SUFFIXES)
+        if not meshes:
+            raise DataError(f"no meshes ({', '.join(sorted(MESH_SUFFIXES))}) in {self.path}",
+                            fix="put mesh files in the folder or point data.path elsewhere")
+        out = []
+        for mesh in meshes:
+            yml = mesh.with_suffix(".yaml")
+            out.append(load_annotation(yml) if yml.exists()
+                       else auto_annotation(mesh, bound=self.bound))
+        return out
+
+
+class Creatures:
+    """Procedural creatures (our RaBit stand-in), built once into `out_dir` and reused."""
+
+    def __init__(self, name: str, out_dir: str, n: int = 64, seed: int = 0,
+                 split: str = "train", test_fraction: float = 0.25, limit: int | None = None):
+        if split not in ("train", "test", "all"):
+            raise DataError(f"creatures split must be train, test or all, got {split!r}")
+        self.name, self.out_dir, self.n, self.seed = name, Path(out_dir), n, seed
+        self.split, self.test_fraction, self.limit = split, test_fraction, limit
+
+    def shapes(self) -> list[Annotation]:
+        from .creatures import build_creatures
+
+        build_creatures(self.out_dir, self.n, seed=self.seed, test_fraction=self.test_fraction)
+        split = json.loads((self.out_dir / "split.json").read_text())
+        names = split["train"] + split["test"] if self.split == "all" else split[self.split]
+        names = names[: self.limit] if self.limit else names
+        return [load_annotation(self.out_dir / f"{n}.yaml") for n in names]
+
