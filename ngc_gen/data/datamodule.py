@@ -1,0 +1,71 @@
+"""Lightning DataModule over prepared shapes: batches of (code id, coords, sdf), no geometry.
+
+mode="ngc": one row per (sample, containing GC) pair; code id = global GC index, coords =
+relative [u, a, b] (computed once at preparation). mode="deepsdf": one row per sample; code id =
+shape index, coords = normalised world xyz. Both models read batches the same way.
+"""
+from __future__ import annotations
+
+import lightning as L
+import numpy as np
+import torch
+from torch.utils.data import DataLoader, Dataset
+
+from .prepare import PreparedShape
+
+
+def training_rows(shapes: list[PreparedShape], mode: str):
+    """Concatenate shapes into (ids (R,) i64, coords (R, 3) f32, sdf (R,) f32, n_codes)."""
+    ids, coords, sdf, offset = [], [], [], 0
+    for i, s in enumerate(shapes):
+        if mode == "ngc":
+            ids.append(s.pair_gc.astype(np.int64) + offset)
+            coords.append(s.pair_rel)
+            sdf.append(s.sdf[s.pair_point])
+            offset += len(s.gc_names)
+        elif mode == "deepsdf":
+            ids.append(np.full(len(s.points), i, dtype=np.int64))
+            coords.append(s.points)
+            sdf.append(s.sdf)
+            offset += 1
+        else:
+            raise ValueError(f"mode must be 'ngc' or 'deepsdf', got {mode!r}")
+    return (torch.from_numpy(np.concatenate(ids)),
+            torch.from_numpy(np.concatenate(coords).astype(np.float32)),
+            torch.from_numpy(np.concatenate(sdf).astype(np.float32)), offset)
+
+
+class ShuffledBatches(Dataset):
+    """Item i = batch i of this epoch's permutation of all rows (whole batches per item:
+    per-row indexing through a DataLoader would dominate the step time on CPU)."""
+
+    def __init__(self, ids, coords, sdf, batch_size: int, seed: int = 0):
+        self.ids, self.coords, self.sdf = ids, coords, sdf
+        self.batch_size, self.seed = batch_size, seed
+        self.set_epoch(0)
+
+    def set_epoch(self, epoch: int) -> None:
+        g = torch.Generator().manual_seed(self.seed * 100_003 + epoch)
+        self.perm = torch.randperm(len(self.ids), generator=g)
+
+    def __len__(self) -> int:
+        return max(1, len(self.ids) // self.batch_size)
+
+    def __getitem__(self, i: int):
+        idx = self.perm[i * self.batch_size:(i + 1) * self.batch_size]
+        return self.ids[idx], self.coords[idx], self.sdf[idx]
+
+
+class PreparedDataModule(L.LightningDataModule):
+    def __init__(self, shapes: list[PreparedShape], mode: str = "ngc", batch_size: int = 8192,
+                 seed: int = 0):
+        super().__init__()
+        self.shapes, self.mode = shapes, mode
+        ids, coords, sdf, self.n_codes = training_rows(shapes, mode)
+        self.train_set = ShuffledBatches(ids, coords, sdf, batch_size, seed)
+
+    def set_epoch(self, epoch: int) -> None:
+        self.train_set.set_epoch(epoch)
+
+    def train_dataloader(self):
+        return DataLoader(self.train_set, batch_size=None, shuffle=False, num_workers=0)

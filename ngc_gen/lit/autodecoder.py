@@ -1,0 +1,63 @@
+"""Auto-decoder training (DeepSDF style) for NGC (one code per GC) and DeepSDF (one per shape).
+
+loss = mean |F(z_id, x) - sdf| (optionally both clamped to +-clamp) + code_reg * mean ||z||^2
+(paper: 1e-4). Phase two (paper): from `codes_only_from` x max_steps the decoder's learning
+rate is zero and only the codes move (an lr switch rather than requires_grad, so it is
+resume- and DDP-safe).
+"""
+from __future__ import annotations
+
+import lightning as L
+import torch
+from torch import nn
+
+from ngc_gen.models import build_decoder
+
+CHECKPOINT_KIND = "ngc_gen.autodecoder"
+
+
+class AutoDecoder(L.LightningModule):
+    def __init__(self, kind: str, decoder: dict, n_codes: int, lr: float = 5e-4,
+                 code_lr: float = 1e-3, code_reg: float = 1e-4, clamp: float | None = None,
+                 codes_only_from: float = 0.8, code_init_std: float = 0.01,
+                 meta: dict | None = None, checkpoint_kind: str = CHECKPOINT_KIND):
+        super().__init__()
+        self.save_hyperparameters()
+        self.decoder = build_decoder(kind, **decoder)
+        self.codes = nn.Embedding(n_codes, self.decoder.code_dim)
+        nn.init.normal_(self.codes.weight, 0.0, code_init_std)
+
+    def sdf(self, ids: torch.Tensor, coords: torch.Tensor) -> torch.Tensor:
+        return self.decoder(self.codes(ids), coords)
+
+    def codes_only(self) -> bool:
+        max_steps = self.trainer.max_steps if self._trainer is not None else -1
+        return max_steps > 0 and self.global_step >= self.hparams.codes_only_from * max_steps
+
+    def on_train_epoch_start(self) -> None:
+        dm = getattr(self.trainer, "datamodule", None)
+        if dm is not None and hasattr(dm, "set_epoch"):
+            dm.set_epoch(self.current_epoch)
+
+    def on_train_batch_start(self, batch, batch_idx) -> None:
+        opt = self.optimizers(use_pl_optimizer=False)
+        opt.param_groups[0]["lr"] = 0.0 if self.codes_only() else self.hparams.lr
+
+    def training_step(self, batch, batch_idx):
+        ids, coords, target = batch
+        z = self.codes(ids)
+        pred = self.decoder(z, coords)
+        c = self.hparams.clamp
+        if c:
+            pred, target = pred.clamp(-c, c), target.clamp(-c, c)
+        l1 = (pred - target).abs().mean()
+        loss = l1 + self.hparams.code_reg * (z * z).sum(1).mean()
+        self.log_dict({"train/l1": l1, "train/loss": loss}, prog_bar=True, on_step=True,
+                      on_epoch=False)
+        return loss
+
+    def configure_optimizers(self):
+        return torch.optim.Adam([
+            {"params": self.decoder.parameters(), "lr": self.hparams.lr},
+            {"params": self.codes.parameters(), "lr": self.hparams.code_lr},
+        ])
