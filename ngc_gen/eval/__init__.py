@@ -1,0 +1,18 @@
+"""Evaluation metrics: fitting (Table 1), deformation (Tables 2-3), generation (Sec. 4.4).
+
+Depends only on numpy, scipy, trimesh and torch. Every function states its convention.
+"""
+
+from ngc_gen.eval.deformation import volume_area_change
+from ngc_gen.eval.fitting import (chamfer, chamfer_l1, emd, fscore, hausdorff, normal_consistency,
+                                  reconstruction_metrics)
+from ngc_gen.eval.generation import generation_metrics, metrics_from_distances, pairwise_chamfer
+from ngc_gen.eval.sampling import sample_point_clouds, sample_surface
+
+__all__ = [
+    "sample_surface", "sample_point_clouds",
+    "reconstruction_metrics", "chamfer", "chamfer_l1", "hausdorff", "emd", "fscore",
+    "normal_consistency",
+    "volume_area_change",
+    "pairwise_chamfer", "generation_metrics", "metrics_from_distances",
+]

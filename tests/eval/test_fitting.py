@@ -1,0 +1,128 @@
+import math
+
+import numpy as np
+import pytest
+import trimesh
+
+from ngc_gen.eval import (chamfer, emd, reconstruction_metrics, sample_surface,
+                          volume_area_change)
+
+KEYS = {"cd", "hd", "emd", "cd_l1", "fscore", "normal_consistency", "volume", "area",
+        "gt_volume", "gt_area", "empty"}
+
+
+@pytest.fixture(scope="module")
+def sphere():
+    return trimesh.creation.icosphere(subdivisions=4)
+
+
+def test_sample_surface_shapes_and_determinism(sphere):
+    p, n = sample_surface(sphere, 1000, seed=3)
+    assert p.shape == (1000, 3) and n.shape == (1000, 3)
+    assert np.allclose(np.linalg.norm(n, axis=1), 1.0)
+    assert np.all(np.linalg.norm(p, axis=1) <= 1.0 + 1e-9)  # on the inscribed polyhedron
+    p2, n2 = sample_surface(sphere, 1000, seed=3)
+    assert np.array_equal(p, p2) and np.array_equal(n, n2)
+    p3, _ = sample_surface(sphere, 1000, seed=4)
+    assert not np.array_equal(p, p3)
+
+
+def test_sample_surface_is_area_weighted():
+    # two disjoint cubes of areas 6 and 24: 4/5 of the samples belong on the big one
+    small = trimesh.creation.box(extents=[1, 1, 1])
+    big = trimesh.creation.box(extents=[2, 2, 2])
+    big.apply_translation([5, 0, 0])
+    both = trimesh.util.concatenate([small, big])
+    p, _ = sample_surface(both, 20_000, seed=0)
+    frac_big = np.mean(p[:, 0] > 2.5)
+    assert frac_big == pytest.approx(4 / 5, abs=0.01)
+
+
+def test_identical_meshes_are_zero(sphere):
+    m = reconstruction_metrics(sphere, sphere.copy(), seed=0, n_emd=512)
+    assert KEYS <= set(m)
+    assert m["cd"] == 0.0 and m["hd"] == 0.0 and m["emd"] == 0.0 and m["cd_l1"] == 0.0
+    assert m["fscore"] == 1.0
+    assert m["normal_consistency"] == pytest.approx(1.0)
+    assert m["volume"] == pytest.approx(m["gt_volume"]) and m["area"] == pytest.approx(m["gt_area"])
+    assert m["empty"] is False and m["watertight"] and m["gt_watertight"]
+
+
+def test_scaled_sphere(sphere):
+    s = 1.01
+    big = sphere.copy().apply_scale(s)
+    m = reconstruction_metrics(big, sphere, seed=0, n_emd=512)
+    eps = s - 1.0
+    assert m["cd"] == pytest.approx(2 * eps ** 2, rel=0.05)
+    assert m["hd"] == pytest.approx(eps, rel=0.05)
+    assert m["cd_l1"] == pytest.approx(eps, rel=0.05)
+    assert m["emd"] == pytest.approx(eps, rel=0.05)
+    assert m["normal_consistency"] > 0.99
+    # at tau well below the 0.01 offset nothing matches
+    tight = reconstruction_metrics(big, sphere, seed=0, n_emd=256, fscore_tau=0.005)
+    assert tight["fscore"] == 0.0
+
+
+def test_fscore_threshold(sphere):
+    big = sphere.copy().apply_scale(1.05)
+    m = reconstruction_metrics(big, sphere, seed=0, n_emd=256, fscore_tau=0.01)
+    assert m["fscore"] == 0.0
+    m = reconstruction_metrics(big, sphere, seed=0, n_emd=256, fscore_tau=0.1)
+    assert m["fscore"] == 1.0
+
+
+def test_translation_increases_cd_monotonically(sphere):
+    shifts = [0.0, 0.01, 0.03, 0.1, 0.3]
+    res = [reconstruction_metrics(sphere.copy().apply_translation([d, 0, 0]), sphere,
+                                  n_chamfer=5000, n_emd=256) for d in shifts]
+    for key in ("cd", "hd", "emd", "cd_l1"):
+        vals = [r[key] for r in res]
+        assert all(a < b for a, b in zip(vals, vals[1:])), (key, vals)
+    fs = [r["fscore"] for r in res]
+    assert all(a >= b for a, b in zip(fs, fs[1:])) and fs[0] == 1.0 and fs[-1] < 0.2
+
+
+def test_determinism(sphere):
+    other = trimesh.creation.icosphere(subdivisions=3).apply_scale([1.1, 0.9, 1.0])
+    a = reconstruction_metrics(other, sphere, seed=7, n_chamfer=5000, n_emd=256)
+    b = reconstruction_metrics(other, sphere, seed=7, n_chamfer=5000, n_emd=256)
+    c = reconstruction_metrics(other, sphere, seed=8, n_chamfer=5000, n_emd=256)
+    assert a == b
+    assert a["cd"] != c["cd"]
+
+
+def test_emd_of_shifted_set_is_shift_length():
+    rng = np.random.default_rng(0)
+    p = rng.uniform(-1, 1, size=(512, 3))
+    v = np.array([0.03, -0.02, 0.05])
+    assert emd(p, p + v) == pytest.approx(np.linalg.norm(v), rel=1e-9)
+    assert emd(p, rng.permutation(p)) == 0.0
+    with pytest.raises(ValueError):
+        emd(p, p[:10])
+
+
+def test_emd_and_chamfer_by_hand():
+    # both points of b sit on a[0]: EMD must send one of them to a[1] (mean 1/2); squared
+    # Chamfer = mean over a (0 + 1)/2 + mean over b 0.
+    a = np.array([[0.0, 0, 0], [1.0, 0, 0]])
+    b = np.array([[0.0, 0, 0], [0.0, 0, 0]])
+    assert emd(a, b) == pytest.approx(0.5)
+    assert chamfer(a, b) == pytest.approx(0.5)
+
+
+def test_empty_prediction_does_not_crash(sphere):
+    m = reconstruction_metrics(trimesh.Trimesh(), sphere)
+    assert m["empty"] is True
+    assert math.isinf(m["cd"]) and math.isinf(m["hd"]) and math.isinf(m["emd"])
+    assert m["fscore"] == 0.0 and math.isnan(m["normal_consistency"])
+    assert m["area"] == 0.0 and m["gt_area"] == pytest.approx(sphere.area)
+    with pytest.raises(ValueError):
+        reconstruction_metrics(sphere, trimesh.Trimesh())
+
+
+@pytest.mark.parametrize("s", [0.8, 1.1, 1.5])
+def test_volume_area_change_of_scaled_sphere(sphere, s):
+    r = volume_area_change(sphere, sphere.copy().apply_scale(s))
+    assert r["eps_v"] == pytest.approx(abs(s ** 3 - 1), rel=1e-9)
+    assert r["eps_a"] == pytest.approx(abs(s ** 2 - 1), rel=1e-9)
+    assert volume_area_change(sphere, sphere.copy()) == {"eps_v": 0.0, "eps_a": 0.0}
