@@ -26,16 +26,31 @@ class AnnotatedShapes:
         return [load_annotation(a) for a in self.annotations]
 
 
-class AutoGCShapes:
-    """Meshes with one automatic GC each (e.g. the ant's single-GC variant)."""
+class SingleGC:
+    """Another dataset's meshes with one automatic GC each instead of their annotations (the
+    paper's single-GC variant: `ant_1gc`)."""
 
-    def __init__(self, name: str, meshes: list[str], bound: float = 0.8):
-        self.name = name
-        self.meshes = list(meshes)
-        self.bound = bound
+    def __init__(self, name: str, base):
+        self.name, self.base = name, base
 
     def shapes(self) -> list[Annotation]:
-        return [auto_annotation(m, bound=self.bound) for m in self.meshes]
+        return [auto_annotation(a.mesh, name=a.name, bound=a.bound) for a in self.base.shapes()]
+
+
+class Combined:
+    """Several datasets fitted together (e.g. the ant plus a few creatures)."""
+
+    def __init__(self, name: str, parts: list):
+        self.name, self.parts = name, list(parts)
+
+    def shapes(self) -> list[Annotation]:
+        out = [a for p in self.parts for a in p.shapes()]
+        names = [a.name for a in out]
+        dup = sorted({n for n in names if names.count(n) > 1})
+        if dup:
+            raise DataError(f"shape names {dup} appear in more than one part of {self.name}",
+                            fix="rename the shapes so every name is unique")
+        return out
 
 
 class MeshFolder:

@@ -6,6 +6,7 @@ config.yaml (resolved), logs/.
 from __future__ import annotations
 
 import json
+import time
 from pathlib import Path
 
 import hydra
@@ -65,7 +66,9 @@ def run_fit(cfg: DictConfig) -> dict:
                             seed=cfg.seed)
     module = build_module(cfg, dm.n_codes, shapes_meta(prepared, cfg.model.kind))
     trainer = build_trainer(cfg, run_dir)
+    t0 = time.perf_counter()
     trainer.fit(module, datamodule=dm, ckpt_path=cfg.ckpt_path)
+    train_s = time.perf_counter() - t0
     if trainer.global_rank != 0:
         return {}
     module = module.cpu().eval()
@@ -74,7 +77,8 @@ def run_fit(cfg: DictConfig) -> dict:
         metrics = reconstruct(module, run_dir / "meshes", gt, resolution=cfg.extract.resolution,
                               bound=cfg.extract.bound, chunk=cfg.extract.chunk,
                               seed=cfg.metrics_seed)
-    metrics["steps"] = int(trainer.global_step)
+    metrics.update(steps=int(trainer.global_step), train_s=train_s, kind=cfg.model.kind,
+                   checkpoint=str(run_dir / "checkpoints" / "last.ckpt"))
     atomic_write_text(run_dir / "metrics.json", json.dumps(metrics, indent=2))
     print_metrics(metrics)
     print(f"run directory: {run_dir}")
