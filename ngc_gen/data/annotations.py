@@ -1,0 +1,242 @@
+"""GC annotation files: load, validate and save the YAML of DESIGN.md section 2.
+
+```yaml
+name: ant
+mesh: ant.ply            # relative to this file, absolute, or a resource such as pyvista:ant.ply
+normalize: {bound: 0.8}  # optional, default 0.8
+gcs: [ {name, curve: {type, points}, up, keys: [{t, radii, twist}], caps}, ... ]
+```
+
+GC coordinates are in the normalised frame (after ``normalize``). Every problem raises
+``DataError`` naming the file, the GC and the field, and saying how to fix it.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import yaml
+
+from ngc_gen.data.atomic import atomic_write_text
+from ngc_gen.data.errors import DataError
+from ngc_gen.data.mesh_io import is_resource, resolve_mesh_path
+from ngc_gen.geometry import GeneralizedCylinder, GeometryError
+
+TOP_KEYS = {"name", "mesh", "normalize", "gcs"}
+NORMALIZE_KEYS = {"bound"}
+DEFAULT_BOUND = 0.8
+
+# how to fix a geometry error, by the field GeometryError names
+_GEOMETRY_FIXES = {
+    "curve": "write the curve as {type: bezier|spline, points: [[x, y, z], ...]}",
+    "curve.type": "use type 'bezier' or 'spline'",
+    "curve.points": "give at least 2 distinct [x, y, z] points (a Bezier of degree n has n+1 "
+    "control points); the curve must have non-zero length",
+    "keys": "give a list of keys {t: 0..1, radii: [r_y, r_z], twist: degrees}, at least one",
+    "caps": "give two positive cap lengths [l0, l1]",
+    "up": "give up as [x, y, z], not parallel to the curve's start tangent",
+}
+
+
+@dataclass(eq=False)
+class Annotation:
+    """One shape: its mesh, normalisation and generalized cylinders.
+
+    mesh: a resource (``pyvista:ant.ply``) or an absolute path (relative paths in a file are
+    resolved against the file's folder on load). source: the YAML file it came from, if any.
+    Compare annotations by ``to_dict()`` (GCs have no value equality).
+    """
+
+    name: str
+    mesh: str
+    gcs: list[GeneralizedCylinder]
+    bound: float = DEFAULT_BOUND
+    source: Path | None = field(default=None, compare=False)
+
+    @property
+    def mesh_path(self) -> Path:
+        """The mesh file on disk (a resource resolved inside its installed package)."""
+        return resolve_mesh_path(self.mesh)
+
+    @property
+    def gc_names(self) -> list[str]:
+        return [gc.name for gc in self.gcs]
+
+    def to_dict(self, relative_to: str | os.PathLike | None = None) -> dict:
+        """Plain YAML-safe dict; a file mesh path is written relative to ``relative_to`` (a
+        folder) when given, else absolute. Resources stay as written."""
+        mesh = self.mesh
+        if relative_to is not None and not is_resource(mesh):
+            try:
+                mesh = os.path.relpath(mesh, os.fspath(relative_to))
+            except ValueError:  # another drive on Windows: keep it absolute
+                pass
+        return {
+            "name": self.name,
+            "mesh": Path(mesh).as_posix() if not is_resource(mesh) else mesh,
+            "normalize": {"bound": float(self.bound)},
+            "gcs": [gc.to_dict() for gc in self.gcs],
+        }
+
+    def to_yaml(self, relative_to: str | os.PathLike | None = None) -> str:
+        """YAML text of ``to_dict``; short lists inline so control points stay readable."""
+        return yaml.safe_dump(self.to_dict(relative_to), sort_keys=False, default_flow_style=None, width=100)
+
+
+class _UniqueKeyLoader(yaml.SafeLoader):
+    """SafeLoader that refuses a mapping key given twice (PyYAML silently keeps the last)."""
+
+    def construct_mapping(self, node, deep=False):
+        seen = {}
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=deep)
+            if key in seen:
+                mark = key_node.start_mark
+                raise yaml.constructor.ConstructorError(
+                    None, None, f"key {key!r} appears twice (first on line {seen[key] + 1})", mark
+                )
+            seen[key] = key_node.start_mark.line
+        return super().construct_mapping(node, deep=deep)
+
+
+def _is_number(x) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool)
+
+
+def _check_numbers(value, shape: tuple, path, gc: str, fld: str) -> None:
+    """Check ``value`` is a list nest of numbers with ``shape`` (-1: any length, () a scalar)."""
+    if not shape:
+        if not _is_number(value):
+            raise DataError(f"expected a number, got {value!r}", path=path, gc=gc, field=fld,
+                            fix="write a plain number (no quotes, not true/false)")
+        return
+    if not isinstance(value, list) or (shape[0] != -1 and len(value) != shape[0]):
+        want = "a list" if shape[0] == -1 else f"a list of {shape[0]}"
+        raise DataError(f"expected {want}, got {value!r}", path=path, gc=gc, field=fld,
+                        fix=f"write {fld} as {want} of numbers")
+    for i, v in enumerate(value):
+        _check_numbers(v, shape[1:], path, gc, f"{fld}[{i}]")
+
+
+def _check_gc_types(d: dict, path, gc: str) -> None:
+    """Type checks the geometry layer is lenient about (it calls float(), so True -> 1.0)."""
+    curve = d.get("curve")
+    if isinstance(curve, dict) and "points" in curve:
+        _check_numbers(curve["points"], (-1, 3), path, gc, "curve.points")
+    if d.get("up") is not None:
+        _check_numbers(d["up"], (3,), path, gc, "up")
+    if "caps" in d:
+        _check_numbers(d["caps"], (2,), path, gc, "caps")
+    keys = d.get("keys")
+    if isinstance(keys, list):
+        for i, k in enumerate(keys):
+            if not isinstance(k, dict):
+                continue  # geometry reports a non-mapping key with its own message
+            for name in ("t", "twist"):
+                if name in k:
+                    _check_numbers(k[name], (), path, gc, f"keys[{i}].{name}")
+            if "radii" in k:
+                r = k["radii"]
+                _check_numbers(r, () if _is_number(r) else (2,), path, gc, f"keys[{i}].radii")
+
+
+def _parse_gc(d, index: int, path) -> GeneralizedCylinder:
+    where = f"gcs[{index}]"
+    if not isinstance(d, dict):
+        raise DataError(f"each GC must be a mapping, got {type(d).__name__}", path=path, field=where,
+                        fix="write each GC as {name, curve, up, keys, caps}")
+    name = d.get("name")
+    if not isinstance(name, str) or not name.strip():
+        raise DataError(f"missing or empty GC name (got {name!r})", path=path, field=f"{where}.name",
+                        fix="give every GC a unique string name")
+    _check_gc_types(d, path, name)
+    try:
+        return GeneralizedCylinder.from_dict(d)
+    except GeometryError as e:
+        fix = _GEOMETRY_FIXES.get(e.field or "", None)
+        if fix is None and e.field and e.field.startswith("keys"):
+            fix = "give every key t in [0, 1], positive radii [r_y, r_z] and a finite twist"
+        raise DataError(_strip_where(e), path=path, gc=e.gc_name or name, field=e.field,
+                        fix=fix or "correct the GC entry (schema in DESIGN.md section 2)") from e
+
+
+def _strip_where(e: GeometryError) -> str:
+    """The GeometryError message without its "GC 'x', field 'y': " prefix (DataError adds its own)."""
+    message = str(e)
+    for prefix in (f"GC '{e.gc_name}', field '{e.field}': ", f"GC '{e.gc_name}': ", f"field '{e.field}': "):
+        if message.startswith(prefix):
+            return message[len(prefix):]
+    return message
+
+
+def annotation_from_dict(d, source: str | os.PathLike | None = None) -> Annotation:
+    """Validate an annotation dict and build its GCs.
+
+    source: the file the dict came from; it names errors and anchors a relative mesh path
+    (without it a relative path is taken relative to the working directory).
+    """
+    path = None if source is None else Path(source)
+    if not isinstance(d, dict):
+        raise DataError(f"an annotation must be a mapping at the top level, got {type(d).__name__}",
+                        path=path, fix="write keys name, mesh, normalize, gcs at the top level")
+    unknown = set(d) - TOP_KEYS
+    if unknown:
+        raise DataError(f"unknown keys {sorted(unknown)}", path=path,
+                        fix=f"use only {sorted(TOP_KEYS)} (check the spelling)")
+    name = d.get("name", path.stem if path is not None else None)
+    if not isinstance(name, str) or not name.strip():
+        raise DataError(f"missing or empty shape name (got {name!r})", path=path, field="name",
+                        fix="add 'name: <shape name>'")
+    mesh = d.get("mesh")
+    if not isinstance(mesh, str) or not mesh.strip():
+        raise DataError(f"missing mesh (got {mesh!r})", path=path, field="mesh",
+                        fix="add 'mesh: <file>' relative to the annotation, or a resource like pyvista:ant.ply")
+    if not is_resource(mesh):
+        mesh = os.path.abspath(resolve_mesh_path(mesh, path.parent if path is not None else None))
+    norm = d.get("normalize", {}) or {}
+    if not isinstance(norm, dict) or set(norm) - NORMALIZE_KEYS:
+        raise DataError(f"normalize must be a mapping {{bound: number}}, got {norm!r}", path=path,
+                        field="normalize", fix="write 'normalize: {bound: 0.8}' or leave it out")
+    bound = norm.get("bound", DEFAULT_BOUND)
+    if not _is_number(bound) or not 0 < bound < float("inf"):
+        raise DataError(f"bound must be a positive number, got {bound!r}", path=path,
+                        field="normalize.bound", fix="use e.g. 0.8 (the mesh then fits [-0.8, 0.8]^3)")
+    gcs = d.get("gcs")
+    if not isinstance(gcs, list) or not gcs:
+        raise DataError(f"gcs must be a non-empty list of GCs, got {gcs!r}", path=path, field="gcs",
+                        fix="add at least one GC, or delete the annotation to get an automatic GC")
+    parsed = [_parse_gc(g, i, path) for i, g in enumerate(gcs)]
+    names = [g.name for g in parsed]
+    dupes = sorted({n for n in names if names.count(n) > 1})
+    if dupes:
+        raise DataError(f"GC names {dupes} appear more than once", path=path, gc=dupes[0], field="name",
+                        fix="give every GC a unique name")
+    return Annotation(name=name, mesh=mesh, gcs=parsed, bound=float(bound), source=path)
+
+
+def load_annotation(path: str | os.PathLike) -> Annotation:
+    """Read and validate an annotation YAML file (raises DataError with file/GC/field)."""
+    path = Path(path)
+    if not path.is_file():
+        raise DataError("annotation file not found", path=path, fix="check the path")
+    try:
+        d = yaml.load(path.read_text(encoding="utf-8"), Loader=_UniqueKeyLoader)
+    except yaml.YAMLError as e:
+        mark = getattr(e, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+        problem = getattr(e, "problem", None) or str(e)
+        fix = ("remove or rename one of the two entries" if "appears twice" in problem
+               else "correct the YAML syntax (indentation, brackets, 'key: value')")
+        raise DataError(f"malformed YAML{where}: {problem}", path=path, fix=fix) from e
+    except UnicodeDecodeError as e:
+        raise DataError(f"not a UTF-8 text file ({e})", path=path, fix="save the annotation as UTF-8 YAML") from e
+    return annotation_from_dict(d, source=path)
+
+
+def save_annotation(ann: Annotation, path: str | os.PathLike) -> Path:
+    """Write ``ann`` as YAML atomically (temp file + os.replace); a file mesh path is written
+    relative to the new file's folder so the pair can be moved together. Returns the path."""
+    path = Path(path)
+    return atomic_write_text(path, ann.to_yaml(relative_to=os.path.abspath(path.parent)))

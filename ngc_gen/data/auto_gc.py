@@ -1,0 +1,128 @@
+"""A default generalized cylinder for a mesh that has no annotation.
+
+One straight GC along the mesh's principal axis (PCA of the vertices) with an elliptic profile
+along the 2nd/3rd principal axes, and end caps sized so every vertex lies inside with a small
+margin. The paper reports that a single GC fits about as well as several, so this is a usable
+default, not only a fallback. The result is checked with ``contains`` and grown if needed.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from ngc_gen.data.annotations import Annotation
+from ngc_gen.data.errors import DataError
+from ngc_gen.data.mesh_io import is_resource, load_mesh, normalize
+from ngc_gen.geometry import GeneralizedCylinder
+
+log = logging.getLogger(__name__)
+
+
+def principal_axes(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Mean (3,) and principal axes (3, 3), rows by decreasing variance, right-handed, each
+    with its largest component positive so the result does not depend on SVD sign choices."""
+    center = points.mean(axis=0)
+    _, _, vt = np.linalg.svd(points - center, full_matrices=False)
+    axes = vt * np.sign(vt[np.arange(3), np.argmax(np.abs(vt), axis=1)])[:, None]
+    axes[2] = np.cross(axes[0], axes[1])
+    return center, axes
+
+
+def _ellipse_radii(y: np.ndarray, z: np.ndarray, floor: float, n: int = 64) -> tuple[float, float]:
+    """Smallest-area axis-aligned ellipse (r_y, r_z), centred at 0, that holds all (y, z).
+
+    For an aspect k = r_z/r_y the tight r_y is max sqrt(y^2 + (z/k)^2); scan k on a log grid
+    around the extent ratio (a loop over n aspects, each vectorised over points)."""
+    ym, zm = max(np.abs(y).max(), floor), max(np.abs(z).max(), floor)
+    best = (np.inf, ym * np.sqrt(2.0), zm * np.sqrt(2.0))  # the box's circumscribed ellipse
+    for k in (zm / ym) * np.geomspace(1 / 8, 8, n):
+        ry = max(float(np.sqrt((y * y + (z / k) ** 2).max())), floor, floor / k)
+        if ry * ry * k < best[0]:
+            best = (ry * ry * k, ry, ry * k)
+    return best[1], best[2]
+
+
+def _cap(s: np.ndarray, slack: np.ndarray, ends: np.ndarray, floor: float) -> tuple[float, float]:
+    """Best end position along the axis and its cap length for points past it.
+
+    s: (V,) axial coordinate (the end faces +s); slack: (V,) sqrt(1 - a^2 - b^2) > 0.
+    For an end at e, a point with s > e is inside the half-ellipsoid cap of length l iff
+    ((s - e)/l)^2 + a^2 + b^2 <= 1, i.e. l >= (s - e)/slack. Picks the e in ``ends`` that
+    minimises this end's share of the GC volume, proportional to e + 2/3 l (tube + half
+    ellipsoid); a flat end (tiny cap) is allowed but a rounded one wins when it is smaller."""
+    best = (np.inf, float(ends[-1]), floor)
+    for e in ends:
+        past = s > e
+        cap = max(float(((s[past] - e) / slack[past]).max()) if past.any() else 0.0, floor)
+        if e + 2.0 * cap / 3.0 < best[0]:
+            best = (e + 2.0 * cap / 3.0, float(e), cap)
+    return best[1], best[2]
+
+
+def auto_gc(mesh: trimesh.Trimesh | np.ndarray, name: str = "body", margin: float = 0.02,
+            max_grow: int = 30) -> GeneralizedCylinder:
+    """One straight GC enclosing every vertex of ``mesh`` (a Trimesh or vertices (V, 3)).
+
+    Axis: the first principal axis through the centre of the cross-section's bounding box;
+    up = 2nd principal axis, so radii [r_y, r_z] lie along the 2nd and 3rd axes. Radii and caps
+    are scaled by (1 + margin). The GC is convex, so holding every vertex means holding every
+    surface point. Raises DataError if ``contains`` still misses vertices after ``max_grow``
+    growth steps of 5% (not expected; it guards numerical corner cases).
+    """
+    X = np.asarray(mesh.vertices if isinstance(mesh, trimesh.Trimesh) else mesh, dtype=np.float64)
+    if X.ndim != 2 or X.shape[1] != 3 or len(X) < 2 or not np.isfinite(X).all():
+        raise DataError(f"auto_gc needs finite vertices (V >= 2, 3), got shape {X.shape}", gc=name,
+                        fix="load the mesh with load_mesh, which validates it")
+    center, axes = principal_axes(X)
+    S = (X - center) @ axes.T  # (V, 3) coordinates in the principal frame
+    lo, hi = S.min(axis=0), S.max(axis=0)
+    size = float((hi - lo).max())
+    if not size > 0:
+        raise DataError("all vertices coincide", gc=name, fix="give a mesh with extent")
+    mid = (lo + hi) / 2.0
+    origin = center + mid[1] * axes[1] + mid[2] * axes[2]  # axis through the cross-section box centre
+    y, z = S[:, 1] - mid[1], S[:, 2] - mid[2]
+    floor = 1e-3 * size  # keeps radii/caps positive for flat or line-like meshes
+    ry, rz = (r * (1.0 + margin) for r in _ellipse_radii(y, z, floor))
+    slack = np.sqrt(np.clip(1.0 - (y / ry) ** 2 - (z / rz) ** 2, 1e-12, None))
+    half = (hi[0] - lo[0]) / 2.0
+    steps = np.linspace(0.05, 1.0, 64) * max(half, floor)
+    end, l1 = _cap(S[:, 0] - mid[0], slack, steps, floor)
+    start, l0 = _cap(mid[0] - S[:, 0], slack, steps, floor)
+    axis = axes[0]
+    gc = GeneralizedCylinder.from_dict({
+        "name": name,
+        "curve": {"type": "bezier", "points": [(origin + (mid[0] - start) * axis).tolist(),
+                                                (origin + (mid[0] + end) * axis).tolist()]},
+        "up": axes[1].tolist(),
+        "keys": [{"t": 0.0, "radii": [ry, rz], "twist": 0.0}],
+        "caps": [l0 * (1.0 + margin), l1 * (1.0 + margin)],
+    })
+    for step in range(max_grow + 1):
+        missed = int((~np.asarray(gc.contains(X))).sum())
+        if missed == 0:
+            if step:
+                log.info("auto_gc %s: grew %d times to hold every vertex", name, step)
+            return gc
+        d = gc.to_dict()
+        d["keys"] = [{**k, "radii": [r * 1.05 for r in k["radii"]]} for k in d["keys"]]
+        d["caps"] = [c * 1.05 for c in d["caps"]]
+        gc = GeneralizedCylinder.from_dict(d)
+    raise DataError(f"automatic GC still misses {missed} of {len(X)} vertices after {max_grow} growth steps",
+                    gc=name, fix="annotate this mesh by hand")
+
+
+def auto_annotation(mesh: str | os.PathLike, name: str | None = None, bound: float = 0.8) -> Annotation:
+    """Annotation with one automatic GC for a mesh file (or resource) that has none.
+
+    The GC is fitted to the normalised mesh, as annotation coordinates are normalised ones."""
+    normalized, _, _ = normalize(load_mesh(mesh), bound)
+    spec = str(mesh) if is_resource(str(mesh)) else os.path.abspath(mesh)
+    if name is None:
+        name = Path(spec.split(":", 1)[-1] if is_resource(spec) else spec).stem
+    return Annotation(name=name, mesh=spec, gcs=[auto_gc(normalized)], bound=bound)

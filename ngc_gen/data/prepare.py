@@ -1,0 +1,289 @@
+"""Turn an annotated mesh into cached training samples (DESIGN.md section 3).
+
+Per shape: normalise the mesh, check that the GC union covers its surface, sample near-surface
+points (surface + normal * N(0, offset_std)) and volume points uniform in the GC union, compute
+the signed distance (winding-number sign) and the relative coordinates of every sample in every
+GC that contains it. The result is one npz per shape, written atomically and keyed by a hash of
+(mesh bytes, annotation, settings): an unchanged shape is loaded, any change re-prepares, and the
+training loop does no geometry.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import logging
+import os
+import re
+import time
+import zipfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from ngc_gen.data.annotations import Annotation, annotation_from_dict, load_annotation
+from ngc_gen.data.atomic import atomic_write
+from ngc_gen.data.errors import DataError
+from ngc_gen.data.mesh_io import load_mesh, normalize
+from ngc_gen.data.sampling import gc_membership, sample_surface, sample_volume
+from ngc_gen.data.sdf import signed_distance
+from ngc_gen.geometry import GeneralizedCylinder
+
+log = logging.getLogger(__name__)
+
+CACHE_VERSION = 1  # bump when the cached arrays or their meaning change
+
+
+@dataclass(frozen=True)
+class PrepareSettings:
+    """How many samples of which kind; every field is part of the cache key.
+
+    n_samples: training samples per shape; surface_fraction of them are near-surface
+    (surface point + normal * N(0, offset_std)), the rest uniform in the GC union.
+    coverage_samples exact surface points measure coverage; below min_coverage preparation stops.
+    """
+
+    n_samples: int = 100_000
+    surface_fraction: float = 0.7
+    offset_std: float = 0.01
+    coverage_samples: int = 100_000
+    min_coverage: float = 0.999
+    seed: int = 0
+
+    def __post_init__(self):
+        checks = {
+            "n_samples": self.n_samples >= 1,
+            "surface_fraction": 0.0 <= self.surface_fraction <= 1.0,
+            "offset_std": self.offset_std >= 0.0,
+            "coverage_samples": self.coverage_samples >= 1,
+            "min_coverage": 0.0 <= self.min_coverage <= 1.0,
+        }
+        for name, ok in checks.items():
+            if not ok:
+                raise DataError(f"invalid value {getattr(self, name)!r}", field=f"prepare.{name}",
+                                fix="n_samples, coverage_samples >= 1; surface_fraction, min_coverage "
+                                    "in [0, 1]; offset_std >= 0")
+
+
+@dataclass
+class PreparedShape:
+    """Cached training data of one shape (arrays as stored in the npz).
+
+    points (M, 3) f32 samples in the normalised frame, the first n_surface near-surface;
+    sdf (M,) f32, negative inside; pair_point (P,) i64, pair_gc (P,) i64, pair_rel (P, 3) f32:
+    sample pair_point[i] lies inside GC pair_gc[i] at relative coords [u, a, b] (a sample in
+    k GCs has k pairs, one in none has none); gc_names (G,); coverage of the surface by the GC
+    union; mesh_vertices (V, 3) f64 / mesh_faces (F, 3) i64: the normalised mesh, with
+    ``normalised = (original - center) * scale``.
+    """
+
+    name: str
+    key: str
+    points: np.ndarray
+    sdf: np.ndarray
+    n_surface: int
+    pair_point: np.ndarray
+    pair_gc: np.ndarray
+    pair_rel: np.ndarray
+    gc_names: list[str]
+    annotation_yaml: str
+    coverage: float
+    mesh_vertices: np.ndarray
+    mesh_faces: np.ndarray
+    center: np.ndarray
+    scale: float
+    settings: dict
+    path: Path | None = field(default=None, compare=False)
+    from_cache: bool = field(default=False, compare=False)
+
+    def annotation(self) -> Annotation:
+        """The annotation the samples were made from (mesh as an absolute path or resource)."""
+        return annotation_from_dict(yaml.safe_load(self.annotation_yaml))
+
+    def gcs(self) -> list[GeneralizedCylinder]:
+        """The shape's GCs, in the order pair_gc indexes them."""
+        return self.annotation().gcs
+
+
+_ARRAYS = ("points", "sdf", "pair_point", "pair_gc", "pair_rel", "mesh_vertices", "mesh_faces", "center")
+_SCALARS = {"name": str, "key": str, "annotation_yaml": str, "coverage": float, "scale": float, "n_surface": int}
+
+
+def cache_key(mesh_bytes: bytes, annotation: Annotation, settings: PrepareSettings) -> str:
+    """sha256 over the mesh file bytes, the annotation content (not its mesh path, so moving a
+    dataset keeps its cache) and the settings."""
+    content = annotation.to_dict()
+    content.pop("mesh")
+    h = hashlib.sha256()
+    h.update(f"ngc-gen-prepare-v{CACHE_VERSION}".encode())
+    h.update(hashlib.sha256(mesh_bytes).digest())
+    h.update(json.dumps(content, sort_keys=True).encode())
+    h.update(json.dumps(dataclasses.asdict(settings), sort_keys=True).encode())
+    return h.hexdigest()
+
+
+def cache_path(cache_dir: str | os.PathLike, name: str) -> Path:
+    """One npz per shape name: ``<cache_dir>/<name>.npz`` (unsafe characters replaced)."""
+    return Path(cache_dir) / (re.sub(r"[^A-Za-z0-9._-]", "_", name) + ".npz")
+
+
+def load_prepared(path: str | os.PathLike) -> PreparedShape:
+    """Load a prepared-shape npz (raises DataError if it is missing, corrupt or incomplete)."""
+    path = Path(path)
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            arrays = {k: z[k] for k in _ARRAYS}
+            scalars = {k: t(z[k][()]) for k, t in _SCALARS.items()}
+            gc_names = [str(s) for s in z["gc_names"]]
+            settings = json.loads(str(z["settings_json"][()]))
+            version = int(z["cache_version"][()])
+    except FileNotFoundError as e:
+        raise DataError("prepared cache file not found", path=path, fix="run preparation first") from e
+    except (KeyError, ValueError, OSError, zipfile.BadZipFile, EOFError) as e:
+        raise DataError(f"prepared cache file is unreadable or incomplete ({type(e).__name__}: {e})",
+                        path=path, fix="delete it; the next preparation rewrites it") from e
+    if version != CACHE_VERSION:
+        raise DataError(f"cache format v{version}, this code reads v{CACHE_VERSION}", path=path,
+                        fix="delete it; the next preparation rewrites it")
+    return PreparedShape(**arrays, **scalars, gc_names=gc_names, settings=settings, path=path)
+
+
+def _stored_key(path: Path) -> str | None:
+    """The key inside an existing cache file, or None if there is none or it is unreadable."""
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            return str(z["key"][()])
+    except (FileNotFoundError, KeyError, ValueError, OSError, zipfile.BadZipFile, EOFError):
+        return None
+
+
+def _save(shape: PreparedShape, path: Path) -> None:
+    arrays = {k: getattr(shape, k) for k in _ARRAYS}
+    scalars = {k: np.array(getattr(shape, k)) for k in _SCALARS}
+    extra = {
+        "gc_names": np.array(shape.gc_names, dtype=str),
+        "settings_json": np.array(json.dumps(shape.settings, sort_keys=True)),
+        "cache_version": np.array(CACHE_VERSION),
+    }
+    atomic_write(path, lambda f: np.savez(f, **arrays, **scalars, **extra))
+
+
+def _gap_to_gc(gc: GeneralizedCylinder, q: np.ndarray) -> np.ndarray:
+    """World distance (N,) from points q (N, 3) outside ``gc`` to its boundary along the ray
+    from the GC's core (axis point, or end centre past a cap): (1 - 1/rho) |q - core|, where
+    rho = sqrt(max(|u|-1, 0)^2 + a^2 + b^2) is 1 on the boundary. An upper bound of the true
+    distance, in the normalised frame, comparable between GCs of different sizes."""
+    rel = np.asarray(gc.to_relative(q))
+    rho = np.sqrt(np.clip(np.abs(rel[:, 0]) - 1.0, 0.0, None) ** 2 + rel[:, 1] ** 2 + rel[:, 2] ** 2)
+    core = np.asarray(gc.to_world(np.stack([np.clip(rel[:, 0], -1.0, 1.0), 0 * rho, 0 * rho], axis=1)))
+    gap = np.clip(1.0 - 1.0 / np.maximum(rho, 1e-12), 0.0, None) * np.linalg.norm(q - core, axis=1)
+    return np.where(np.isfinite(gap), gap, np.inf)
+
+
+def _coverage_error(ann: Annotation, uncovered: np.ndarray, n_total: int, coverage: float,
+                    min_coverage: float) -> DataError:
+    """DataError naming the GC nearest to the uncovered surface points (uncovered: (U, 3))."""
+    gap = np.stack([_gap_to_gc(gc, uncovered) for gc in ann.gcs])  # (G, U)
+    nearest = gap.argmin(axis=0)
+    counts = np.bincount(nearest, minlength=len(ann.gcs))
+    order = [int(g) for g in np.argsort(-counts, kind="stable") if counts[g] > 0]
+    top = order[0]
+    mine = nearest == top
+    lo, hi = uncovered[mine].min(axis=0), uncovered[mine].max(axis=0)
+    others = ", ".join(f"'{ann.gcs[g].name}' ({counts[g]})" for g in order[1:4])
+    what = (f"the GCs cover only {coverage:.4%} of the mesh surface (need {min_coverage:.4%}): "
+            f"{len(uncovered)} of {n_total} surface samples are outside every GC; nearest GC "
+            f"'{ann.gcs[top].name}' for {counts[top]} of them (up to {gap[top, mine].max():.3g} outside "
+            f"it), its missed points lie in the box "
+            f"{np.round(lo, 3).tolist()}..{np.round(hi, 3).tolist()}"
+            + (f"; also near {others}" if others else ""))
+    where = ann.source if ann.source is not None else f"automatic annotation of {ann.mesh}"
+    return DataError(what, path=where, gc=ann.gcs[top].name, field="gcs",
+                     fix=f"enlarge the radii or caps of '{ann.gcs[top].name}', move its curve "
+                         f"towards those points, or add a GC there (coordinates are normalised: "
+                         f"the mesh is fitted into [-{ann.bound:g}, {ann.bound:g}]^3)")
+
+
+def _in_context(e: DataError, ann: Annotation) -> DataError:
+    """The same error, also naming the annotation whose mesh it concerns."""
+    owner = ann.source if ann.source is not None else f"automatic annotation '{ann.name}'"
+    return DataError(f"{e.what} (mesh of {owner})", path=e.path or ann.mesh, gc=e.gc,
+                     field=e.field or "mesh", fix=e.fix)
+
+
+def compute_prepared(ann: Annotation, settings: PrepareSettings, key: str = "") -> PreparedShape:
+    """Sample one shape (no cache involved); raises DataError on bad data or low coverage."""
+    rng = np.random.default_rng(settings.seed)
+    try:
+        mesh, center, scale = normalize(load_mesh(ann.mesh_path), ann.bound)
+        V, F = np.asarray(mesh.vertices), np.asarray(mesh.faces)
+        exact, _ = sample_surface(V, F, settings.coverage_samples, rng)
+    except DataError as e:
+        raise _in_context(e, ann) from e
+    gcs = ann.gcs
+
+    covered = np.zeros(len(exact), dtype=bool)
+    covered[gc_membership(exact, gcs)[0]] = True
+    coverage = float(covered.mean())
+    if coverage < settings.min_coverage:
+        raise _coverage_error(ann, exact[~covered], len(exact), coverage, settings.min_coverage)
+
+    n_surface = int(round(settings.n_samples * settings.surface_fraction))
+    surf, normals = sample_surface(V, F, n_surface, rng)
+    surf += normals * rng.normal(0.0, settings.offset_std, size=(n_surface, 1))
+    vol, (vp, vg, vr) = sample_volume(gcs, settings.n_samples - n_surface, rng)
+    sp, sg, sr = gc_membership(surf, gcs)
+    points = np.concatenate([surf, vol])
+    sdf = signed_distance(points, V, F)
+    return PreparedShape(
+        name=ann.name, key=key,
+        points=points.astype(np.float32), sdf=sdf.astype(np.float32), n_surface=n_surface,
+        pair_point=np.concatenate([sp, vp + n_surface]).astype(np.int64),
+        pair_gc=np.concatenate([sg, vg]).astype(np.int64),
+        pair_rel=np.concatenate([sr, vr]).astype(np.float32),
+        gc_names=ann.gc_names, annotation_yaml=ann.to_yaml(), coverage=coverage,
+        mesh_vertices=V.astype(np.float64), mesh_faces=F.astype(np.int64),
+        center=np.asarray(center, dtype=np.float64), scale=float(scale),
+        settings=dataclasses.asdict(settings),
+    )
+
+
+def prepare_shape(annotation: Annotation | str | os.PathLike, settings: PrepareSettings | None = None,
+                  cache_dir: str | os.PathLike | None = None) -> PreparedShape:
+    """Prepared samples of one shape, from ``cache_dir`` if an up-to-date npz is there.
+
+    annotation: an Annotation or the path of its YAML. With cache_dir None nothing is written.
+    On any DataError (missing/empty/NaN mesh, bad annotation, coverage below
+    settings.min_coverage) no cache file is written. Logs one line with coverage and counts.
+    """
+    ann = annotation if isinstance(annotation, Annotation) else load_annotation(annotation)
+    settings = settings or PrepareSettings()
+    try:
+        mesh_file = ann.mesh_path
+        if not mesh_file.is_file():
+            load_mesh(mesh_file)  # raises the DataError that explains the missing file
+    except DataError as e:
+        raise _in_context(e, ann) from e
+    key = cache_key(mesh_file.read_bytes(), ann, settings)
+    path = None if cache_dir is None else cache_path(cache_dir, ann.name)
+    if path is not None and _stored_key(path) == key:
+        shape = load_prepared(path)
+        shape.from_cache = True
+        log.info("%s: cached %s (coverage %.4f%%)", ann.name, path, 100 * shape.coverage)
+        return shape
+    start = time.perf_counter()
+    shape = compute_prepared(ann, settings, key)
+    if path is not None:
+        _save(shape, path)
+        shape.path = path
+    inside = np.zeros(len(shape.points), dtype=bool)
+    inside[shape.pair_point] = True
+    log.info("%s: coverage %.4f%%, %d samples (%d near-surface, %d volume, %d in no GC), "
+             "%d GC pairs over %d GCs, %.2f s%s", ann.name, 100 * shape.coverage, len(shape.points),
+             shape.n_surface, len(shape.points) - shape.n_surface, int((~inside).sum()),
+             len(shape.pair_point), len(shape.gc_names), time.perf_counter() - start,
+             f" -> {path}" if path is not None else "")
+    return shape

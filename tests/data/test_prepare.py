@@ -1,0 +1,233 @@
+"""Data preparation: samples, SDF, relative-coordinate pairs, coverage check and the npz cache."""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+
+import numpy as np
+import pytest
+import trimesh
+import yaml
+
+from ngc_gen.data import prepare as prepare_module
+from ngc_gen.data.annotations import load_annotation
+from ngc_gen.data.auto_gc import auto_annotation
+from ngc_gen.data.errors import DataError
+from ngc_gen.data.prepare import PrepareSettings, cache_path, load_prepared, prepare_shape
+from ngc_gen.geometry import GeneralizedCylinder
+
+SMALL = PrepareSettings(n_samples=5_000, coverage_samples=5_000)
+
+
+@pytest.fixture
+def cache(tmp_path):
+    return tmp_path / "cache"
+
+
+def test_arrays_sdf_and_pairs(sphere_annotation, cache):
+    shape = prepare_shape(sphere_annotation, SMALL, cache)
+    M, n_surface = 5_000, 3_500
+    assert shape.points.shape == (M, 3) and shape.points.dtype == np.float32
+    assert shape.sdf.shape == (M,) and shape.sdf.dtype == np.float32
+    assert shape.n_surface == n_surface and shape.coverage == 1.0 and shape.gc_names == ["body"]
+    assert shape.pair_point.dtype == np.int64 and shape.pair_gc.dtype == np.int64
+    assert shape.pair_rel.shape == (len(shape.pair_point), 3) and shape.pair_rel.dtype == np.float32
+    # SDF of the (faceted) unit sphere scaled to radius 0.8: |p| - 0.8 up to the faceting error
+    r = np.linalg.norm(shape.points.astype(np.float64), axis=1)
+    np.testing.assert_allclose(shape.sdf, r - 0.8, atol=4e-3)
+    near = shape.sdf[:n_surface]
+    assert 0.006 < np.abs(near).mean() < 0.01  # offsets N(0, 0.01): E|x| = 0.008
+    # every volume sample lies in the GC, and the pairs' relative coords map back to the samples
+    assert np.all(np.isin(np.arange(n_surface, M), shape.pair_point))
+    gc = shape.gcs()[0]
+    assert np.all(GeneralizedCylinder.inside_relative(shape.pair_rel.astype(np.float64)))
+    np.testing.assert_allclose(gc.to_world(shape.pair_rel.astype(np.float64)),
+                               shape.points[shape.pair_point], atol=1e-4)
+    # the normalised mesh and its transform are stored
+    assert shape.mesh_vertices.shape == (2562, 3) and shape.mesh_faces.shape == (5120, 3)
+    assert shape.scale == pytest.approx(0.8) and np.allclose(shape.center, 0.0)
+
+
+def test_sample_in_k_gcs_has_k_pairs(sphere_file, write_yaml, gc_dict, cache):
+    path = write_yaml({"name": "two", "mesh": sphere_file.name,
+                       "gcs": [gc_dict("left", -0.6, 0.1), gc_dict("right", -0.1, 0.6)]})
+    shape = prepare_shape(path, SMALL, cache)
+    gcs = shape.gcs()
+    expected = sum(np.asarray(g.contains(shape.points.astype(np.float64)), dtype=int) for g in gcs)
+    np.testing.assert_array_equal(np.bincount(shape.pair_point, minlength=len(shape.points)), expected)
+    assert (expected == 2).sum() > 300
+    for g, gc in enumerate(gcs):
+        sel = shape.pair_gc == g
+        np.testing.assert_allclose(gc.to_world(shape.pair_rel[sel].astype(np.float64)),
+                                   shape.points[shape.pair_point[sel]], atol=1e-4)
+
+
+def test_volume_samples_are_uniform_over_the_union(sphere_file, write_yaml, gc_dict, cache):
+    """A small GC nested in a big one must not double the sample density where they overlap."""
+    big, small = gc_dict("big", -0.3, 0.3, (0.9, 0.9), (0.8, 0.8)), gc_dict("small", -0.1, 0.1, (0.3, 0.3), (0.2, 0.2))
+    path = write_yaml({"name": "nested", "mesh": sphere_file.name, "gcs": [big, small]})
+    settings = dataclasses.replace(SMALL, surface_fraction=0.0, n_samples=10_000)
+    shape = prepare_shape(path, settings, cache)
+
+    def volume(d):
+        ry, rz = d["keys"][0]["radii"]
+        length = d["curve"]["points"][1][0] - d["curve"]["points"][0][0]
+        return np.pi * ry * rz * (length + 2.0 / 3.0 * sum(d["caps"]))
+
+    p = volume(small) / volume(big)  # uniform: P(in small) = vol(small) / vol(union = big)
+    frac = np.isin(np.arange(10_000), shape.pair_point[shape.pair_gc == 1]).mean()
+    assert abs(frac - p) < 4 * np.sqrt(p * (1 - p) / 10_000)
+
+
+def test_deterministic_for_a_seed(sphere_annotation):
+    a, b = prepare_shape(sphere_annotation, SMALL), prepare_shape(sphere_annotation, SMALL)
+    np.testing.assert_array_equal(a.points, b.points)
+    np.testing.assert_array_equal(a.pair_rel, b.pair_rel)
+    c = prepare_shape(sphere_annotation, dataclasses.replace(SMALL, seed=1))
+    assert not np.array_equal(a.points, c.points)
+
+
+def test_cache_is_reused(sphere_annotation, cache, monkeypatch):
+    first = prepare_shape(sphere_annotation, SMALL, cache)
+    assert first.path == cache_path(cache, "sphere") and not first.from_cache
+    mtime = first.path.stat().st_mtime_ns
+
+    def fail(*args, **kwargs):
+        raise AssertionError("re-prepared an unchanged shape")
+
+    monkeypatch.setattr(prepare_module, "compute_prepared", fail)
+    second = prepare_shape(sphere_annotation, SMALL, cache)
+    assert second.from_cache and second.path.stat().st_mtime_ns == mtime
+    assert second.key == first.key
+    np.testing.assert_array_equal(second.points, first.points)
+    np.testing.assert_array_equal(second.pair_point, first.pair_point)
+    assert second.annotation().to_dict() == load_annotation(sphere_annotation).to_dict()
+    assert os.listdir(cache) == ["sphere.npz"]  # one file per shape, no temp files
+
+
+def test_cache_invalidation(sphere_annotation, sphere_file, cache):
+    key = prepare_shape(sphere_annotation, SMALL, cache).key
+    changed = prepare_shape(sphere_annotation, dataclasses.replace(SMALL, seed=7), cache)
+    assert not changed.from_cache and changed.key != key  # settings change
+
+    d = yaml.safe_load(sphere_annotation.read_text())
+    d["gcs"][0]["keys"][0]["radii"] = [0.95, 0.95]
+    sphere_annotation.write_text(yaml.safe_dump(d))
+    edited = prepare_shape(sphere_annotation, SMALL, cache)
+    assert not edited.from_cache and edited.key not in (key, changed.key)  # annotation change
+
+    trimesh.creation.icosphere(subdivisions=3, radius=1.0).export(sphere_file)
+    remeshed = prepare_shape(sphere_annotation, SMALL, cache)
+    assert not remeshed.from_cache and remeshed.mesh_faces.shape == (1280, 3)  # mesh change
+    assert prepare_shape(sphere_annotation, SMALL, cache).from_cache
+    assert load_prepared(remeshed.path).key == remeshed.key
+
+
+def test_corrupt_cache_is_replaced(sphere_annotation, cache):
+    cache.mkdir()
+    cache_path(cache, "sphere").write_bytes(b"not an npz")
+    with pytest.raises(DataError, match="unreadable"):
+        load_prepared(cache_path(cache, "sphere"))
+    shape = prepare_shape(sphere_annotation, SMALL, cache)
+    assert not shape.from_cache and load_prepared(shape.path).key == shape.key
+
+
+NAN_PLY = """ply
+format ascii 1.0
+element vertex 3
+property float x
+property float y
+property float z
+element face 1
+property list uchar int vertex_indices
+end_header
+0 0 0
+1 nan 0
+0 1 0
+3 0 1 2
+"""
+
+
+def _bad_case(case, tmp_path, gc_dict):
+    """(annotation yaml text, words expected in the error) for each kind of bad input."""
+    gc = gc_dict("body", -0.3, 0.3)
+    doc = {"name": "bad", "mesh": "sphere.ply", "gcs": [gc]}
+    if case == "missing_mesh":
+        doc["mesh"] = "nowhere.ply"
+        return doc, ["nowhere.ply", "not found"]
+    if case == "empty_mesh":
+        (tmp_path / "points.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\n")
+        doc["mesh"] = "points.obj"
+        return doc, ["points.obj", "no triangles"]
+    if case == "nan_vertices":
+        (tmp_path / "nan.ply").write_text(NAN_PLY)
+        doc["mesh"] = "nan.ply"
+        return doc, ["nan.ply", "NaN"]
+    if case == "malformed_yaml":
+        return "name: bad\ngcs: [ {name: a\n", ["malformed YAML"]
+    if case == "zero_length":
+        gc["curve"]["points"] = [[0.1, 0, 0], [0.1, 0, 0]]
+        return doc, ["GC 'body'", "zero length"]
+    if case == "zero_radius":
+        gc["keys"][0]["radii"] = [0.9, 0.0]
+        return doc, ["GC 'body'", "radii"]
+    if case == "bezier_one_point":
+        gc["curve"]["points"] = [[0.1, 0, 0]]
+        return doc, ["GC 'body'", "at least 2 points"]
+    if case == "not_covering":
+        gc["caps"] = [0.01, 0.01]  # flat ends: the sphere's poles along x stick out
+        doc["gcs"].append(gc_dict("far", 0.0, 0.2, (0.05, 0.05), (0.05, 0.05)))
+        doc["gcs"][1]["curve"]["points"] = [[0.0, -0.9, 0.9], [0.2, -0.9, 0.9]]
+        return doc, ["GC 'body'", "cover only", "surface samples are outside", "enlarge the radii or caps"]
+    raise KeyError(case)
+
+
+@pytest.mark.parametrize("case", ["missing_mesh", "empty_mesh", "nan_vertices", "malformed_yaml", "zero_length",
+                                  "zero_radius", "bezier_one_point", "not_covering"])
+def test_bad_input_raises_and_writes_no_cache(case, tmp_path, sphere_file, write_yaml, gc_dict, cache):
+    content, words = _bad_case(case, tmp_path, gc_dict)
+    path = write_yaml(content, name=f"{case}.yaml")
+    with pytest.raises(DataError) as e:
+        prepare_shape(path, SMALL, cache)
+    message = str(e.value)
+    for w in words:
+        assert w in message, message
+    assert "Fix:" in message
+    if case in ("missing_mesh", "empty_mesh", "nan_vertices"):
+        assert f"{case}.yaml" in message  # the annotation whose mesh is bad
+    assert not cache.exists() or not any(cache.iterdir())
+
+
+def test_coverage_error_names_annotation_and_nearest_gc(sphere_file, write_yaml, gc_dict, cache):
+    left = gc_dict("left", -0.3, 0.0, (0.9, 0.9), (0.8, 0.05))  # covers x < 0
+    right = gc_dict("right", 0.0, 0.3, (0.7, 0.7), (0.6, 0.6))  # too thin for the sphere's x > 0 half
+    path = write_yaml({"name": "halves", "mesh": sphere_file.name, "gcs": [left, right]})
+    with pytest.raises(DataError) as e:
+        prepare_shape(path, SMALL, cache)
+    assert e.value.path == str(path) and e.value.gc == "right"
+    assert "of 5000 surface samples are outside every GC" in str(e.value)
+    assert not cache.exists()
+    # the same annotation passes when the threshold allows it, and reports its coverage
+    shape = prepare_shape(path, dataclasses.replace(SMALL, min_coverage=0.0), cache)
+    assert 0.5 < shape.coverage < 0.9
+
+
+def test_auto_annotation_of_real_meshes_prepares(tmp_path):
+    for spec in ["pyvista:ant.ply", "pyvista:airplane.ply"]:
+        shape = prepare_shape(auto_annotation(spec), SMALL, tmp_path)
+        assert shape.coverage == 1.0
+        inside = shape.sdf < 0
+        assert 0.01 < inside[shape.n_surface:].mean() < 0.9  # thin parts: some volume samples inside
+
+
+def test_invalid_settings():
+    with pytest.raises(DataError, match="surface_fraction"):
+        PrepareSettings(surface_fraction=1.5)
+
+
+@pytest.mark.parametrize("fraction", [0.0, 1.0])
+def test_only_surface_or_only_volume_samples(sphere_annotation, fraction):
+    shape = prepare_shape(sphere_annotation, dataclasses.replace(SMALL, n_samples=1_000, surface_fraction=fraction))
+    assert len(shape.points) == 1_000 and shape.n_surface == int(1_000 * fraction)
+    assert shape.pair_point.max() < 1_000
