@@ -91,7 +91,10 @@ def auto_gc(mesh: trimesh.Trimesh | np.ndarray, name: str = "body", margin: floa
     ry, rz = (r * (1.0 + margin) for r in _ellipse_radii(y, z, floor))
     slack = np.sqrt(np.clip(1.0 - (y / ry) ** 2 - (z / rz) ** 2, 1e-12, None))
     half = (hi[0] - lo[0]) / 2.0
-    steps = np.linspace(0.05, 1.0, 64) * max(half, floor)
+    # Tube ends no closer than 60% of the half extent: a GC that is mostly cap squeezes the
+    # middle of the shape into a short u range (a steep, badly learned transition: a torus
+    # fitted inside a min-volume auto GC closed its hole). Among those, minimum volume.
+    steps = np.linspace(0.6, 1.0, 41) * max(half, floor)
     end, l1 = _cap(S[:, 0] - mid[0], slack, steps, floor)
     start, l0 = _cap(mid[0] - S[:, 0], slack, steps, floor)
     axis = axes[0]
