@@ -5,7 +5,7 @@ VENV ?= .venv
 TORCH_SPEC ?= torch==2.13.0
 BIN := $(VENV)/bin
 
-.PHONY: setup test test-all bench demo clean
+.PHONY: setup test test-all bench bench-geometry bench-fit demo clean
 
 $(BIN)/activate:
 	$(PY) -m venv $(VENV)
@@ -23,8 +23,16 @@ test: setup
 test-all: setup
 	$(BIN)/python -m pytest -q
 
-bench: setup
+demo: setup
+	$(BIN)/python train.py experiment=demo
+
+bench: bench-geometry bench-fit
+
+bench-geometry: setup
 	$(BIN)/python bench/geometry.py
+
+bench-fit: setup
+	$(BIN)/python bench/fit.py
 
 clean:
 	rm -rf $(VENV) outputs .pytest_cache
