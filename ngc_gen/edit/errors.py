@@ -1,0 +1,42 @@
+"""The one error type of the edit layer."""
+from __future__ import annotations
+
+import numpy as np
+
+
+def _show(value) -> str:
+    """A short, plain rendering of a bad value (numpy scalars and arrays as Python values)."""
+    if isinstance(value, np.ndarray):
+        value = np.round(value.astype(np.float64), 6).tolist() if value.dtype.kind == "f" \
+            else value.tolist()
+    elif isinstance(value, np.generic):
+        value = value.item()
+    return repr(value)
+
+
+class EditError(ValueError):
+    """An edit that cannot be applied: names the op, the GC, the bad field/value and a fix.
+
+        EditError("must lie in [0, 1]", op="stretch", gc="body", field="t0", value=1.3,
+                  fix="give t as normalised arc length")
+        -> "edit 'stretch' on GC 'body': t0 = 1.3: must lie in [0, 1]. Fix: give t as ..."
+
+    Subclasses ValueError so callers that only know the standard library can catch it; the
+    parts stay available as attributes for tools that point at the offending program entry.
+    """
+
+    def __init__(self, what: str, *, op: str | None = None, gc: str | None = None,
+                 field: str | None = None, value=None, fix: str | None = None):
+        self.what, self.op, self.gc, self.field, self.value, self.fix = (
+            what, op, gc, field, value, fix)
+        where = []
+        if op is not None:
+            where.append(f"edit '{op}'" + (f" on GC '{gc}'" if gc is not None else ""))
+        elif gc is not None:
+            where.append(f"GC '{gc}'")
+        if field is not None:
+            where.append(f"{field} = {_show(value)}" if value is not None else f"field '{field}'")
+        message = ": ".join(where + [what])
+        if fix:
+            message = f"{message.rstrip('.')}. Fix: {fix}"
+        super().__init__(message)
