@@ -1,5 +1,7 @@
-"""nn.Modules: NGC decoder, DeepSDF baseline (later: shape decoder, EDM denoiser)."""
+"""nn.Modules: NGC decoder, DeepSDF baseline, EDM preconditioning/denoiser and sampler."""
 from .deepsdf import DeepSDFDecoder
+from .edm import EDMLoss, EDMPrecond, FourierEmbedding, ResidualMLPDenoiser
+from .sampler import edm_sampler, edm_sigma_steps
 from .encoding import PositionalEncoding
 from .ngc import NGCConfig, NGCDecoder
 
@@ -19,4 +21,5 @@ def build_decoder(kind: str, preset: str | None = None, **config):
     return cls(**config)
 
 
-__all__ = ["DECODERS", "build_decoder", "DeepSDFDecoder", "NGCConfig", "NGCDecoder", "PositionalEncoding"]
+__all__ = ["DECODERS", "EDMLoss", "EDMPrecond", "FourierEmbedding", "ResidualMLPDenoiser",
+           "build_decoder", "edm_sampler", "edm_sigma_steps", "DeepSDFDecoder", "NGCConfig", "NGCDecoder", "PositionalEncoding"]

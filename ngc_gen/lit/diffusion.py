@@ -1,0 +1,193 @@
+"""EDM latent diffusion over one latent vector per shape (DESIGN.md section 5).
+
+Latents are standardised per dimension with the training set's mean and std (buffers, so they
+travel in the checkpoint); the EDM works in that space with sigma_data = 1 (the std of the
+standardised latents), the same value in loss and preconditioning. An EMA copy of the network
+(half-life in optimizer steps with NVlabs/edm's ramp-up, or a fixed decay) is updated after every
+optimizer step, saved in the checkpoint, and used by `sample`, which returns latents in the
+original space.
+
+Training data: batches of raw latents (B, dim), or (latents,) tuples as from a TensorDataset.
+"""
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+
+import lightning as L
+import torch
+from torch.utils.data import TensorDataset
+
+from ngc_gen.data.errors import DataError
+from ngc_gen.models.edm import EDMLoss, EDMPrecond, ResidualMLPDenoiser
+from ngc_gen.models.sampler import edm_sampler
+
+CHECKPOINT_KIND = "ngc_gen.diffusion"
+STANDARDISE = ("per_dim", "scalar", "none")
+
+
+class LatentDiffusion(L.LightningModule):
+    """EDM on latent vectors of size `dim`. `denoiser`: kwargs of ResidualMLPDenoiser
+    (width, depth, emb_dim, fourier_channels, fourier_scale, dropout)."""
+
+    def __init__(self, dim: int, denoiser: dict | None = None, lr: float = 1e-3,
+                 betas: tuple[float, float] = (0.9, 0.999), P_mean: float = -1.2,
+                 P_std: float = 1.2, sigma_data: float = 1.0, ema_halflife_steps: float = 1000.0,
+                 ema_rampup: float | None = 0.05, ema_decay: float | None = None,
+                 standardise: str = "per_dim", std_eps: float = 1e-6, meta: dict | None = None,
+                 checkpoint_kind: str = CHECKPOINT_KIND):
+        super().__init__()
+        if standardise not in STANDARDISE:
+            raise ValueError(f"unknown standardise {standardise!r}; choose one of {STANDARDISE}")
+        self.save_hyperparameters()
+        self.net = EDMPrecond(ResidualMLPDenoiser(dim, **(denoiser or {})), sigma_data)
+        self.ema = copy.deepcopy(self.net).requires_grad_(False)
+        self.loss_fn = EDMLoss(P_mean, P_std, sigma_data)
+        self.register_buffer("latent_mean", torch.zeros(dim))
+        self.register_buffer("latent_std", torch.ones(dim))
+        self.register_buffer("latent_count", torch.zeros((), dtype=torch.long))  # 0: not fitted
+        self._ema_step = -1
+
+    # -- standardisation ------------------------------------------------------------------
+    @torch.no_grad()
+    def fit_standardisation(self, latents: torch.Tensor) -> None:
+        """Set the mean/std buffers from training latents (N, dim), N >= 2."""
+        z = torch.as_tensor(latents).to(torch.float64).reshape(len(latents), -1)
+        if z.shape[1] != self.hparams.dim or len(z) < 2:
+            raise ValueError(f"need training latents of shape (N >= 2, {self.hparams.dim}); "
+                             f"got {tuple(latents.shape)}")
+        mode = self.hparams.standardise
+        if mode == "per_dim":
+            mean, std = z.mean(0), z.std(0)
+        elif mode == "scalar":
+            mean, std = z.mean().expand(z.shape[1]), z.std().expand(z.shape[1])
+        else:
+            mean, std = torch.zeros(z.shape[1]), torch.ones(z.shape[1])
+        self.latent_mean.copy_(mean)
+        self.latent_std.copy_(std.clamp_min(self.hparams.std_eps))
+        self.latent_count.fill_(len(z))
+
+    def standardise(self, latents: torch.Tensor) -> torch.Tensor:
+        """(B, dim) original -> (B, dim) standardised, in latents' dtype."""
+        return (latents - self.latent_mean.to(latents)) / self.latent_std.to(latents)
+
+    def destandardise(self, x: torch.Tensor) -> torch.Tensor:
+        """(B, dim) standardised -> (B, dim) original, in x's dtype."""
+        return x * self.latent_std.to(x) + self.latent_mean.to(x)
+
+    def _require_standardisation(self) -> None:
+        if int(self.latent_count) == 0:
+            raise RuntimeError("LatentDiffusion has no latent statistics: call "
+                               "fit_standardisation(train_latents) before training, or train "
+                               "from a DataLoader over a TensorDataset of the latents")
+
+    # -- EMA -------------------------------------------------------------------------------
+    def ema_beta(self, step: int) -> float:
+        """EMA decay after optimizer step `step` (>= 1): `ema_decay` if set, else
+        0.5 ** (1 / min(ema_halflife_steps, ema_rampup * step)) (NVlabs/edm's ramp-up)."""
+        hp = self.hparams
+        if hp.ema_decay is not None:
+            return float(hp.ema_decay)
+        halflife = hp.ema_halflife_steps
+        if hp.ema_rampup is not None:
+            halflife = min(halflife, step * hp.ema_rampup)
+        return 0.5 ** (1.0 / max(halflife, 1e-8))
+
+    @torch.no_grad()
+    def update_ema(self, beta: float) -> None:
+        """ema <- beta ema + (1 - beta) net, for parameters; buffers are copied."""
+        for p_ema, p in zip(self.ema.parameters(), self.net.parameters()):
+            p_ema.lerp_(p.detach(), 1.0 - beta)
+        for b_ema, b in zip(self.ema.buffers(), self.net.buffers()):
+            b_ema.copy_(b)
+
+    # -- training --------------------------------------------------------------------------
+    def on_train_start(self) -> None:
+        if int(self.latent_count) == 0:
+            ds = getattr(self.trainer.train_dataloader, "dataset", None)
+            if isinstance(ds, TensorDataset):
+                self.fit_standardisation(ds.tensors[0])
+        self._require_standardisation()
+        self._ema_step = self.global_step
+
+    def training_step(self, batch, batch_idx):
+        y = batch[0] if isinstance(batch, (list, tuple)) else batch
+        loss = self.loss_fn(self.net, self.standardise(y)).mean()
+        self.log("train/loss", loss, prog_bar=True, on_step=True, on_epoch=False,
+                 batch_size=len(y))
+        return loss
+
+    def on_train_batch_end(self, outputs, batch, batch_idx) -> None:
+        if self.global_step > self._ema_step:  # an optimizer step happened (gradient accumulation)
+            self.update_ema(self.ema_beta(self.global_step))
+            self._ema_step = self.global_step
+
+    def configure_optimizers(self):
+        return torch.optim.Adam(self.net.parameters(), lr=self.hparams.lr,
+                                betas=tuple(self.hparams.betas))
+
+    @torch.no_grad()
+    def evaluate_loss(self, latents: torch.Tensor, seed: int = 0, use_ema: bool = False,
+                      repeats: int = 1) -> float:
+        """Mean EDM loss on latents (N, dim) (original space) with noise drawn from `seed`."""
+        g = torch.Generator().manual_seed(seed)
+        net = self.ema if use_ema else self.net
+        y = self.standardise(latents.to(self.device, torch.float32))
+        return float(torch.stack([self.loss_fn(net, y, generator=g).mean()
+                                  for _ in range(repeats)]).mean())
+
+    # -- sampling --------------------------------------------------------------------------
+    @torch.no_grad()
+    def sample(self, n: int, generator: torch.Generator | None = None, seed: int | None = None,
+               steps: int = 18, churn: float = 0.0, S_min: float = 0.0,
+               S_max: float = float("inf"), S_noise: float = 1.0, sigma_min: float = 0.002,
+               sigma_max: float = 80.0, rho: float = 7.0, use_ema: bool = True) -> torch.Tensor:
+        """n latents (n, dim) float32 in the ORIGINAL space, on the module's device.
+
+        Noise comes from `generator` (a CPU generator makes results device-independent), else
+        from `seed` (default 0): the same seed gives the same latents. churn > 0 selects the
+        stochastic sampler (EDM's S_churn; S_min, S_max, S_noise as in NVlabs/edm); give it more
+        steps than 18 (gamma saturates at sqrt(2) - 1 and its discretisation error is larger)."""
+        self._require_standardisation()
+        if generator is None:
+            generator = torch.Generator().manual_seed(0 if seed is None else int(seed))
+        elif seed is not None:
+            raise ValueError("pass either generator or seed, not both")
+
+        def randn_like(x):
+            return torch.randn(x.shape, generator=generator, dtype=x.dtype,
+                               device=generator.device).to(x.device)
+
+        net = self.ema if use_ema else self.net
+        was_training = net.training
+        net.eval()
+        try:
+            noise = randn_like(torch.empty(n, self.hparams.dim, dtype=torch.float64,
+                                           device=self.device))
+            x = edm_sampler(net, noise, randn_like, num_steps=steps, sigma_min=sigma_min,
+                            sigma_max=sigma_max, rho=rho, S_churn=churn, S_min=S_min,
+                            S_max=S_max, S_noise=S_noise)
+        finally:
+            net.train(was_training)
+        return self.destandardise(x).to(torch.float32)
+
+    # -- loading ---------------------------------------------------------------------------
+    @classmethod
+    def from_checkpoint(cls, path, map_location="cpu") -> "LatentDiffusion":
+        """A LatentDiffusion from a Lightning checkpoint, loaded with weights_only=True."""
+        path = Path(path)
+        fix = "pass the checkpoints/last.ckpt of a `train.py stage=diffusion` run"
+        if not path.is_file():
+            raise DataError(f"checkpoint {path} does not exist", fix=fix)
+        try:
+            ckpt = torch.load(path, map_location=map_location, weights_only=True)
+        except Exception as e:  # not a torch file, or one holding arbitrary pickled objects
+            raise DataError(f"{path} is not a loadable checkpoint ({type(e).__name__}: "
+                            f"{str(e).splitlines()[0][:200]})", fix=fix) from None
+        hp = ckpt.get("hyper_parameters", {}) if isinstance(ckpt, dict) else {}
+        if hp.get("checkpoint_kind") != CHECKPOINT_KIND:
+            raise DataError(f"{path} is not a diffusion checkpoint (kind "
+                            f"{hp.get('checkpoint_kind')!r})", fix=fix)
+        module = cls(**hp)
+        module.load_state_dict(ckpt["state_dict"])
+        return module.eval()
