@@ -4,6 +4,10 @@ Relative coordinates (u, a, b) of a world point q (DESIGN.md section 2): t* = ar
 over normalised arc length, p = C(t*), a = (q - p).y / r_y(t*), b = (q - p).z / r_z(t*), u = 2t* - 1;
 past an end, s = distance along the end tangent and u = -1 - s/l0 or 1 + s/l1. Inside iff
 max(|u| - 1, 0)^2 + a^2 + b^2 <= 1.
+
+t is the network's parameter: normalised arc length, unless an edit (a local stretch) stored
+a monotone `reparam` map from t to arc length, so the features and keys of a t-range spread
+over a longer (or shorter) piece of curve.
 """
 from __future__ import annotations
 
@@ -21,7 +25,7 @@ from .errors import GeometryError
 from .frames import FrameField
 from .interp import interp
 
-GC_KEYS = {"name", "curve", "up", "keys", "caps"}
+GC_KEYS = {"name", "curve", "up", "keys", "caps", "reparam"}
 KEY_KEYS = {"t", "radii", "twist"}
 
 
@@ -69,6 +73,29 @@ def _parse_key(d, name: str, i: int) -> Key:
     return Key(t, radii, twist)
 
 
+def _parse_reparam(r, name: str):
+    """{t: [...], arc: [...]} (both strictly increasing from 0 to 1) -> (t, arc) arrays."""
+    if r is None:
+        return None
+    if isinstance(r, dict):
+        if set(r) != {"t", "arc"}:
+            raise GeometryError("reparam must be {t: [...], arc: [...]}", name, "reparam")
+        r = (r["t"], r["arc"])
+    try:
+        tn, ta = (np.asarray(x, dtype=np.float64) for x in r)
+    except (TypeError, ValueError):
+        raise GeometryError("reparam t and arc must be lists of numbers", name, "reparam") from None
+    ok = (tn.ndim == 1 and tn.shape == ta.shape and len(tn) >= 2 and np.all(np.isfinite(tn))
+          and np.all(np.isfinite(ta)) and np.all(np.diff(tn) > 0) and np.all(np.diff(ta) > 0)
+          and tn[0] == 0 == ta[0] and tn[-1] == 1 == ta[-1])
+    if not ok:
+        raise GeometryError("reparam t and arc must be equally long, strictly increasing, from "
+                            "0 to 1", name, "reparam")
+    if np.array_equal(tn, ta):
+        return None
+    return tn, ta
+
+
 class GeneralizedCylinder:
     """A GC around a smooth curve; all queries are batched and vectorised.
 
@@ -78,9 +105,11 @@ class GeneralizedCylinder:
     """
 
     def __init__(self, curve: Curve, keys: list[Key], caps=(0.1, 0.1), up=None,
-                 name: str = "gc", segments: int = 128, chunk: int = DEFAULT_CHUNK):
+                 name: str = "gc", segments: int = 128, chunk: int = DEFAULT_CHUNK,
+                 reparam=None):
         self.name = str(name)
         self.curve = curve
+        self.reparam = _parse_reparam(reparam, self.name)
         if not keys:
             raise GeometryError("needs at least one key with radii", self.name, "keys")
         keys = sorted(keys, key=lambda k: k.t)
@@ -136,21 +165,40 @@ class GeneralizedCylinder:
             raise GeometryError("keys must be a list of {t, radii, twist}", name, "keys")
         keys = [_parse_key(k, name, i) for i, k in enumerate(keys)]
         return cls(curve, keys, caps=d.get("caps", (0.1, 0.1)), up=d.get("up"), name=name,
-                   **kwargs)
+                   reparam=d.get("reparam"), **kwargs)
 
     def to_dict(self) -> dict:
         return {"name": self.name, "curve": self.curve.to_dict(),
                 "up": [float(x) for x in self.up],
                 "keys": [k.to_dict() for k in self.keys],
-                "caps": [float(c) for c in self.caps]}
+                "caps": [float(c) for c in self.caps],
+                **({} if self.reparam is None else
+                   {"reparam": {"t": self.reparam[0].tolist(), "arc": self.reparam[1].tolist()}})}
 
     def replace(self, curve: Curve | None = None, keys: list[Key] | None = None, caps=None,
-                up=None, name: str | None = None) -> "GeneralizedCylinder":
-        """A new GC with some parts replaced (GCs are immutable values)."""
+                up=None, name: str | None = None, reparam="keep") -> "GeneralizedCylinder":
+        """A new GC with some parts replaced (GCs are immutable values); reparam=None resets
+        the parameter map to the identity."""
+        reparam = self.reparam if isinstance(reparam, str) and reparam == "keep" else reparam
         return GeneralizedCylinder(curve or self.curve, keys if keys is not None else self.keys,
                                    caps if caps is not None else self.caps,
                                    up if up is not None else self.up, name or self.name,
-                                   self.segments, self.chunk)
+                                   self.segments, self.chunk, reparam)
+
+    # ---- parameter map: the network's t <-> normalised arc length ---------------------------
+    def arc_of_t(self, t: torch.Tensor) -> torch.Tensor:
+        """Network parameter t (what u = 2t - 1 and the keys refer to) -> normalised arc length.
+        The identity unless an edit (stretch) reparameterised the GC."""
+        if self.reparam is None:
+            return t
+        tn, ta = (torch.as_tensor(x, dtype=t.dtype, device=t.device) for x in self.reparam)
+        return interp(t, tn, ta)
+
+    def t_of_arc(self, ta: torch.Tensor) -> torch.Tensor:
+        if self.reparam is None:
+            return ta
+        tn, tar = (torch.as_tensor(x, dtype=ta.dtype, device=ta.device) for x in self.reparam)
+        return interp(ta, tar, tn)
 
     def transformed(self, R, t) -> "GeneralizedCylinder":
         """The GC under the rigid motion x -> R x + t (R a rotation); relative coords invariant."""
@@ -184,7 +232,7 @@ class GeneralizedCylinder:
     # ---- relative coordinates --------------------------------------------------------------
     def _to_relative(self, q: torch.Tensor) -> torch.Tensor:
         s = closest_parameter(self.curve, q, self.polyline)
-        t = self.arc.t_of_s(s)
+        t = self.t_of_arc(self.arc.t_of_s(s))
         C, T, N, B = self.frame(s, t)
         d = q - C
         along = dot(d, T)
@@ -201,7 +249,7 @@ class GeneralizedCylinder:
     def _to_world(self, rel: torch.Tensor) -> torch.Tensor:
         u, a, b = rel.unbind(1)
         t = ((u.clamp(-1.0, 1.0) + 1.0) / 2.0)
-        s = self.arc.s_of_t(t)
+        s = self.arc.s_of_t(self.arc_of_t(t))
         s = torch.where(u <= -1.0, torch.zeros_like(s), torch.where(u >= 1.0, torch.ones_like(s), s))
         t = torch.where(u <= -1.0, torch.zeros_like(t), torch.where(u >= 1.0, torch.ones_like(t), t))
         C, T, N, B = self.frame(s, t)
@@ -247,7 +295,7 @@ class GeneralizedCylinder:
         """Conservative axis-aligned box (lo, hi) of the GC including caps."""
         if getattr(self, "_bounds", None) is None:
             t = torch.linspace(0.0, 1.0, samples + 1, dtype=torch.float64)
-            s = self.arc.s_of_t(t)
+            s = self.arc.s_of_t(self.arc_of_t(t))
             C, T, N, B = self.frame(s, t)
             r = self.radii_at(t)
             # extent of an ellipse with axes r_y N, r_z B along each world axis

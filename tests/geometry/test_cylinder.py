@@ -161,3 +161,21 @@ def test_bad_point_shape():
     gc = GeneralizedCylinder.from_dict(BASE)
     with pytest.raises(GeometryShapeError):
         gc.to_relative(np.zeros((10, 2)))
+
+
+def test_reparam_round_trip_and_serialisation(rng):
+    d = random_gc_dict(rng, degree=3)
+    d["reparam"] = {"t": [0.0, 0.3, 0.5, 1.0], "arc": [0.0, 0.2, 0.6, 1.0]}
+    gc = GeneralizedCylinder.from_dict(d)
+    rel = inside_rel_samples(rng, 2000)
+    q = gc.to_world(rel)
+    np.testing.assert_allclose(gc.to_relative(q), rel, atol=1e-9)
+    # network t = 0.5 (u = 0) sits at 60% of the arc length
+    plain = GeneralizedCylinder.from_dict({k: v for k, v in d.items() if k != "reparam"})
+    np.testing.assert_allclose(gc.to_world(np.array([[0.0, 0, 0]])),
+                               plain.to_world(np.array([[0.2, 0, 0]])), atol=1e-9)
+    again = GeneralizedCylinder.from_dict(gc.to_dict())
+    np.testing.assert_array_equal(again.to_relative(q), gc.to_relative(q))
+    d["reparam"] = {"t": [0.0, 0.6, 0.5, 1.0], "arc": [0.0, 0.2, 0.6, 1.0]}
+    with pytest.raises(GeometryError, match="reparam"):
+        GeneralizedCylinder.from_dict(d)
