@@ -30,8 +30,7 @@ METHODS = {  # name -> (data config, model config)
 
 
 def run(method: str, steps: int, resolution: int, batch_size: int) -> dict:
-    from tests.helpers import compose_config
-
+    from ngc_gen.config import compose_config
     from ngc_gen.stages.fit import run_fit
 
     data, model = METHODS[method]

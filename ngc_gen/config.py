@@ -19,3 +19,12 @@ def register_resolvers() -> None:
 
 
 register_resolvers()
+
+
+def compose_config(config_name: str = "train", overrides: list[str] | None = None):
+    """Compose the project's Hydra config outside `@hydra.main` (benchmarks, tests, notebooks);
+    `run_dir` must then be given as an override, since there is no Hydra run directory."""
+    from hydra import compose, initialize_config_dir
+
+    with initialize_config_dir(version_base="1.3", config_dir=str(repo_root() / "conf")):
+        return compose(config_name=config_name, overrides=overrides or [])

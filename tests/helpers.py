@@ -6,16 +6,9 @@ import subprocess
 import sys
 from pathlib import Path
 
-from hydra import compose, initialize_config_dir
-
-import ngc_gen.config  # noqa: F401  (resolvers)
+from ngc_gen.config import compose_config  # noqa: F401  (re-exported for tests)
 
 ROOT = Path(__file__).resolve().parents[1]
-
-
-def compose_config(config_name: str = "train", overrides: list[str] | None = None):
-    with initialize_config_dir(version_base="1.3", config_dir=str(ROOT / "conf")):
-        return compose(config_name=config_name, overrides=overrides or [])
 
 
 def run_entry(script: str, *args: str, cwd: Path | None = None, timeout: int = 600):
