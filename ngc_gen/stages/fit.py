@@ -6,6 +6,7 @@ config.yaml (resolved), logs/.
 from __future__ import annotations
 
 import json
+import logging
 import time
 from pathlib import Path
 
@@ -17,6 +18,8 @@ from ngc_gen.data.atomic import atomic_write_text
 from ngc_gen.data.prepare import PreparedShape
 
 from .prepare import prepare_dataset
+
+log = logging.getLogger(__name__)
 
 
 def shapes_meta(prepared: list[PreparedShape], kind: str) -> dict:
@@ -80,9 +83,27 @@ def run_fit(cfg: DictConfig) -> dict:
     metrics.update(steps=int(trainer.global_step), train_s=train_s, kind=cfg.model.kind,
                    checkpoint=str(run_dir / "checkpoints" / "last.ckpt"))
     atomic_write_text(run_dir / "metrics.json", json.dumps(metrics, indent=2))
+    render_comparison(gt, run_dir)
     print_metrics(metrics)
     print(f"run directory: {run_dir}")
     return metrics
+
+
+def render_comparison(gt: dict, run_dir: Path) -> None:
+    """run_dir/meshes.png: ground truth beside the fitted mesh, one row per shape. A failed
+    render (no off-screen OpenGL) is reported, not fatal: the meshes are already written."""
+    import trimesh
+
+    from ngc_gen.viz import render_grid
+
+    names = list(gt)
+    rows = [[trimesh.Trimesh(*gt[n], process=False),
+             trimesh.load(run_dir / "meshes" / f"{n}.ply", process=False)] for n in names]
+    try:
+        render_grid(rows, run_dir / "meshes.png", labels=names,
+                    col_titles=["ground truth", "fitted"])
+    except Exception as e:  # noqa: BLE001 - rendering is a convenience
+        log.warning("could not render %s: %s", run_dir / "meshes.png", e)
 
 
 def print_metrics(metrics: dict) -> None:

@@ -1,0 +1,50 @@
+"""Off-screen renders of mesh grids with pyvista (headless: EGL, no window)."""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+COLORS = ("#c8a27a", "#7fa7c9", "#9cc28c", "#d08c8c")
+
+
+def render_grid(rows: list[list[trimesh.Trimesh | None]], path, labels: list[str] | None = None,
+                col_titles: list[str] | None = None, cell: tuple[int, int] = (320, 260),
+                view: tuple = (1.0, -1.6, 0.9)) -> Path:
+    """Render rows x columns of meshes (None leaves a cell empty) into one PNG, atomically.
+
+    Each column gets its own colour; every cell uses the same camera direction `view` so
+    shapes can be compared side by side."""
+    os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
+    import pyvista as pv
+
+    n_rows, n_cols = len(rows), max(len(r) for r in rows)
+    p = pv.Plotter(off_screen=True, shape=(n_rows, n_cols),
+                   window_size=(cell[0] * n_cols, cell[1] * n_rows), border=False)
+    p.set_background("white")
+    for i, row in enumerate(rows):
+        for j, mesh in enumerate(row):
+            p.subplot(i, j)
+            if mesh is not None and len(mesh.faces):
+                p.add_mesh(pv.wrap(mesh), color=COLORS[j % len(COLORS)], smooth_shading=True)
+                c = mesh.bounds.mean(0)
+                r = float(np.linalg.norm(mesh.extents)) * 1.3
+                d = np.asarray(view, dtype=float)
+                p.camera_position = [tuple(c + r * d / np.linalg.norm(d)), tuple(c), (0, 0, 1)]
+            title = []
+            if col_titles and i == 0 and j < len(col_titles):
+                title.append(col_titles[j])
+            if labels and j == 0 and i < len(labels):
+                title.append(labels[i])
+            if title:
+                p.add_text(" / ".join(title), font_size=9, color="black")
+    p.render()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp.png")
+    p.screenshot(str(tmp))
+    p.close()
+    os.replace(tmp, path)
+    return path
