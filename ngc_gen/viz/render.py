@@ -10,10 +10,11 @@ import trimesh
 COLORS = ("#c8a27a", "#7fa7c9", "#9cc28c", "#d08c8c")
 
 
-def render_grid(rows: list[list[trimesh.Trimesh | None]], path, labels: list[str] | None = None,
+def render_grid(rows: list[list], path, labels: list[str] | None = None,
                 col_titles: list[str] | None = None, cell: tuple[int, int] = (320, 260),
-                view: tuple = (1.0, -1.6, 0.9)) -> Path:
-    """Render rows x columns of meshes (None leaves a cell empty) into one PNG, atomically.
+                view: tuple = (1.0, -1.6, 0.9), up: tuple = (0, 0, 1)) -> Path:
+    """Render rows x columns of meshes into one PNG, atomically. A cell is a mesh, None
+    (empty) or a pair (mesh, overlay) whose overlay (e.g. GC surfaces) is drawn translucent.
 
     Each column gets its own colour; every cell uses the same camera direction `view` so
     shapes can be compared side by side."""
@@ -27,12 +28,15 @@ def render_grid(rows: list[list[trimesh.Trimesh | None]], path, labels: list[str
     for i, row in enumerate(rows):
         for j, mesh in enumerate(row):
             p.subplot(i, j)
+            if isinstance(mesh, tuple):
+                mesh, overlay = mesh
+                p.add_mesh(pv.wrap(overlay), color="#4a78c2", opacity=0.25)
             if mesh is not None and len(mesh.faces):
                 p.add_mesh(pv.wrap(mesh), color=COLORS[j % len(COLORS)], smooth_shading=True)
                 c = mesh.bounds.mean(0)
                 r = float(np.linalg.norm(mesh.extents)) * 1.3
                 d = np.asarray(view, dtype=float)
-                p.camera_position = [tuple(c + r * d / np.linalg.norm(d)), tuple(c), (0, 0, 1)]
+                p.camera_position = [tuple(c + r * d / np.linalg.norm(d)), tuple(c), tuple(up)]
             title = []
             if col_titles and i == 0 and j < len(col_titles):
                 title.append(col_titles[j])
