@@ -29,4 +29,4 @@ def test_shipped_annotation_covers_its_mesh(name):
     union = np.zeros(len(box), bool)
     for gc in ann.gcs:
         union |= np.asarray(gc.contains(box))
-    assert union.mean() < 0.12, union.mean()
+    assert union.mean() < 0.06, union.mean()  # measured: ant 0.037, airplane 0.014
