@@ -68,14 +68,38 @@ def prefilter_check(checkpoint: str, resolution: int) -> dict:
     return out
 
 
+def picture(res: dict, path: Path, max_shapes: int = 4) -> None:
+    """bench/results/fit.png: per shape, ground truth beside each method's mesh."""
+    import trimesh
+
+    from ngc_gen.data.prepare import load_prepared
+    from ngc_gen.viz import render_grid
+
+    methods = [m for m in METHODS if m in res["methods"]]
+    rows = []
+    for shape in res["shapes"][:max_shapes]:
+        prep = load_prepared(ROOT / ".cache/prepared/fitbench" / f"{shape}.npz")
+        row = [trimesh.Trimesh(prep.mesh_vertices, prep.mesh_faces, process=False)]
+        row += [trimesh.load(ROOT / "bench/runs/fit" / m / "meshes" / f"{shape}.ply", process=False)
+                for m in methods]
+        rows.append(row)
+    render_grid(rows, path, labels=res["shapes"][:max_shapes],
+                col_titles=["ground truth"] + [LABELS[m] for m in methods], cell=(300, 240))
+
+
+LABELS = {"ngc": "NGC, multi-GC", "ngc_1gc": "NGC, one GC", "deepsdf": "DeepSDF"}
+
+
 def markdown(res: dict) -> str:
     lines = ["| method | CD (x1e-4) | HD | EMD | train time (s) |", "|---|---|---|---|---|"]
-    for name, label in (("ngc", "NGC, multi-GC"), ("ngc_1gc", "NGC, one GC"),
-                        ("deepsdf", "DeepSDF")):
+    for name, label in LABELS.items():
+        if name not in res["methods"]:
+            continue
         m = res["methods"][name]
         lines.append(f"| {label} | {m['cd'] * 1e4:.2f} | {m['hd']:.4f} | {m['emd']:.4f} | "
                      f"{m['train_s']:.0f} |")
-    r = res["methods"]["ngc"]["cd"] / res["methods"]["deepsdf"]["cd"]
+    r = (res["methods"]["ngc"]["cd"] / res["methods"]["deepsdf"]["cd"]
+         if {"ngc", "deepsdf"} <= set(res["methods"]) else float("nan"))
     lines.append("")
     lines.append(f"Mean over {len(res['shapes'])} shapes ({', '.join(res['shapes'])}); "
                  f"{res['steps']} steps of {res['batch_size']} samples each, small presets "
@@ -110,6 +134,7 @@ def main():
         tmp = out / (name + ".tmp")
         tmp.write_text(text)
         os.replace(tmp, out / name)
+    picture(res, out / "fit.png")
     print(markdown(res))
     if "prefilter" in res:
         p = res["prefilter"]
