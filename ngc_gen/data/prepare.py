@@ -42,7 +42,9 @@ class PrepareSettings:
     """How many samples of which kind; every field is part of the cache key.
 
     n_samples: training samples per shape; surface_fraction of them are near-surface
-    (surface point + normal * N(0, offset_std)), the rest uniform in the GC union.
+    (surface point + normal * N(0, offset_std)), the rest uniform in the GC union
+    (volume_region="gcs", what NGC trains on) or in the box [-1, 1]^3 (volume_region="box",
+    DeepSDF's own sampling: a world-space SDF must learn the empty space too).
     coverage_samples exact surface points measure coverage; below min_coverage preparation stops.
     """
 
@@ -52,6 +54,7 @@ class PrepareSettings:
     coverage_samples: int = 100_000
     min_coverage: float = 0.999
     seed: int = 0
+    volume_region: str = "gcs"
 
     def __post_init__(self):
         checks = {
@@ -60,11 +63,12 @@ class PrepareSettings:
             "offset_std": self.offset_std >= 0.0,
             "coverage_samples": self.coverage_samples >= 1,
             "min_coverage": 0.0 <= self.min_coverage <= 1.0,
+            "volume_region": self.volume_region in ("gcs", "box"),
         }
         for name, ok in checks.items():
             if not ok:
                 raise DataError(f"invalid value {getattr(self, name)!r}", field=f"prepare.{name}",
-                                fix="n_samples, coverage_samples >= 1; surface_fraction, min_coverage "
+                                fix="n_samples, coverage_samples >= 1; volume_region gcs or box; surface_fraction, min_coverage "
                                     "in [0, 1]; offset_std >= 0")
 
 
@@ -234,7 +238,11 @@ def compute_prepared(ann: Annotation, settings: PrepareSettings, key: str = "") 
     n_surface = int(round(settings.n_samples * settings.surface_fraction))
     surf, normals = sample_surface(V, F, n_surface, rng)
     surf += normals * rng.normal(0.0, settings.offset_std, size=(n_surface, 1))
-    vol, (vp, vg, vr) = sample_volume(gcs, settings.n_samples - n_surface, rng)
+    if settings.volume_region == "box":
+        vol = rng.uniform(-1.0, 1.0, (settings.n_samples - n_surface, 3))
+        vp, vg, vr = gc_membership(vol, gcs)
+    else:
+        vol, (vp, vg, vr) = sample_volume(gcs, settings.n_samples - n_surface, rng)
     sp, sg, sr = gc_membership(surf, gcs)
     points = np.concatenate([surf, vol])
     sdf = signed_distance(points, V, F)
