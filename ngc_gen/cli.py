@@ -5,9 +5,10 @@ import sys
 from contextlib import contextmanager
 
 from ngc_gen.data.errors import DataError
+from ngc_gen.edit.errors import EditError
 from ngc_gen.geometry import GeometryError
 
-USER_ERRORS = (DataError, GeometryError, FileNotFoundError)
+USER_ERRORS = (DataError, GeometryError, EditError, FileNotFoundError)
 
 
 @contextmanager

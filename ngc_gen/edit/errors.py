@@ -23,13 +23,20 @@ class EditError(ValueError):
 
     Subclasses ValueError so callers that only know the standard library can catch it; the
     parts stay available as attributes for tools that point at the offending program entry.
+    An edit program adds where the op came from (`in_program`):
+    "program conf/edit/x.yaml, ops[2]: edit 'twist' on GC 'tail': ..."
     """
 
     def __init__(self, what: str, *, op: str | None = None, gc: str | None = None,
-                 field: str | None = None, value=None, fix: str | None = None):
+                 field: str | None = None, value=None, fix: str | None = None,
+                 program: str | None = None, index: int | None = None):
         self.what, self.op, self.gc, self.field, self.value, self.fix = (
             what, op, gc, field, value, fix)
+        self.program, self.index = program, index
         where = []
+        if program is not None or index is not None:
+            where.append(", ".join(([f"program {program}"] if program is not None else [])
+                                   + ([f"ops[{index}]"] if index is not None else [])))
         if op is not None:
             where.append(f"edit '{op}'" + (f" on GC '{gc}'" if gc is not None else ""))
         elif gc is not None:
@@ -40,3 +47,10 @@ class EditError(ValueError):
         if fix:
             message = f"{message.rstrip('.')}. Fix: {fix}"
         super().__init__(message)
+
+
+def in_program(e: EditError, program: str | None, index: int | None) -> EditError:
+    """The same error, located in an edit program file and its op index."""
+    return EditError(e.what, op=e.op, gc=e.gc, field=e.field, value=e.value, fix=e.fix,
+                     program=program if program is not None else e.program,
+                     index=index if index is not None else e.index)

@@ -4,7 +4,7 @@ Given handle points on the shape, their targets and a fixed region:
 1. estimate one rigid transform (R, t) of the handles onto the targets (Kabsch);
 2. give each handle to the GC that holds it nearest that GC's moving end (a handle at a joint
    lies in two GCs; it belongs to the one whose end it drags); the fixed end of a GC is the end
-   nearer the fixed region;
+   nearer the fixed region (along the curve, for fixed points inside the GC);
 3. for each GC with handles, carry (R, t) to the moving end's point and tangent and join it to
    the unchanged fixed end with a cubic Bezier P0, P0 + alpha T0, P3 - alpha T3, P3 whose arc
    length equals the old curve's (Roulier & Piper): a 1-D root find on alpha (brentq).
@@ -197,7 +197,12 @@ def bend_to(gc: GeneralizedCylinder, moving_end: int, R: np.ndarray, t: np.ndarr
 # ---- which GC, which end ---------------------------------------------------------------------
 def _fixed_distances(gc: GeneralizedCylinder, fixed) -> tuple[np.ndarray, bool]:
     """Distances (2,) of the curve's start and end to the fixed region, and whether the GC is
-    anchored in it (then it never follows another GC)."""
+    anchored in it (then it never follows another GC).
+
+    Fixed points inside the GC measure along the curve: (t_min, 1 - t_max) L of their
+    parameters, so a GC pinned near its start moves its end even when the start lies deep
+    inside a fixed part (far from that part's surface points, as a tail root in a torso).
+    Otherwise the straight distances of the curve's ends to the nearest fixed point."""
     if fixed is None:
         return np.array([np.inf, np.inf]), False
     if callable(fixed):
@@ -209,8 +214,13 @@ def _fixed_distances(gc: GeneralizedCylinder, fixed) -> tuple[np.ndarray, bool]:
         if not m.any():
             return np.array([np.inf, np.inf]), False
         return np.array([t[m].min(), 1.0 - t[m].max()]) * gc.length, True
+    rel = gc.to_relative(fixed)
+    inside = GeneralizedCylinder.inside_relative(rel)
+    if inside.any():
+        t = np.clip((rel[inside, 0] + 1.0) / 2.0, 0.0, 1.0)
+        return np.array([t.min(), 1.0 - t.max()]) * gc.length, True
     ends = curve_points_at(gc, [0.0, 1.0])
-    return cdist(ends, fixed).min(1), bool(gc.contains(fixed).any())
+    return cdist(ends, fixed).min(1), False
 
 
 def _check_inputs(gcs, handles, targets, fixed, on_unreachable):

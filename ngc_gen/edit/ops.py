@@ -6,7 +6,8 @@ an `EditError` naming the op, the GC and the bad value; GCs are immutable, so th
 never changed.
 
 Conventions shared by all ops:
-- t is normalised arc length in [0, 1] (the GC's key parameter); twist is in degrees.
+- t in [0, 1] is the GC's parameter as the network sees it (u = 2t - 1; the keys' t): normalised
+  arc length, unless a `stretch` stored a `reparam` map from t to arc length. Twist is in degrees.
 - Where an edit changes the curve's start tangent, the GC's `up` is carried along by the
   smallest rotation taking the old start tangent to the new one, so the cross-section frame
   follows the edit instead of staying pinned to a world axis (and `up` never ends up parallel
@@ -254,47 +255,52 @@ def translate(gc: GeneralizedCylinder, offset) -> GeneralizedCylinder:
 
 
 def stretch_map(gc: GeneralizedCylinder, t0: float, t1: float, factor: float):
-    """The reparameterisation of `stretch`: old t (N,) -> new t (N,), and the new length.
+    """The parameter map of `stretch`: nodes (tn, arc) of the new GC's `reparam` and its length.
 
-    Old arc length sigma maps to sigma' = sigma before a = t0 L, a + factor (sigma - a) inside
-    [a, b = t1 L], and sigma + (factor - 1)(b - a) after; t' = sigma' / L'."""
+    With alpha the GC's map from the network's t to normalised arc length (the identity unless
+    an earlier stretch set one), the range [t0, t1] covers old arc lengths [a, b] = alpha(t0) L,
+    alpha(t1) L. Old arc length sigma becomes sigma' = sigma before a, a + factor (sigma - a)
+    inside, sigma + (factor - 1)(b - a) after, so L' = L + (factor - 1)(b - a) and the new map
+    is t -> sigma'(alpha(t) L) / L'. Both maps are piecewise linear and the breaks of the second
+    sit at t0 and t1, so the composition is exact on the nodes (old nodes plus t0, t1).
+    Returns (tn (M,), arc (M,), L') as float64, tn and arc increasing from 0 to 1."""
     L = gc.length
-    a, b = t0 * L, t1 * L
+    if gc.reparam is None:
+        tn_old = np.array([0.0, 1.0])
+    else:
+        tn_old = gc.reparam[0]
+    keep = (np.abs(tn_old - t0) > KEY_TOL) & (np.abs(tn_old - t1) > KEY_TOL)
+    tn = np.unique(np.concatenate([tn_old[keep], [t0, t1]]))
+    alpha = gc.arc_of_t(torch.as_tensor(tn, dtype=torch.float64)).numpy()
+    a, b = (float(gc.arc_of_t(torch.tensor([x], dtype=torch.float64))[0]) * L for x in (t0, t1))
     L_new = L + (factor - 1.0) * (b - a)
-
-    def new_t(t):
-        sig = np.asarray(t, dtype=np.float64) * L
-        sig = np.where(sig <= a, sig, np.where(sig <= b, a + factor * (sig - a),
-                                               sig + (factor - 1.0) * (b - a)))
-        return np.clip(sig / L_new, 0.0, 1.0)
-
-    return new_t, L_new
+    sig = alpha * L
+    sig = np.where(sig <= a, sig, np.where(sig <= b, a + factor * (sig - a),
+                                           sig + (factor - 1.0) * (b - a)))
+    arc = np.clip(sig / L_new, 0.0, 1.0)
+    arc[0], arc[-1] = 0.0, 1.0
+    return tn, arc, L_new
 
 
 def stretch(gc: GeneralizedCylinder, t0: float, t1: float, factor: float,
             samples: int = 65) -> GeneralizedCylinder:
-    """Make the range [t0, t1] of the curve `factor` times longer; the rest keeps its length.
+    """Make the piece of the GC over network parameters [t0, t1] `factor` times longer; the rest
+    keeps its length, and the neural features of [t0, t1] spread over the longer piece.
 
-    Construction (exact map, then one representation step):
-    - The new curve is the old one with the piece [t0, t1] scaled by `factor` about C(t0) and
-      the piece after t1 translated by (factor - 1)(C(t1) - C(t0)) so it stays attached.
-      Tangent directions are unchanged everywhere (the curve stays C1; curvature inside the
-      range divides by `factor`), so for a straight piece this is "extend along the tangent",
-      and arc lengths are exactly a, factor (b - a), L - b.
-    - Representation: a straight curve stays the same kind with its points evenly spaced on
-      the longer segment, and t0 = 0, t1 = 1 scales every point about C(0): both exact. A
-      curved piece is not a single Bezier any more, so the result is a SplineCurve through
-      `samples` points of the exact map (plus both joints), uniform in the new arc length
-      (arc lengths within ~1e-4 relative; the spline's natural ends bend the end tangents a
-      little).
-    - Keys: a key is inserted at t0 and t1 (interpolated values), then every key moves to its
-      new t (`stretch_map`), so the radii/twist profile is carried with the material: the
-      features of [t0, t1] spread over the longer piece, the rest keeps its place.
-
-    Note for neural shapes: an NGC network reads u = 2t - 1 with t the normalised arc length of
-    the new curve, which after a local stretch no longer matches the old t outside a uniform
-    stretch; an exact local stretch of the neural field needs u mapped back through the inverse
-    of `stretch_map` before the network (the GC itself is exact).
+    t0, t1 are the network's t (what the keys and u = 2t - 1 refer to; normalised arc length
+    unless an earlier stretch reparameterised the GC). Construction:
+    - Curve: the old curve with its piece over [t0, t1] scaled by `factor` about the piece's
+      start and the piece after it translated so it stays attached. Tangent directions are
+      unchanged everywhere (the curve stays C1; curvature inside the range divides by
+      `factor`); for a straight piece this is "extend along the tangent". A straight curve
+      stays the same kind (control points evenly spaced on the longer segment) and
+      t0 = 0, t1 = 1 scales every control point about C(0): both exact. A curved piece is not
+      a single Bezier any more, so the result is a SplineCurve through `samples` points of the
+      exact map plus both joints, uniform in arc length (arc lengths within ~1e-4 relative).
+    - Parameter: keys stay at their t; the GC's `reparam` (see `stretch_map`) sends [t0, t1]
+      onto the `factor`-times longer arc range, so radii, twists and the network's features
+      u = 2t - 1 of that range are carried along the stretched piece, the rest keep their
+      place. A uniform stretch (0, 1) leaves the map as it was.
     """
     op = "stretch"
     check_gc(op, gc)
@@ -303,19 +309,19 @@ def stretch(gc: GeneralizedCylinder, t0: float, t1: float, factor: float,
         raise EditError(f"the range [t0, t1] = [{t0}, {t1}] is empty", op=op, gc=gc.name,
                         field="t1", value=t1, fix="give t0 < t1")
     f = check_number(op, gc, "factor", factor, positive=True)
-    new_t, L_new = stretch_map(gc, t0, t1, f)
     pts = gc.curve.points
     L = gc.length
-    ends = curve_points_at(gc, [0.0, t0, t1, 1.0])
     if t0 == 0.0 and t1 == 1.0:  # uniform: an exact affine map of the control points
-        new_pts = pts[0] + f * (pts - pts[0])
-        curve = gc.curve.with_points(new_pts)
-    elif np.linalg.norm(ends[3] - ends[0]) >= L * (1.0 - 1e-7):  # straight
+        curve = gc.curve.with_points(pts[0] + f * (pts - pts[0]))
+        return rebuild(op, gc, curve=curve, up=carry_up(gc, curve))
+    tn, arc, L_new = stretch_map(gc, t0, t1, f)
+    s0, s1 = (float(gc.arc_of_t(torch.tensor([x], dtype=torch.float64))[0]) for x in (t0, t1))
+    ends = curve_points_at(gc, [0.0, s0, s1, 1.0])
+    if np.linalg.norm(ends[3] - ends[0]) >= L * (1.0 - 1e-7):  # straight
         d = (ends[3] - ends[0]) / np.linalg.norm(ends[3] - ends[0])
-        new_pts = ends[0] + np.linspace(0.0, L_new, len(pts))[:, None] * d
-        curve = gc.curve.with_points(new_pts)
+        curve = gc.curve.with_points(ends[0] + np.linspace(0.0, L_new, len(pts))[:, None] * d)
     else:
-        a, b = t0 * L, t1 * L
+        a, b = s0 * L, s1 * L
         joints = np.array([a, a + f * (b - a)])
         grid = np.linspace(0.0, L_new, max(int(samples), 5))
         near = np.abs(grid[:, None] - joints[None]).min(1) < 0.25 * (grid[1] - grid[0])
@@ -330,8 +336,7 @@ def stretch(gc: GeneralizedCylinder, t0: float, t1: float, factor: float,
         X = C + inside[:, None] * (f - 1.0) * (C - ends[1]) \
             + after[:, None] * (f - 1.0) * (ends[2] - ends[1])
         curve = SplineCurve(X)
-    keys = [Key(float(new_t(k.t)), k.radii, k.twist) for k in with_keys_at(gc, [t0, t1])]
-    return rebuild(op, gc, curve=curve, keys=keys, up=carry_up(gc, curve))
+    return rebuild(op, gc, curve=curve, up=carry_up(gc, curve), reparam=(tn, arc))
 
 
 def scale_radii(gc: GeneralizedCylinder, t: float | None, factor,
@@ -383,10 +388,48 @@ def twist(gc: GeneralizedCylinder, t: float | None, degrees: float,
     return rebuild(op, gc, keys=keys)
 
 
+def twist_ramp(gc: GeneralizedCylinder, t0: float, t1: float,
+               degrees: float) -> GeneralizedCylinder:
+    """Twist growing linearly from 0 at t0 to `degrees` at t1 and staying `degrees` after t1
+    (a twisted bar: t0 = 0, t1 = 1). Keys are inserted at t0 and t1 with the interpolated
+    profile, so the added twist is exactly this ramp."""
+    op = "twist_ramp"
+    check_gc(op, gc)
+    t0, t1 = check_t(op, gc, "t0", t0), check_t(op, gc, "t1", t1)
+    if not t0 < t1:
+        raise EditError(f"the range [t0, t1] = [{t0}, {t1}] is empty", op=op, gc=gc.name,
+                        field="t1", value=t1, fix="give t0 < t1 (or use 'twist' at one key)")
+    deg = check_number(op, gc, "degrees", degrees)
+    keys = [Key(k.t, k.radii, k.twist + deg * min(max((k.t - t0) / (t1 - t0), 0.0), 1.0))
+            for k in with_keys_at(gc, [t0, t1])]
+    return rebuild(op, gc, keys=keys)
+
+
+def local_motion(old: GeneralizedCylinder, new: GeneralizedCylinder,
+                 point) -> tuple[np.ndarray, np.ndarray]:
+    """The rigid motion (R (3, 3), t (3,)) an edit old -> new applies near `point` (3,).
+
+    The point keeps its relative coordinates (so it lands on new.to_world(old.to_relative(p)))
+    and turns with the frame (T, N, B) at its closest curve point. A part attached there (a
+    head on a neck, a leg on a stretched torso) follows an edit by this motion."""
+    p = np.asarray(point, dtype=np.float64).reshape(1, 3)
+    rel = old.to_relative(p)
+    q = new.to_world(rel)[0]
+    t = torch.tensor([(min(max(float(rel[0, 0]), -1.0), 1.0) + 1.0) / 2.0], dtype=torch.float64)
+
+    def frame(g):
+        s = g.arc.s_of_t(g.arc_of_t(t))
+        return torch.cat(g.frame(s, t)[1:]).numpy()  # rows T, N, B
+
+    R = frame(new).T @ frame(old)
+    return R, q - R @ p[0]
+
+
 # ---- programs --------------------------------------------------------------------------------
 OPS: dict[str, Callable[..., GeneralizedCylinder]] = {
-    "move": move_points, "rigid": rigid, "rotate": rotate, "translate": translate,
-    "stretch": stretch, "scale": scale_radii, "twist": twist,
+    "move": move_points, "bend": move_points, "rigid": rigid, "rotate": rotate,
+    "translate": translate, "stretch": stretch, "scale": scale_radii, "twist": twist,
+    "twist_ramp": twist_ramp,
 }
 
 

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from omegaconf import DictConfig
 
-STAGES = ("prepare", "fit")
+STAGES = ("prepare", "fit", "shape_latent", "diffusion")
 
 
 def run_stage(cfg: DictConfig):
@@ -13,4 +13,10 @@ def run_stage(cfg: DictConfig):
     if cfg.stage == "fit":
         from .fit import run_fit
         return run_fit(cfg)
+    if cfg.stage == "shape_latent":
+        from .shape_latent import run_shape_latent
+        return run_shape_latent(cfg)
+    if cfg.stage == "diffusion":
+        from .diffusion import run_diffusion
+        return run_diffusion(cfg)
     raise ValueError(f"unknown stage {cfg.stage!r}; choose one of {', '.join(STAGES)}")

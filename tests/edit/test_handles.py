@@ -183,3 +183,23 @@ def test_explicit_attachment_and_fixed_gcs_never_follow():
 def test_bad_handle_inputs(kwargs, match):
     with pytest.raises(EditError, match=match):
         deform_by_handles(creature(), **kwargs)
+
+
+def test_fixed_points_inside_a_gc_pin_the_end_they_lie_at():
+    """A part rooted deep inside a fixed body (a tail in a torso): the fixed points near its
+    root lie inside it, far from the root point itself but at small t, so the root stays and
+    the far end moves, although the far end is nearer the fixed points in space."""
+    tail = gc([[0, 0, 0], [0.3, 0, 0.1], [0.6, 0, 0.0]], name="tail", radii=(0.1, 0.1))
+    # fixed points: a ring around the root (inside the tail, t ~ 0) and a point right next to
+    # the tail's tip (outside the tail)
+    ring = tail.to_world(np.array([[-0.95, 0.8 * np.cos(a), 0.8 * np.sin(a)]
+                                   for a in np.linspace(0, 6, 8)]))
+    fixed = np.concatenate([ring, [[0.6, 0.0, 0.3]]])
+    h = end_handles(tail, end=1)
+    R = Rotation.from_rotvec([0, -0.4, 0]).as_matrix()
+    p0 = tail.curve.points[0]
+    targets = (h - p0) @ R.T + p0
+    (new,), info = deform_by_handles([tail], h, targets, fixed, return_info=True)
+    assert info.bent["tail"]["moving_end"] == 1
+    np.testing.assert_allclose(new.curve.points[0], p0)
+    check_handles(tail, new, h, targets)

@@ -6,8 +6,8 @@ import pytest
 import torch
 from scipy.spatial.transform import Rotation
 
-from ngc_gen.edit import (EditError, apply, compose, move_points, rigid, rotate, scale_radii,
-                          stretch, stretch_map, translate, twist)
+from ngc_gen.edit import (EditError, apply, compose, local_motion, move_points, rigid, rotate,
+                          scale_radii, stretch, stretch_map, translate, twist, twist_ramp)
 from ngc_gen.geometry import BezierCurve, GeneralizedCylinder, SplineCurve
 
 
@@ -140,11 +140,28 @@ def test_stretch_straight_is_exact(straight):
     s = stretch(straight, 0.25, 0.5, 3.0)
     assert isinstance(s.curve, BezierCurve) and len(s.curve.points) == 3
     assert s.length == pytest.approx(L + 2 * 0.25 * L, rel=1e-9)
-    # joints: C(t0) stays, C(t1) moves out by (f - 1) (t1 - t0) L along the tangent
-    ta, tb = t_of(s, [[0.25, 0, 0], [0.25 + 3 * 0.25, 0, 0]])
-    assert (tb - ta) * s.length == pytest.approx(3 * 0.25 * L, rel=1e-6)
-    assert ta * s.length == pytest.approx(0.25 * L, rel=1e-6)
-    assert (1 - tb) * s.length == pytest.approx(0.5 * L, rel=1e-6)
+    # the joints C(t0) (stays) and C(t1) (moves out by (f - 1)(t1 - t0) L) keep their network t
+    np.testing.assert_allclose(t_of(s, [[0.25, 0, 0], [0.25 + 3 * 0.25, 0, 0]]), [0.25, 0.5],
+                               atol=1e-9)
+    # the parameter map sends [t0, t1] onto the 3x longer arc range
+    arc = s.arc_of_t(torch.tensor([0.25, 0.5, 1.0], dtype=torch.float64)).numpy() * s.length
+    np.testing.assert_allclose(arc, [0.25 * L, L, 1.5 * L], rtol=1e-9)
+    # keys stay at their t: the radii/twist profile over t is unchanged
+    t = torch.linspace(0, 1, 101, dtype=torch.float64)
+    torch.testing.assert_close(s.radii_at(t), straight.radii_at(t))
+
+
+def test_stretch_moves_the_network_features_with_the_material(straight):
+    """A point of the stretched piece has the relative coordinates (so the network input u) of
+    the point it came from: x -> x0 + f (x - x0) inside the range, + (f - 1)(x1 - x0) after."""
+    s = stretch(straight, 0.25, 0.5, 3.0)
+    rel = rel_samples()
+    old = straight.to_world(rel)
+    x, x0, x1 = old[:, 0], 0.25, 0.5
+    new = old.copy()
+    new[:, 0] = np.where(x <= x0, x, np.where(x <= x1, x0 + 3 * (x - x0), x + 2 * (x1 - x0)))
+    np.testing.assert_allclose(s.to_world(rel), new, atol=1e-6)  # arc-length tables
+    np.testing.assert_allclose(s.to_relative(new), rel, atol=1e-7)
 
 
 @pytest.mark.parametrize("kind", ["bezier", "spline"])
@@ -155,24 +172,56 @@ def test_stretch_curved_scales_the_range_and_keeps_the_rest(curved, kind, t0, t1
     s = stretch(gc, t0, t1, factor)
     c0, c1 = (gc.to_world(np.array([[2 * t - 1, 0.0, 0.0]]))[0] for t in (t0, t1))
     j0, j1 = c0, c0 + factor * (c1 - c0)  # where the exact map puts the joints
-    ta, tb = t_of(s, [j0, j1])
     Ln = s.length
     assert Ln == pytest.approx(L + (factor - 1) * (t1 - t0) * L, rel=1e-3)
-    assert (tb - ta) * Ln == pytest.approx(factor * (t1 - t0) * L, rel=0.01)
-    assert ta * Ln == pytest.approx(t0 * L, abs=0.01 * L)
-    assert (1 - tb) * Ln == pytest.approx((1 - t1) * L, abs=0.01 * L)
-    # key profile rides with the material: radii at the old key t = 0.5 are at its new t
-    new_t, _ = stretch_map(gc, t0, t1, factor)
-    r_old = gc.radii_at(torch.tensor([0.5], dtype=torch.float64))
-    r_new = s.radii_at(torch.tensor([float(new_t(0.5))], dtype=torch.float64))
-    torch.testing.assert_close(r_new, r_old)
+    # the joints keep their network t; the arc lengths between them scale
+    np.testing.assert_allclose(t_of(s, [j0, j1]), [t0, t1], atol=3e-3)
+    a, b = s.arc_of_t(torch.tensor([t0, t1], dtype=torch.float64)).numpy() * Ln
+    assert b - a == pytest.approx(factor * (t1 - t0) * L, rel=1e-4)  # spline fit of the map
+    assert a == pytest.approx(t0 * L, rel=1e-4, abs=1e-12)
+    assert Ln - b == pytest.approx((1 - t1) * L, rel=1e-4, abs=1e-12)
+    # keys (and so the radii/twist profile over t) are unchanged; round trips stay exact
+    assert s.keys == gc.keys
+    rel = rel_samples()
+    np.testing.assert_allclose(s.to_relative(s.to_world(rel)), rel, atol=1e-6)
+
+
+def test_stretch_map_nodes(straight):
+    tn, arc, L_new = stretch_map(straight, 0.25, 0.5, 3.0)
+    np.testing.assert_allclose(tn, [0, 0.25, 0.5, 1])
+    np.testing.assert_allclose(arc * L_new, np.array([0, 0.25, 1.0, 1.5]) * straight.length)
+
+
+def test_stretches_compose_through_the_parameter_map(straight):
+    """Stretching a range twice multiplies the factors (exact for a straight GC), and stretching
+    back restores the identity map."""
+    twice = stretch(stretch(straight, 0.2, 0.4, 2.0), 0.2, 0.4, 1.5)
+    once = stretch(straight, 0.2, 0.4, 3.0)
+    assert same_shape(twice, once, atol=1e-6)
+    assert twice.length == pytest.approx(once.length, rel=1e-12)
+    # a second stretch over a range that straddles the first one's node
+    other = stretch(stretch(straight, 0.2, 0.4, 2.0), 0.3, 0.8, 0.5)
+    np.testing.assert_allclose(other.reparam[0], [0, 0.2, 0.3, 0.4, 0.8, 1])
+    rel = rel_samples()
+    np.testing.assert_allclose(other.to_relative(other.to_world(rel)), rel, atol=1e-7)
+    back = stretch(stretch(straight, 0.2, 0.4, 2.0), 0.2, 0.4, 0.5)
+    assert back.length == pytest.approx(straight.length, rel=1e-12)
+    np.testing.assert_allclose(back.reparam[1], back.reparam[0], atol=1e-12)
+    assert same_shape(back, straight, atol=1e-6)  # control points re-spaced: table rounding
+
+
+def test_stretched_gc_round_trips_through_its_dict(curved):
+    s = stretch(curved, 0.3, 0.6, 2.0)
+    again = GeneralizedCylinder.from_dict(s.to_dict())
+    assert same_shape(s, again, atol=1e-7)
+    assert "reparam" in s.to_dict() and "reparam" not in curved.to_dict()
 
 
 def test_stretch_whole_curve_is_a_uniform_scaling(curved):
     s = stretch(curved, 0.0, 1.0, 1.7)
     assert isinstance(s.curve, BezierCurve)
     assert s.length == pytest.approx(1.7 * curved.length, rel=1e-9)
-    assert [k.t for k in s.keys] == [k.t for k in curved.keys]
+    assert [k.t for k in s.keys] == [k.t for k in curved.keys] and s.reparam is None
 
 
 @pytest.mark.parametrize("args, match", [
@@ -280,3 +329,31 @@ def test_edits_round_trip_through_dicts(curved):
     again = GeneralizedCylinder.from_dict(edited.to_dict())
     assert same_shape(edited, again, atol=1e-12)
     assert math.isclose(again.keys[-2].twist, edited.keys[-2].twist)
+
+
+# ---- twist ramp, local motion ----------------------------------------------------------------
+def test_twist_ramp_adds_a_linear_ramp(curved):
+    r = twist_ramp(curved, 0.2, 0.8, 90.0)
+    t = torch.linspace(0, 1, 101, dtype=torch.float64)
+    ramp = torch.clamp((t - 0.2) / 0.6, 0, 1) * math.radians(90.0)
+    torch.testing.assert_close(r.twist_at(t), curved.twist_at(t) + ramp)
+    torch.testing.assert_close(r.radii_at(t), curved.radii_at(t))
+    with pytest.raises(EditError, match="empty"):
+        twist_ramp(curved, 0.5, 0.5, 10)
+
+
+def test_local_motion_of_a_rigid_edit_is_that_motion(curved):
+    R = Rotation.from_rotvec([0.2, 0.5, -0.3]).as_matrix()
+    t = np.array([0.1, -0.2, 0.3])
+    moved = rigid(curved, R, t)
+    p = curved.to_world(np.array([[0.3, 0.5, -0.2]]))[0]
+    Rl, tl = local_motion(curved, moved, p)
+    np.testing.assert_allclose(Rl, R, atol=1e-9)
+    np.testing.assert_allclose(tl, t, atol=1e-9)
+
+
+def test_local_motion_follows_a_stretch_by_translation(straight):
+    s = stretch(straight, 0.2, 0.5, 2.0)
+    R, t = local_motion(straight, s, np.array([0.8, 0.05, 0.0]))  # after the range
+    np.testing.assert_allclose(R, np.eye(3), atol=1e-9)
+    np.testing.assert_allclose(t, [0.3, 0, 0], atol=1e-6)

@@ -1,0 +1,244 @@
+"""`edit.py`: apply an edit program to a shape of a fitted checkpoint and write the results.
+
+Everything that can fail on bad input (the program's structure, the checkpoint, the shape, GC
+names and every op's values, mix sources) is checked before the first file is written; the
+outputs are then written atomically into the output folder:
+
+    undeformed.ply   the NGC mesh of the shape as fitted (same resolution and union)
+    deformed.ply     the NGC mesh after the program (edited GCs, mixed features)
+    edited.yaml      annotation with the edited GCs (ngc_gen.data.load_annotation reads it;
+                     its mesh is deformed.ply); `extract_shape(..., gcs=...)` can use them
+    program.yaml     the program as run (shape filled in)
+    metrics.json     eps_v, eps_a (deformed vs undeformed), volumes, areas, timings, op log
+"""
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+import yaml
+
+from ngc_gen.config import repo_root
+from ngc_gen.data.annotations import Annotation
+from ngc_gen.data.atomic import atomic_write, atomic_write_text
+from ngc_gen.data.errors import DataError
+from ngc_gen.extract.shapes import shape_gcs
+from ngc_gen.lit.checkpoint import load_autodecoder
+
+from .errors import EditError
+from .mixing import PartMix, extract_smooth_union, mixed_sdf_fn
+from .program import EditProgram, MixSource, apply_program
+
+CONF_EDIT = "conf/edit"
+
+
+def available_programs() -> list[str]:
+    return sorted(p.stem for p in (repo_root() / CONF_EDIT).glob("*.yaml"))
+
+
+def load_program_file(path) -> EditProgram:
+    """An EditProgram from a YAML file (EditError naming the file if it is not one)."""
+    path = Path(path)
+    if not path.is_file():
+        raise EditError("program file not found", program=str(path),
+                        fix=f"give an existing YAML file, or edit=<name> with one of "
+                            f"{available_programs()}")
+    try:
+        d = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except yaml.YAMLError as e:
+        raise EditError(f"malformed YAML ({str(e).splitlines()[0]})", program=str(path)) from None
+    return EditProgram.from_dict(d, source=str(path))
+
+
+def program_from_config(cfg) -> EditProgram:
+    """The program of an edit config: `edit` (a conf/edit/*.yaml composed by Hydra) or
+    `program_file` (any YAML path); exactly one of them."""
+    from omegaconf import OmegaConf
+
+    file, composed = cfg.get("program_file"), cfg.get("edit")
+    if (file is None) == (composed is None):
+        raise EditError("give exactly one program: edit=<name> (one of "
+                        f"{available_programs()}) or program_file=<path.yaml>"
+                        + (" (got both)" if file is not None else ""))
+    if file is not None:
+        return load_program_file(file)
+    source = CONF_EDIT + "/<edit>.yaml"
+    try:
+        from hydra.core.hydra_config import HydraConfig
+
+        choice = HydraConfig.get().runtime.choices.get("edit")
+        source = f"{CONF_EDIT}/{choice}.yaml"
+    except ValueError:  # composed outside @hydra.main (tests, notebooks)
+        pass
+    return EditProgram.from_dict(OmegaConf.to_container(composed, resolve=True), source=source)
+
+
+def same_decoder(a, b) -> bool:
+    """True if two decoders have the same configuration and identical weights."""
+    if getattr(a, "config", None) != getattr(b, "config", None):
+        return False
+    sa, sb = a.state_dict(), b.state_dict()
+    return sa.keys() == sb.keys() and all(torch.equal(sa[k], sb[k]) for k in sa)
+
+
+class CheckpointSources:
+    """Resolves mix sources: (shape, gc, ckpt) -> code and GC, from the edited checkpoint or
+    another checkpoint of the same network (checked: features only mix within one network)."""
+
+    def __init__(self, module, ckpt_path, shape: str):
+        self.module, self.path, self.shape = module, Path(ckpt_path).resolve(), shape
+        self._loaded: dict[Path, object] = {}
+
+    def _module(self, ckpt):
+        if ckpt is None or Path(ckpt).resolve() == self.path:
+            return self.module
+        path = Path(ckpt).resolve()
+        if path not in self._loaded:
+            try:
+                other = load_autodecoder(path)
+            except DataError as e:
+                raise EditError(str(e), field="source.ckpt", value=str(ckpt)) from None
+            if other.hparams.kind != "ngc" or not same_decoder(other.decoder, self.module.decoder):
+                raise EditError("this checkpoint's network differs from the edited one's, so "
+                                "its part features do not mean the same", field="source.ckpt",
+                                value=str(ckpt),
+                                fix="mix parts fitted with one network (the same run, or a "
+                                    "codes-only fit with the decoder frozen)")
+            self._loaded[path] = other
+        return self._loaded[path]
+
+    def __call__(self, shape: str | None, gc: str, ckpt: str | None) -> MixSource:
+        module = self._module(ckpt)
+        shape = shape or self.shape
+        metas = {m["name"]: m for m in module.hparams.meta["shapes"]}
+        if shape not in metas:
+            raise EditError(f"unknown shape; the checkpoint holds {sorted(metas)}",
+                            field="source.shape", value=shape)
+        meta = metas[shape]
+        names = [g.name for g in shape_gcs(meta)]
+        if gc not in names:
+            raise EditError(f"shape '{shape}' has no GC named so; its GCs are {names}",
+                            field="source.gc", value=gc)
+        j = names.index(gc)
+        code = module.codes.weight[meta["code_offset"] + j].detach().clone()
+        label = f"{shape}/{gc}" + ("" if module is self.module else f" ({ckpt})")
+        return MixSource(code, shape_gcs(meta)[j], label)
+
+
+def _json_safe(x):
+    if isinstance(x, dict):
+        return {str(k): _json_safe(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_json_safe(v) for v in x]
+    if isinstance(x, (np.floating, np.integer)):
+        return x.item()
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    return x
+
+
+def _mesh_stats(mesh, prefix: str) -> dict:
+    empty = len(mesh.faces) == 0
+    return {f"volume_{prefix}": None if empty else float(mesh.volume),
+            f"area_{prefix}": float(mesh.area), f"watertight_{prefix}": bool(mesh.is_watertight),
+            f"n_faces_{prefix}": int(len(mesh.faces))}
+
+
+def run_edit(cfg) -> dict:
+    """Validate and apply the program, extract both meshes, then write every output."""
+    t_start = time.perf_counter()
+    program = program_from_config(cfg)
+    if cfg.get("ckpt") is None:
+        raise DataError("no checkpoint given",
+                        fix="pass ckpt=<run>/checkpoints/last.ckpt of a `train.py stage=fit` run")
+    module = load_autodecoder(cfg.ckpt)
+    if module.hparams.kind != "ngc":
+        raise DataError(f"{cfg.ckpt} holds a {module.hparams.kind} model; edits need NGC GCs",
+                        fix="pass a checkpoint fitted with model=small or model=paper")
+    metas = module.hparams.meta["shapes"]
+    names = [m["name"] for m in metas]
+    shape = cfg.get("shape") or program.shape
+    if shape is None or shape not in names:
+        raise EditError(("the program names no shape" if shape is None else
+                         "unknown shape") + f"; the checkpoint holds {names}",
+                        program=program.source, field="shape", value=shape,
+                        fix="pass shape=<name> on the command line")
+    index = names.index(shape)
+    meta = metas[index]
+    gcs = shape_gcs(meta)
+
+    t0 = time.perf_counter()
+    result = apply_program(program, gcs, CheckpointSources(module, cfg.ckpt, shape))
+    t_edit = time.perf_counter() - t0
+
+    codes = module.codes.weight[meta["code_offset"]:meta["code_offset"] + meta["n_codes"]].detach()
+    gc_index = {g.name: j for j, g in enumerate(gcs)}
+    mixes = {gc_index[n]: PartMix(m.code, m.weight, m.label) for n, m in result.mixes.items()}
+    kw = dict(resolution=int(cfg.resolution), bound=float(cfg.bound), k=program.smooth_union,
+              chunk=int(cfg.chunk))
+    t0 = time.perf_counter()
+    before = extract_smooth_union(gcs, mixed_sdf_fn(module.decoder, codes), **kw)
+    t_before = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    after = extract_smooth_union(result.gcs, mixed_sdf_fn(module.decoder, codes, mixes), **kw)
+    t_after = time.perf_counter() - t0
+
+    metrics = {"program": program.name, "program_file": program.source, "shape": shape,
+               "checkpoint": str(cfg.ckpt), "resolution": int(cfg.resolution),
+               "smooth_union": program.smooth_union}
+    # the runner is a stage in all but location: it reads the (higher) eval layer's metric
+    from ngc_gen.eval import volume_area_change
+
+    try:
+        metrics.update(volume_area_change(before.mesh, after.mesh))
+    except ValueError:
+        metrics.update(eps_v=None, eps_a=None)
+    metrics.update(_mesh_stats(before.mesh, "before"), **_mesh_stats(after.mesh, "after"))
+    metrics.update(time_edit_s=t_edit, time_extract_before_s=t_before,
+                   time_extract_after_s=t_after, ops=result.log,
+                   mixes={n: m.label for n, m in result.mixes.items()},
+                   convention="eps_v = |V'-V|/V, eps_a = |A'-A|/A (fractions) of the deformed "
+                              "vs the undeformed NGC mesh, marching cubes at the same "
+                              "resolution; V from trimesh (watertight meshes)")
+
+    # ---- outputs (nothing above wrote a file) ----
+    out_dir = Path(cfg.out_dir) if cfg.get("out_dir") else \
+        Path("outputs/edit") / program.name / time.strftime("%Y-%m-%d_%H-%M-%S")
+    out_dir = out_dir.resolve()
+    ann0 = yaml.safe_load(meta["annotation_yaml"])
+    edited = Annotation(name=f"{shape}_{program.name}", mesh=str(out_dir / "deformed.ply"),
+                        gcs=result.gcs, bound=float(ann0.get("normalize", {}).get("bound", 0.8)))
+    header = (f"# GCs of '{shape}' after edit program '{program.name}' ({program.source}), in "
+              f"the fitted NGC frame.\n# mesh: the deformed NGC mesh"
+              + (f"; mixed parts (features, not stored here): {metrics['mixes']}"
+                 if result.mixes else "") + "\n")
+    for name, mesh in (("undeformed.ply", before.mesh), ("deformed.ply", after.mesh)):
+        atomic_write(out_dir / name, lambda f, m=mesh: f.write(m.export(file_type="ply")))
+    atomic_write_text(out_dir / "edited.yaml", header + edited.to_yaml(relative_to=out_dir))
+    prog = {"name": program.name, "description": program.description, "shape": shape,
+            "smooth_union": program.smooth_union, "ops": program.ops}
+    atomic_write_text(out_dir / "program.yaml",
+                      yaml.safe_dump(_json_safe(prog), sort_keys=False, default_flow_style=None,
+                                     width=100))
+    metrics["time_total_s"] = time.perf_counter() - t_start
+    metrics["out_dir"] = str(out_dir)
+    atomic_write_text(out_dir / "metrics.json", json.dumps(_json_safe(metrics), indent=2))
+    print_summary(metrics)
+    return metrics
+
+
+def print_summary(m: dict) -> None:
+    pct = lambda x: "n/a" if x is None else f"{100 * x:.2f}%"  # noqa: E731
+    print(f"edit '{m['program']}' on shape '{m['shape']}' ({len(m['ops'])} ops, "
+          f"{m['time_edit_s'] * 1e3:.0f} ms)")
+    for rec in m["ops"]:
+        extra = "".join(f", {k} {rec[k]}" for k in ("carried", "followers", "sources")
+                        if rec.get(k))
+        print(f"  {rec['op']:10s} {', '.join(rec['gcs'])}{extra}")
+    print(f"volume change eps_v {pct(m['eps_v'])}, area change eps_a {pct(m['eps_a'])} "
+          f"(deformed vs undeformed NGC mesh, resolution {m['resolution']})")
+    print(f"extraction {m['time_extract_before_s']:.1f} s + {m['time_extract_after_s']:.1f} s; "
+          f"outputs in {m['out_dir']}")

@@ -1,0 +1,199 @@
+"""What `sample.py` does: generate N shapes, interpolate between two, mix a part of one into
+another. Every mode writes, into its output directory, per shape `<name>.ply` + `<name>.yaml`
+(the GC annotation, editable), `latents.pt` ({names, latents (S, D), ...}), `shapes.ckpt` (a
+fit-format checkpoint of the shapes' codes and the NGC decoder, for `edit.py ckpt=...`) and
+`summary.json` (settings and timings)."""
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+from tqdm.auto import tqdm
+
+from ngc_gen.data.atomic import atomic_write, atomic_write_text
+from ngc_gen.data.errors import DataError
+from ngc_gen.edit import EditError, blend_weight
+
+from .latents import lerp, slerp
+from .model import ShapeGenerator
+from .shapes import (DecodedShape, WrittenShape, decode_shapes, extract_decoded, mixed_sdf_fn,
+                     normalise, write_edit_checkpoint, write_shape)
+
+MODES = ("generate", "interpolate", "mix")
+LATENTS_KIND = "ngc_gen.generated_latents"
+
+
+def _check(ok: bool, what: str, field: str, fix: str) -> None:
+    if not ok:
+        raise DataError(what, field=field, fix=fix)
+
+
+def extract_and_write(gen: ShapeGenerator, shapes: list[DecodedShape], out_dir: Path,
+                      resolution: int = 128, bound: float = 1.0, chunk: int | None = None,
+                      normalised: bool = True, sdf_fns: dict | None = None,
+                      progress: bool = True) -> tuple[list[WrittenShape], list[float]]:
+    """Extract each shape's mesh (decoded GCs + codes; `sdf_fns[name]` overrides the SDF) and
+    write its PLY + YAML. Returns the written shapes and the seconds per mesh."""
+    written, seconds = [], []
+    for shape in tqdm(shapes, desc="meshes", unit="shape", disable=not progress or len(shapes) < 2):
+        t0 = time.perf_counter()
+        mesh, stats = extract_decoded(gen.ngc, shape, resolution, bound, chunk,
+                                      sdf_fn=(sdf_fns or {}).get(shape.name))
+        gcs = shape.gcs
+        center, scale = np.zeros(3), 1.0
+        if normalised:
+            mesh, gcs, center, scale = normalise(mesh, gcs)
+        seconds.append(time.perf_counter() - t0)
+        info = {**shape.info, "n_faces": len(mesh.faces), "watertight": bool(mesh.is_watertight),
+                "normalise_center": np.asarray(center).tolist(), "normalise_scale": scale,
+                "extract_s": seconds[-1]}
+        if len(mesh.faces) == 0:
+            tqdm.write(f"warning: {shape.name}: the decoded SDF has no zero level set inside its "
+                       f"GCs (empty mesh)")
+        written.append(write_shape(out_dir, shape.name, mesh, gcs, shape.codes, info))
+    return written, seconds
+
+
+def write_outputs(gen: ShapeGenerator, out_dir: Path, mode: str, written: list[WrittenShape],
+                  latents: torch.Tensor, names: list[str], summary: dict,
+                  edit_shapes: list[WrittenShape] | None = None) -> dict:
+    """latents.pt, shapes.ckpt and summary.json; prints where things are."""
+    payload = {"kind": LATENTS_KIND, "mode": mode, "names": list(names),
+               "latents": latents.detach().cpu().float().clone(), "source": gen.source,
+               **{k: v for k, v in summary.items() if k in ("seed", "alphas", "a", "b")}}
+    atomic_write(out_dir / "latents.pt", lambda f: torch.save(payload, f))
+    edit = edit_shapes if edit_shapes is not None else written
+    ckpt = write_edit_checkpoint(out_dir / "shapes.ckpt", gen.ngc, edit,
+                                 source=f"sample.py mode={mode} run={gen.source}")
+    summary = {"mode": mode, "source": gen.source, "out_dir": str(out_dir),
+               "edit_checkpoint": str(ckpt), "edit_shapes": [s.name for s in edit], **summary,
+               "shapes": {s.name: {"mesh": str(s.mesh), "annotation": str(s.annotation), **s.info}
+                          for s in written}}
+    atomic_write_text(out_dir / "summary.json", json.dumps(summary, indent=2))
+    print(f"\n{len(written)} shapes in {out_dir}: <name>.ply + <name>.yaml, latents.pt, "
+          f"shapes.ckpt, summary.json")
+    for s in written:
+        print(f"  {s.name:20s} {s.n_faces:7d} faces   {s.annotation.name}")
+    if edit:
+        print(f"edit one: python edit.py ckpt={ckpt} shape={edit[0].name} ...")
+    return summary
+
+
+def generate(gen: ShapeGenerator, out_dir, n: int = 16, seed: int = 0, resolution: int = 128,
+             bound: float = 1.0, chunk: int | None = None, sampler: dict | None = None,
+             normalised: bool = True, progress: bool = True) -> dict:
+    """n new shapes: EDM latents (shape i from latent_seed(seed, i)) decoded to GCs + codes."""
+    _check(int(n) >= 1, f"n must be >= 1, got {n}", "n", "ask for at least one shape")
+    out_dir = Path(out_dir)
+    t0 = time.perf_counter()
+    latents = gen.sample_latents(range(int(n)), seed, **(sampler or {}))
+    latent_s = (time.perf_counter() - t0) / int(n)
+    names = [f"sample_{i:03d}" for i in range(int(n))]
+    shapes = decode_shapes(gen.shape_latent, latents, names)
+    written, secs = extract_and_write(gen, shapes, out_dir, resolution, bound, chunk, normalised,
+                                      progress=progress)
+    summary = {"n": int(n), "seed": int(seed), "resolution": int(resolution),
+               "sampler": dict(sampler or {}), "latent_s_per_shape": latent_s,
+               "mesh_s_per_shape": float(np.mean(secs))}
+    summary = write_outputs(gen, out_dir, "generate", written, latents, names, summary)
+    print(f"time per shape: latent {1e3 * latent_s:.1f} ms, mesh at {resolution}^3 "
+          f"{np.mean(secs):.2f} s")
+    return summary
+
+
+def interpolate(gen: ShapeGenerator, out_dir, a=0, b=1, steps: int = 8, seed: int = 0,
+                method: str = "lerp", resolution: int = 128, bound: float = 1.0,
+                chunk: int | None = None, sampler: dict | None = None, normalised: bool = True,
+                progress: bool = True) -> dict:
+    """`steps` shapes along the latent path from a to b (alpha = 0 .. 1, both ends included).
+    a, b: training shape names or generated indices. method: lerp, or slerp about the mean of
+    the training latents."""
+    _check(int(steps) >= 2, f"steps must be >= 2, got {steps}", "steps",
+           "ask for at least the two end shapes")
+    _check(method in ("lerp", "slerp"), f"unknown interpolation {method!r}", "interp",
+           "use interp=lerp or interp=slerp")
+    out_dir = Path(out_dir)
+    name_a, za = gen.resolve(a, seed, **(sampler or {}))
+    name_b, zb = gen.resolve(b, seed, **(sampler or {}))
+    alphas = torch.linspace(0.0, 1.0, int(steps), dtype=torch.float64)
+    if method == "lerp":
+        latents = lerp(za.double(), zb.double(), alphas)
+    else:
+        latents = slerp(za.double(), zb.double(), alphas, gen.train_latents.double().mean(0))
+    latents = latents.float()
+    latents[0], latents[-1] = za, zb
+    names = [f"interp_{k:02d}" for k in range(int(steps))]
+    shapes = decode_shapes(gen.shape_latent, latents, names)
+    for s, al in zip(shapes, alphas.tolist()):
+        s.info["alpha"] = al
+    written, secs = extract_and_write(gen, shapes, out_dir, resolution, bound, chunk, normalised,
+                                      progress=progress)
+    summary = {"a": name_a, "b": name_b, "seed": int(seed), "method": method,
+               "alphas": alphas.tolist(), "resolution": int(resolution),
+               "mesh_s_per_shape": float(np.mean(secs))}
+    return write_outputs(gen, out_dir, "interpolate", written, latents, names, summary)
+
+
+def mix(gen: ShapeGenerator, out_dir, a=0, b=1, part: str = "head",
+        blend: str = "truncated_linear", blend_params: dict | None = None, seed: int = 0,
+        resolution: int = 128, bound: float = 1.0, chunk: int | None = None,
+        sampler: dict | None = None, normalised: bool = True, progress: bool = True) -> dict:
+    """Shape A with GC `part`'s features blended toward shape B's (A's GCs, per-point features
+    (1 - w(t)) g(f_A(t)) + w(t) g(f_B(t)) on that GC). Writes A, B and `mix_<part>`.
+
+    The mixed shape's field is a blend of features, not a code: it is written as mesh + YAML,
+    and shapes.ckpt holds A and B (edit those; the mix is recorded in summary.json)."""
+    out_dir = Path(out_dir)
+    j = gen.shape_latent.template.index(str(part))
+    try:
+        weight = blend_weight(str(blend), **(blend_params or {}))
+    except EditError as e:
+        raise DataError(str(e), field="blend",
+                        fix="blend=truncated_linear t0=.. t1=.., blend=smoothstep t0=.. t1=.., "
+                            "blend=linear or blend=constant w=..") from None
+    name_a, za = gen.resolve(a, seed, **(sampler or {}))
+    name_b, zb = gen.resolve(b, seed, **(sampler or {}))
+    _check(name_a != name_b, f"a and b are the same shape ({name_a})", "a/b",
+           "mix two different shapes")
+    sa, sb = decode_shapes(gen.shape_latent, torch.stack([za, zb]), [name_a, name_b])
+    mixed_name = f"mix_{part}"
+    mixed = DecodedShape(mixed_name, za.clone(), sa.gcs, sa.codes,
+                         {"a": name_a, "b": name_b, "part": str(part), "blend": repr(weight)})
+    fns = {mixed_name: mixed_sdf_fn(gen.ngc, sa.codes, sb.codes, j, weight)}
+    written, secs = extract_and_write(gen, [sa, sb, mixed], out_dir, resolution, bound, chunk,
+                                      normalised, sdf_fns=fns, progress=progress)
+    summary = {"a": name_a, "b": name_b, "part": str(part), "blend": repr(weight),
+               "seed": int(seed), "resolution": int(resolution),
+               "mesh_s_per_shape": float(np.mean(secs))}
+    return write_outputs(gen, out_dir, "mix", written, torch.stack([za, zb]), [name_a, name_b],
+                         summary, edit_shapes=written[:2])
+
+
+def run_sample(cfg) -> dict:
+    """Dispatch `sample.py` (conf/sample.yaml) to a mode."""
+    from omegaconf import OmegaConf
+
+    from .model import load_generator
+
+    c = OmegaConf.to_container(cfg, resolve=True)
+    mode = c["mode"]
+    _check(mode in MODES, f"unknown mode {mode!r}", "mode", f"use one of {', '.join(MODES)}")
+    _check(int(c["resolution"]) >= 8, f"resolution must be >= 8, got {c['resolution']}",
+           "resolution", "use e.g. 128 (default) or 256")
+    gen = load_generator(c["run"], c.get("shape_latent_run"))
+    common = dict(seed=int(c["seed"]), resolution=int(c["resolution"]), bound=float(c["bound"]),
+                  chunk=None if c["chunk"] is None else int(c["chunk"]), sampler=c["sampler"],
+                  normalised=bool(c["normalise"]), progress=bool(c["progress"]))
+    out_dir = Path(c["out_dir"])
+    if mode == "generate":
+        return generate(gen, out_dir, n=int(c["n"]), **common)
+    if mode == "interpolate":
+        return interpolate(gen, out_dir, a=c["a"], b=c["b"], steps=int(c["steps"]),
+                           method=c["interp"], **common)
+    wanted = {"truncated_linear": ("t0", "t1"), "smoothstep": ("t0", "t1"), "constant": ("w",)}
+    params = {k: c[k] for k in wanted.get(c["blend"], ()) if c.get(k) is not None}
+    return mix(gen, out_dir, a=c["a"], b=c["b"], part=c["part"], blend=c["blend"],
+               blend_params=params, **common)

@@ -1,0 +1,182 @@
+"""Shape-latent auto-decoder (DESIGN.md section 5; paper Sec. 4.4): one latent s per shape, a
+shape decoder s -> (template GC parameters, one NGC code per GC) and a shared NGC decoder.
+
+    loss = mean |F(code_k(s_i), rel) - sdf|                       NGC SDF L1 (rel from the
+                                                                  annotated GCs, cached)
+         + param_weight * mean_i,p ((theta_hat_ip - theta_ip) / std_p)^2   GC parameters
+         + latent_reg * mean_i ||s_i||^2                          (paper: 1e-4)
+
+Optional latent noise (`latent_noise` = rho > 0): in training the decoder sees
+s_i + rho * std(s) * eps, std(s) the per-dimension spread of all latents (detached), so it
+decodes a neighbourhood of each latent, not just the point: the latent space between and
+around the training shapes decodes to clean shapes, which is where a diffusion model's samples
+land.
+
+Batches are the fit stage's NGC rows (global GC id, rel (3,), sdf): every shape has the
+template's K GCs, so id = shape * K + gc. Only the shapes present in a batch are decoded.
+The annotated parameter vectors (`target_params`) and the decoder's parameter statistics are
+buffers, so the checkpoint alone rebuilds everything.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import lightning as L
+import torch
+from torch import nn
+
+from ngc_gen.data.errors import DataError
+from ngc_gen.models import build_decoder
+from ngc_gen.models.shape_decoder import GCTemplate, ShapeDecoder
+
+CHECKPOINT_KIND = "ngc_gen.shape_latent"
+FIX = "pass the run directory (or checkpoints/last.ckpt) of a `train.py stage=shape_latent` run"
+
+
+class ShapeLatentModule(L.LightningModule):
+    """n_shapes latents of `latent_dim`; `template`: GCTemplate.to_dict(); `ngc`: NGC decoder
+    sizes (as NGCDecoder.config, or {preset: small}); `shape_decoder`: ShapeDecoder kwargs
+    (hidden, layers, bound). meta: {"shapes": [{name, annotation_yaml}, ...]} in latent order."""
+
+    def __init__(self, n_shapes: int, template: dict, ngc: dict | None = None,
+                 latent_dim: int = 128, shape_decoder: dict | None = None, lr: float = 1e-3,
+                 latent_lr: float = 1e-3, param_weight: float = 1.0, latent_reg: float = 1e-4,
+                 latent_init_std: float = 0.01, latent_noise: float = 0.0,
+                 clamp: float | None = None,
+                 lr_min_factor: float = 0.1, meta: dict | None = None,
+                 checkpoint_kind: str = CHECKPOINT_KIND):
+        super().__init__()
+        self.save_hyperparameters()
+        self.template = GCTemplate.from_dict(template)
+        self.ngc = build_decoder("ngc", **(ngc or {"preset": "small"}))
+        self.shape_decoder = ShapeDecoder(latent_dim, self.template.size, self.template.n_gcs,
+                                          self.ngc.code_dim, **(shape_decoder or {}))
+        self.latents = nn.Embedding(n_shapes, latent_dim)
+        nn.init.normal_(self.latents.weight, 0.0, latent_init_std)
+        self.register_buffer("target_params", torch.zeros(n_shapes, self.template.size,
+                                                          dtype=torch.float64))
+
+    @property
+    def names(self) -> list[str]:
+        return [s["name"] for s in (self.hparams.meta or {}).get("shapes", [])]
+
+    @torch.no_grad()
+    def set_targets(self, vectors) -> None:
+        """Annotated parameter vectors (n_shapes, P) of the training shapes; also sets the
+        shape decoder's parameter statistics from them."""
+        v = torch.as_tensor(vectors, dtype=torch.float64)
+        if tuple(v.shape) != tuple(self.target_params.shape):
+            raise ValueError(f"targets must be {tuple(self.target_params.shape)}, got "
+                             f"{tuple(v.shape)}")
+        self.target_params.copy_(v)
+        self.shape_decoder.set_param_stats(v)
+
+    # -- decoding ----------------------------------------------------------------------------
+    def decode(self, s: torch.Tensor):
+        """Latents (B, D) -> (raw GC parameters (B, P) float64, codes (B, K, C))."""
+        z, codes = self.shape_decoder(s.to(self.latents.weight))
+        return self.shape_decoder.params(z.double()), codes
+
+    def gc_dicts(self, s: torch.Tensor) -> list[list[dict]]:
+        """Latents (B, D) -> per shape the list of decoded GC dicts (template order)."""
+        theta, _ = self.decode(s)
+        return [self.template.gc_dicts(t) for t in theta]
+
+    # -- training ----------------------------------------------------------------------------
+    def losses(self, ids: torch.Tensor, rel: torch.Tensor, sdf: torch.Tensor) -> dict:
+        K = self.template.n_gcs
+        shape, gc = ids // K, ids % K
+        uniq, inv = torch.unique(shape, return_inverse=True)
+        s = self.latents(uniq)
+        s_in = s
+        if self.training and self.hparams.latent_noise > 0 and len(self.latents.weight) > 1:
+            spread = self.latents.weight.detach().std(0)
+            s_in = s + self.hparams.latent_noise * spread * torch.randn_like(s)
+        z, codes = self.shape_decoder(s_in)
+        pred = self.ngc(codes[inv, gc], rel)
+        c = self.hparams.clamp
+        if c:
+            pred, sdf = pred.clamp(-c, c), sdf.clamp(-c, c)
+        l1 = (pred - sdf).abs().mean()
+        sd = self.shape_decoder
+        target = sd.normalise(self.target_params[uniq]).to(z)
+        varying = sd.varying
+        param = ((z - target)[:, varying] ** 2).mean() if bool(varying.any()) else z.sum() * 0
+        reg = (s * s).sum(1).mean()
+        loss = l1 + self.hparams.param_weight * param + self.hparams.latent_reg * reg
+        return {"loss": loss, "l1": l1, "param": param, "latent_norm2": reg}
+
+    def on_train_epoch_start(self) -> None:
+        dm = getattr(self.trainer, "datamodule", None)
+        if dm is not None and hasattr(dm, "set_epoch"):
+            dm.set_epoch(self.current_epoch)
+
+    def training_step(self, batch, batch_idx):
+        ids, rel, sdf = batch
+        out = self.losses(ids, rel, sdf)
+        self.log_dict({f"train/{k}": v for k, v in out.items()}, prog_bar=True, on_step=True,
+                      on_epoch=False, batch_size=len(ids))
+        return out["loss"]
+
+    def configure_optimizers(self):
+        hp = self.hparams
+        opt = torch.optim.Adam([
+            {"params": list(self.ngc.parameters()) + list(self.shape_decoder.parameters()),
+             "lr": hp.lr},
+            {"params": self.latents.parameters(), "lr": hp.latent_lr},
+        ])
+        max_steps = self.trainer.max_steps if self._trainer is not None else -1
+        if max_steps is None or max_steps <= 0 or hp.lr_min_factor >= 1.0:
+            return opt
+        lo = float(hp.lr_min_factor)
+
+        def factor(step: int) -> float:  # cosine from 1 down to lr_min_factor over max_steps
+            x = min(step / max_steps, 1.0)
+            return lo + (1.0 - lo) * 0.5 * (1.0 + math.cos(math.pi * x))
+
+        sched = torch.optim.lr_scheduler.LambdaLR(opt, factor)
+        return {"optimizer": opt, "lr_scheduler": {"scheduler": sched, "interval": "step"}}
+
+    # -- loading -----------------------------------------------------------------------------
+    @classmethod
+    def from_checkpoint(cls, path, map_location="cpu") -> "ShapeLatentModule":
+        """A trained module from a Lightning checkpoint (weights_only), or the checkpoint of a
+        run directory (`<run>/checkpoints/last.ckpt`)."""
+        path = resolve_checkpoint(path)
+        ckpt = load_checkpoint_dict(path, map_location)
+        hp = ckpt.get("hyper_parameters", {})
+        if hp.get("checkpoint_kind") != CHECKPOINT_KIND:
+            raise DataError(f"{path} is not a shape-latent checkpoint (kind "
+                            f"{hp.get('checkpoint_kind')!r})", fix=FIX)
+        module = cls(**hp)
+        module.load_state_dict(ckpt["state_dict"])
+        return module.eval()
+
+
+def resolve_checkpoint(path, fix: str = FIX, what: str = "shape-latent run") -> Path:
+    """A checkpoint file, or `<dir>/checkpoints/last.ckpt` for a run directory."""
+    if path is None or str(path) in ("", "???"):
+        raise DataError(f"no {what} given", fix=fix)
+    path = Path(path)
+    if path.is_dir():
+        ckpt = path / "checkpoints" / "last.ckpt"
+        if not ckpt.is_file():
+            raise DataError(f"{path} holds no checkpoints/last.ckpt (is it a finished "
+                            f"{what}?)", path=path, fix=fix)
+        return ckpt
+    if not path.is_file():
+        raise DataError(f"{what} {path} does not exist", fix=fix)
+    return path
+
+
+def load_checkpoint_dict(path: Path, map_location="cpu", fix: str = FIX) -> dict:
+    """torch.load(weights_only=True) with a DataError for files that are not checkpoints."""
+    try:
+        ckpt = torch.load(path, map_location=map_location, weights_only=True)
+    except Exception as e:  # not a torch file, or one holding arbitrary pickled objects
+        raise DataError(f"{path} is not a loadable checkpoint ({type(e).__name__}: "
+                        f"{str(e).splitlines()[0][:200]})", fix=fix) from None
+    if not isinstance(ckpt, dict):
+        raise DataError(f"{path} is not a Lightning checkpoint", fix=fix)
+    return ckpt

@@ -1,0 +1,90 @@
+"""Stage `diffusion`: EDM latent diffusion on the latents of a shape-latent run.
+
+    python train.py stage=diffusion shape_latent_run=<run dir or its checkpoint>
+
+Reads the latents from the shape-latent checkpoint (the nn.Embedding it trained), standardises
+them (statistics stored in the checkpoint), trains `LatentDiffusion` (EMA weights) and writes
+checkpoints/last.ckpt, metrics.json and config.yaml to the run directory. The checkpoint's meta
+records the shape-latent checkpoint, so `sample.py run=<this run>` finds everything.
+"""
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import torch
+from omegaconf import DictConfig, OmegaConf
+
+from ngc_gen.data.atomic import atomic_write_text
+
+from .shape_latent import with_stage_steps
+
+
+@torch.no_grad()
+def nearest_neighbour_stats(samples: torch.Tensor, train: torch.Tensor, std: torch.Tensor) -> dict:
+    """Distances in standardised units: each sample to its nearest training latent, and each
+    training latent to its nearest other one (a sample far below the latter copies the data)."""
+    a, b = samples / std, train / std
+    d_st = torch.cdist(a, b).min(1).values
+    d_tt = torch.cdist(b, b)
+    d_tt.fill_diagonal_(float("inf"))
+    d_tt = d_tt.min(1).values
+    return {"sample_to_train_median": float(d_st.median()),
+            "train_to_train_median": float(d_tt.median())}
+
+
+def run_diffusion(cfg: DictConfig) -> dict:
+    import lightning as L
+    from torch.utils.data import DataLoader, RandomSampler, TensorDataset
+
+    from ngc_gen.lit.diffusion import LatentDiffusion
+    from ngc_gen.lit.shape_latent import ShapeLatentModule, resolve_checkpoint
+
+    from .fit import build_trainer
+
+    cfg = with_stage_steps(cfg, "diffusion")
+    ckpt = resolve_checkpoint(cfg.shape_latent_run).resolve()
+    shape_latent = ShapeLatentModule.from_checkpoint(ckpt)
+    latents = shape_latent.latents.weight.detach().float().clone()
+    run_dir = Path(cfg.run_dir)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(run_dir / "config.yaml", OmegaConf.to_yaml(cfg, resolve=True))
+
+    d = OmegaConf.to_container(cfg.diffusion, resolve=True)
+    L.seed_everything(cfg.seed, workers=True, verbose=False)
+    module = LatentDiffusion(
+        latents.shape[1], denoiser=d["denoiser"], lr=d["lr"], P_mean=d["P_mean"],
+        P_std=d["P_std"], ema_halflife_steps=d["ema_halflife_steps"],
+        ema_rampup=d["ema_rampup"], standardise=d["standardise"],
+        meta={"shape_latent_checkpoint": str(ckpt), "names": shape_latent.names,
+              "n_latents": int(len(latents))})
+    module.fit_standardisation(latents)
+    before = module.evaluate_loss(latents, seed=1, repeats=8)
+    dataset = TensorDataset(latents)
+    batch = min(int(d["batch_size"]), len(latents))
+    sampler = RandomSampler(dataset, num_samples=batch * int(d["batches_per_epoch"]),
+                            generator=torch.Generator().manual_seed(int(cfg.seed)))
+    loader = DataLoader(dataset, batch_size=batch, sampler=sampler, drop_last=True)
+    trainer = build_trainer(cfg, run_dir)
+    t0 = time.perf_counter()
+    trainer.fit(module, loader, ckpt_path=cfg.ckpt_path)
+    train_s = time.perf_counter() - t0
+    if trainer.global_rank != 0:
+        return {}
+    module = module.cpu().eval()
+    after = module.evaluate_loss(latents, seed=1, repeats=8, use_ema=True)
+    samples = module.sample(min(256, 4 * len(latents)), seed=0)
+    metrics = {"steps": int(trainer.global_step), "train_s": train_s,
+               "n_latents": int(len(latents)), "dim": int(latents.shape[1]),
+               "edm_loss_untrained": before, "edm_loss_ema": after,
+               **nearest_neighbour_stats(samples, latents, module.latent_std),
+               "checkpoint": str(run_dir / "checkpoints" / "last.ckpt"),
+               "shape_latent_checkpoint": str(ckpt)}
+    atomic_write_text(run_dir / "metrics.json", json.dumps(metrics, indent=2))
+    print(f"\ndiffusion: {len(latents)} latents x {latents.shape[1]} dims, {metrics['steps']} "
+          f"steps in {train_s:.0f} s; EDM loss {before:.3f} (untrained) -> {after:.3f} (EMA)")
+    print(f"  nearest training latent (std units): samples {metrics['sample_to_train_median']:.2f}"
+          f" median, training latents to each other {metrics['train_to_train_median']:.2f}")
+    print(f"run directory: {run_dir}\nnext: python sample.py run={run_dir} mode=generate n=16")
+    return metrics

@@ -1,0 +1,183 @@
+"""Stage `shape_latent`: one latent per training shape -> template GC parameters + NGC codes.
+
+    python train.py stage=shape_latent data=creatures [data.n=64 data.limit=...]
+
+Prepares the shapes (cached samples with relative coordinates from the annotated GCs), checks
+they share one GC template, trains `ShapeLatentModule` with Lightning and writes to the run
+directory: checkpoints/ (last.ckpt, best.ckpt), latents.pt ({names, latents (N, D)}),
+metrics.json (final losses, decoded-parameter errors, train time), config.yaml, logs/ and, if
+`shape_latent.preview` > 0, meshes/<shape>.ply of the first shapes decoded from their latents.
+"""
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+import yaml
+from omegaconf import DictConfig, OmegaConf, open_dict
+
+from ngc_gen.data.atomic import atomic_write, atomic_write_text
+from ngc_gen.data.errors import DataError
+from ngc_gen.data.prepare import PreparedShape
+
+LATENTS_KIND = "ngc_gen.shape_latents"
+
+
+def with_stage_steps(cfg: DictConfig, group: str) -> DictConfig:
+    """A copy of cfg whose trainer.max_steps is `<group>.max_steps` when that is set."""
+    cfg = cfg.copy()
+    steps = cfg[group].get("max_steps")
+    if steps is not None:
+        with open_dict(cfg):
+            cfg.trainer.max_steps = int(steps)
+    return cfg
+
+
+def template_and_targets(prepared: list[PreparedShape]):
+    """(GCTemplate of the first shape, annotated parameter vectors (N, P)); DataError naming the
+    shape if any shape does not follow the first one's template."""
+    from ngc_gen.models.shape_decoder import GCTemplate
+
+    if not prepared:
+        raise DataError("the dataset has no shapes", fix="check data.n / data.limit / data.split")
+    gcs = [yaml.safe_load(s.annotation_yaml)["gcs"] for s in prepared]
+    template = GCTemplate.from_gcs(gcs[0], where=f"shape {prepared[0].name}")
+    vectors = np.stack([template.vector(g, where=f"shape {s.name}")
+                        for g, s in zip(gcs, prepared)])
+    return template, vectors
+
+
+def ngc_config(cfg: DictConfig) -> dict:
+    """Explicit NGC decoder sizes from the `model` group (presets resolved)."""
+    from ngc_gen.models import build_decoder
+
+    m = OmegaConf.to_container(cfg.model, resolve=True)
+    if m.get("kind") != "ngc":
+        raise DataError(f"stage shape_latent needs an NGC decoder, model.kind is {m.get('kind')!r}",
+                        field="model", fix="use model=small or model=paper")
+    return dict(build_decoder("ngc", **m["decoder"]).config)
+
+
+def build_module(cfg: DictConfig, template, vectors, prepared: list[PreparedShape]):
+    from ngc_gen.lit.shape_latent import ShapeLatentModule
+
+    c = OmegaConf.to_container(cfg.shape_latent, resolve=True)
+    meta = {"dataset": str(cfg.data.name),
+            "shapes": [{"name": s.name, "annotation_yaml": s.annotation_yaml} for s in prepared]}
+    module = ShapeLatentModule(
+        n_shapes=len(prepared), template=template.to_dict(), ngc=ngc_config(cfg),
+        latent_dim=c["latent_dim"], shape_decoder=c["decoder"], lr=c["lr"],
+        latent_lr=c["latent_lr"], param_weight=c["param_weight"], latent_reg=c["latent_reg"],
+        latent_init_std=c["latent_init_std"], latent_noise=c["latent_noise"], clamp=c["clamp"],
+        lr_min_factor=c["lr_min_factor"], meta=meta)
+    module.set_targets(vectors)
+    if c.get("init_decoder"):
+        init_ngc_from_fit(module, c["init_decoder"])
+    return module
+
+
+def init_ngc_from_fit(module, path) -> None:
+    """Start the NGC decoder from a `stage=fit` checkpoint with the same decoder sizes."""
+    from ngc_gen.lit.checkpoint import load_autodecoder
+
+    fit = load_autodecoder(path)
+    if fit.hparams.kind != "ngc" or dict(fit.decoder.config) != dict(module.ngc.config):
+        raise DataError(f"{path}: its decoder ({fit.hparams.kind}, {fit.decoder.config}) differs "
+                        f"from this run's NGC decoder ({module.ngc.config})",
+                        field="shape_latent.init_decoder",
+                        fix="fit with the same model preset, or leave init_decoder null")
+    module.ngc.load_state_dict(fit.decoder.state_dict())
+
+
+def save_latents(path: Path, module, checkpoint: Path) -> None:
+    """latents.pt: {kind, names, latents (N, D) float32, checkpoint} (torch.load weights_only)."""
+    payload = {"kind": LATENTS_KIND, "names": module.names,
+               "latents": module.latents.weight.detach().cpu().float().clone(),
+               "checkpoint": str(Path(checkpoint).resolve())}
+    atomic_write(path, lambda f: torch.save(payload, f))
+
+
+@torch.no_grad()
+def evaluate(module, dm, batches: int = 20) -> dict:
+    """Mean losses over the first `batches` batches of a fixed permutation, and readable errors of
+    the decoded GC parameters against the annotated ones."""
+    from ngc_gen.models.shape_decoder import param_errors
+
+    module.eval()
+    ds = dm.train_set
+    ds.set_epoch(10 ** 6)  # a permutation no training epoch used
+    rows = [module.losses(*ds[i]) for i in range(min(batches, len(ds)))]
+    out = {k: float(np.mean([float(r[k]) for r in rows])) for k in rows[0]}
+    theta, _ = module.decode(module.latents.weight)
+    out["params"] = param_errors(module.template, theta.cpu().numpy(),
+                                 module.target_params.cpu().numpy())
+    return out
+
+
+def preview(module, run_dir: Path, n: int, resolution: int) -> list[str]:
+    """Meshes of the first n training shapes decoded from their latents (decoded GCs + codes)."""
+    from ngc_gen.generate.shapes import decode_shapes, extract_decoded
+
+    names = module.names[:n]
+    shapes = decode_shapes(module, module.latents.weight[:n], names)
+    out = []
+    for shape in shapes:
+        mesh, _ = extract_decoded(module.ngc, shape, resolution)
+        path = run_dir / "meshes" / f"{shape.name}.ply"
+        atomic_write(path, lambda f, m=mesh: f.write(m.export(file_type="ply")))
+        out.append(str(path))
+    return out
+
+
+def run_shape_latent(cfg: DictConfig) -> dict:
+    import lightning as L
+
+    from ngc_gen.data.datamodule import PreparedDataModule
+
+    from .fit import build_trainer
+    from .prepare import prepare_dataset
+
+    cfg = with_stage_steps(cfg, "shape_latent")
+    run_dir = Path(cfg.run_dir)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(run_dir / "config.yaml", OmegaConf.to_yaml(cfg, resolve=True))
+    prepared = prepare_dataset(cfg)
+    template, vectors = template_and_targets(prepared)
+    L.seed_everything(cfg.seed, workers=True, verbose=False)
+    dm = PreparedDataModule(prepared, mode="ngc", batch_size=cfg.batch_size, seed=cfg.seed)
+    module = build_module(cfg, template, vectors, prepared)
+    trainer = build_trainer(cfg, run_dir)
+    t0 = time.perf_counter()
+    trainer.fit(module, datamodule=dm, ckpt_path=cfg.ckpt_path)
+    train_s = time.perf_counter() - t0
+    if trainer.global_rank != 0:
+        return {}
+    module = module.cpu().eval()
+    last = run_dir / "checkpoints" / "last.ckpt"
+    save_latents(run_dir / "latents.pt", module, last)
+    metrics = evaluate(module, dm)
+    metrics.update(steps=int(trainer.global_step), train_s=train_s, n_shapes=len(prepared),
+                   latent_dim=int(module.hparams.latent_dim), n_params=template.size,
+                   gcs=template.names, checkpoint=str(last),
+                   latents=str(run_dir / "latents.pt"))
+    n_prev = int(cfg.shape_latent.preview)
+    if n_prev > 0:
+        with torch.no_grad():
+            metrics["preview"] = preview(module, run_dir, n_prev,
+                                         int(cfg.shape_latent.preview_resolution))
+    atomic_write_text(run_dir / "metrics.json", json.dumps(metrics, indent=2))
+    p = metrics["params"]
+    print(f"\nshape latents: {len(prepared)} shapes x {module.hparams.latent_dim} dims, "
+          f"{template.n_gcs} GCs, {template.size} GC parameters; {metrics['steps']} steps in "
+          f"{train_s:.0f} s")
+    print(f"  SDF L1 {metrics['l1']:.5f}   param MSE (std units) {metrics['param']:.5f}   "
+          f"mean ||s||^2 {metrics['latent_norm2']:.3f}")
+    print(f"  decoded GCs vs annotated: control points {p['point_mean']:.4f} mean / "
+          f"{p['point_max']:.4f} max, radii {100 * p['radius_rel']:.2f}%, caps "
+          f"{100 * p['cap_rel']:.2f}%, twist {p['twist_deg']:.2f} deg")
+    print(f"run directory: {run_dir}\nnext: python train.py stage=diffusion "
+          f"shape_latent_run={run_dir}")
+    return metrics
