@@ -118,9 +118,12 @@ def _time_prepare(shapes, settings, prepare_shape):
 def main():
     torch.set_num_threads(os.cpu_count() or 1)
     res = {"machine": {"cpus": os.cpu_count(), "torch_threads": torch.get_num_threads(),
-                       "python": platform.python_version(), "torch": torch.__version__}}
+                       "python": platform.python_version(), "torch": torch.__version__,
+                       "load_avg_1min_at_start": os.getloadavg()[0]}}
     res.update(bench_relcoords())
     res.update(bench_prepare())
+    print(f"machine load (1 min average) at start: {res['machine']['load_avg_1min_at_start']:.1f}"
+          f" on {os.cpu_count()} cores: timings are only meaningful on an idle machine")
     print(f"relative coords : {res['relcoords_points_per_s'] / 1e6:.2f} M points/s "
           f"(float32, 1M points, 128 segments; target >= 2)")
     print(f"  baseline polyline over all segments: {res['polyline_points_per_s'] / 1e6:.2f} M/s "
