@@ -99,7 +99,8 @@ def render(meshes, names, path: Path, cols: int = 4) -> None:
     for i, (m, name) in enumerate(zip(meshes, names)):
         p.subplot(i // cols, i % cols)
         if len(m.faces):
-            p.add_mesh(pv.wrap(m), color="#d9b38c", smooth_shading=True)
+            poly = pv.PolyData.from_regular_faces(np.asarray(m.vertices), np.asarray(m.faces))
+            p.add_mesh(poly, color="#d9b38c", smooth_shading=True)
         p.add_text(name, font_size=9)
         p.camera_position = [(2.2, -2.6, 1.4), (0, 0, 0), (0, 0, 1)]
     p.render()

@@ -78,7 +78,7 @@ def write_outputs(gen: ShapeGenerator, out_dir: Path, mode: str, written: list[W
     for s in written:
         print(f"  {s.name:20s} {s.n_faces:7d} faces   {s.annotation.name}")
     if edit:
-        print(f"edit one: python edit.py ckpt={ckpt} shape={edit[0].name} ...")
+        print(f"edit one: python edit.py ckpt={ckpt} shape={edit[0].name} edit=<program>")
     return summary
 
 
