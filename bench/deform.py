@@ -30,7 +30,7 @@ import json
 import math
 import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -106,20 +106,35 @@ def fit_config(steps: int, resolution: int):
     return cfg
 
 
+def inputs_key(steps: int) -> str:
+    """Identifies a fit: the step count and the three annotation files (a changed annotation,
+    e.g. a re-done ant, means a new fit)."""
+    import hashlib
+
+    h = hashlib.sha256(str(steps).encode())
+    for path in (make_bar(), ROOT / f".cache/datasets/creatures_n64_s0/{CREATURE}.yaml",
+                 ROOT / "datasets/ant/ant.yaml"):
+        h.update(path.read_bytes() if path.exists() else b"missing")
+    return h.hexdigest()[:16]
+
+
 def fitted(steps: int, refit: bool) -> dict:
-    """The fit (cached): {checkpoint, train_s, steps}."""
+    """The fit (cached while inputs_key matches): {checkpoint, train_s, steps, key}."""
     info = RUN_DIR / "fit_info.json"
     ckpt = RUN_DIR / "checkpoints/last.ckpt"
     if not refit and info.exists() and ckpt.exists():
         d = json.loads(info.read_text())
-        if d.get("steps") == steps:
+        if d.get("key") == inputs_key(steps):
             return d
     from ngc_gen.data.atomic import atomic_write_text
     from ngc_gen.stages.fit import run_fit
 
+    import shutil
+
+    shutil.rmtree(RUN_DIR / "checkpoints", ignore_errors=True)  # else Lightning saves last-v1
     m = run_fit(fit_config(steps, 128))
     d = {"checkpoint": str(ckpt), "train_s": m["train_s"], "steps": steps,
-         "fit_cd": {k: v["cd"] for k, v in m["shapes"].items()}}
+         "key": inputs_key(steps), "fit_cd": {k: v["cd"] for k, v in m["shapes"].items()}}
     atomic_write_text(info, json.dumps(d, indent=2))
     return d
 
@@ -297,7 +312,8 @@ def markdown(res: dict) -> str:
               f"0.1-2.6% vs ARAP 5-46% volume change). NGC: deformed vs undeformed NGC mesh, "
               f"both marching cubes at {s['resolution']}^3 over [-{BOUND}, {BOUND}]^3, fitted "
               f"{s['steps']} steps (small preset); time = handle solve (in brackets) + "
-              f"extraction of the deformed mesh (timings on a shared 2-core machine are noisy). ARAP: libigl spokes-and-rims, {s['arap_iters']} iterations, on "
+              f"extraction of the deformed mesh (timings on a shared 2-core machine are "
+              f"noisy). ARAP: libigl spokes-and-rims, {s['arap_iters']} iterations, on "
               f"the input mesh with the same handle and fixed vertices; time = precomputation "
               f"+ solve. NGC mean eps_V / ARAP mean eps_V = "
               f"{mv['ngc']['eps_v'] / mv['arap']['eps_v']:.2f}; eps_A ratio "

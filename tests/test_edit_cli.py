@@ -1,7 +1,6 @@
 """edit.py as a user runs it: bad programs fail before any output, good ones write everything."""
 import json
 
-import numpy as np
 import pytest
 import yaml
 

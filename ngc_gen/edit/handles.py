@@ -214,7 +214,9 @@ def _fixed_distances(gc: GeneralizedCylinder, fixed) -> tuple[np.ndarray, bool]:
         if not m.any():
             return np.array([np.inf, np.inf]), False
         return np.array([t[m].min(), 1.0 - t[m].max()]) * gc.length, True
-    rel = gc.to_relative(fixed)
+    lo, hi = gc.bounds()
+    near = fixed[((fixed >= lo) & (fixed <= hi)).all(1)]  # the box first: to_relative is dearer
+    rel = gc.to_relative(near)
     inside = GeneralizedCylinder.inside_relative(rel)
     if inside.any():
         t = np.clip((rel[inside, 0] + 1.0) / 2.0, 0.0, 1.0)

@@ -144,7 +144,9 @@ class EditProgram:
 def _gc_label(gc) -> str | None:
     if gc is None:
         return None
-    return gc if isinstance(gc, str) else ", ".join(map(str, gc)) if isinstance(gc, list) else str(gc)
+    if isinstance(gc, list):
+        return ", ".join(map(str, gc))
+    return str(gc)
 
 
 # ---- sources for part mixing -----------------------------------------------------------------

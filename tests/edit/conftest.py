@@ -46,7 +46,8 @@ def tube_decoder_(decoder, feature_scale: float = 0.25, seed: int = 0):
         w = lin[0].weight
         w[0, cos_a] = w[0, cos_b] = -1.0
         n_feat = w.shape[1] - decoder.pe.out_dim
-        w[0, decoder.pe.out_dim:] = feature_scale * torch.randn(n_feat, generator=gen) / n_feat ** 0.5
+        w[0, decoder.pe.out_dim:] = feature_scale * torch.randn(n_feat, generator=gen) \
+            / n_feat ** 0.5
         lin[0].bias[0] = 0.5 + big
         for m in lin[1:-1]:
             m.weight[0, 0] = 1.0

@@ -30,8 +30,10 @@ def tip(gc, u=1.0):
     ({"ops": [{"op": "scale", "gc": "arm", "t": 1.0, "factor": 2, "fallof": 0.1}]},
      r"unknown field.*fallof"),
     ({"ops": [{"gc": "arm"}]}, "'op' name"),
-    ({"ops": [{"op": "twist", "gc": "arm", "t": 0, "degrees": 1}], "smoothunion": 1}, "unknown program keys"),
-    ({"ops": [{"op": "twist", "gc": "arm", "t": 0, "degrees": 1}], "smooth_union": -1}, "smooth_union"),
+    ({"ops": [{"op": "twist", "gc": "arm", "t": 0, "degrees": 1}], "smoothunion": 1},
+     "unknown program keys"),
+    ({"ops": [{"op": "twist", "gc": "arm", "t": 0, "degrees": 1}], "smooth_union": -1},
+     "smooth_union"),
 ])
 def test_structure_errors_name_the_program_and_op(d, match):
     with pytest.raises(EditError, match=match) as e:
