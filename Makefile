@@ -5,7 +5,7 @@ VENV ?= .venv
 TORCH_SPEC ?= torch==2.13.0
 BIN := $(VENV)/bin
 
-.PHONY: setup test test-all bench bench-geometry bench-fit demo clean
+.PHONY: setup test test-all bench bench-geometry bench-fit bench-deform bench-generate demo clean
 
 $(BIN)/activate:
 	$(PY) -m venv $(VENV)
@@ -26,13 +26,19 @@ test-all: setup
 demo: setup
 	$(BIN)/python train.py experiment=demo
 
-bench: bench-geometry bench-fit
+bench: bench-geometry bench-fit bench-deform bench-generate
 
 bench-geometry: setup
 	$(BIN)/python bench/geometry.py
 
 bench-fit: setup
 	$(BIN)/python bench/fit.py
+
+bench-deform: setup
+	$(BIN)/python bench/deform.py
+
+bench-generate: setup
+	$(BIN)/python bench/generate.py
 
 clean:
 	rm -rf $(VENV) outputs .pytest_cache

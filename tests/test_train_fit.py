@@ -55,6 +55,7 @@ def test_fit_recovers_a_watertight_mesh(torus_folder, tmp_path):
     assert "torus" in r.stdout and "cd" in r.stdout
 
 
+@pytest.mark.slow  # three short fits in subprocesses, ~2 min: `make test-all`
 def test_resume_after_kill_continues_to_the_same_step(torus_folder, tmp_path):
     steps, cache = 600, tmp_path / "cache"
     base = tmp_path / "uninterrupted"
