@@ -22,9 +22,17 @@ register_resolvers()
 
 
 def compose_config(config_name: str = "train", overrides: list[str] | None = None):
-    """Compose the project's Hydra config outside `@hydra.main` (benchmarks, tests, notebooks);
-    `run_dir` must then be given as an override, since there is no Hydra run directory."""
+    """Compose one of the project's Hydra configs from Python (benchmarks, tests, notebooks, the
+    pipeline stage inside a running `@hydra.main` app, whose Hydra state is restored after).
+    `run_dir` / `out_dir` must be given as overrides: there is no Hydra run directory."""
     from hydra import compose, initialize_config_dir
+    from hydra.core.global_hydra import GlobalHydra
 
-    with initialize_config_dir(version_base="1.3", config_dir=str(repo_root() / "conf")):
-        return compose(config_name=config_name, overrides=overrides or [])
+    running = GlobalHydra.instance().hydra if GlobalHydra.instance().is_initialized() else None
+    GlobalHydra.instance().clear()
+    try:
+        with initialize_config_dir(version_base="1.3", config_dir=str(repo_root() / "conf")):
+            return compose(config_name=config_name, overrides=overrides or [])
+    finally:
+        if running is not None:
+            GlobalHydra.instance().hydra = running

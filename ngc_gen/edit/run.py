@@ -70,7 +70,8 @@ def program_from_config(cfg) -> EditProgram:
         from hydra.core.hydra_config import HydraConfig
 
         choice = HydraConfig.get().runtime.choices.get("edit")
-        source = f"{CONF_EDIT}/{choice}.yaml"
+        if choice:  # None when composed inside another app (the pipeline stage)
+            source = f"{CONF_EDIT}/{choice}.yaml"
     except ValueError:  # composed outside @hydra.main (tests, notebooks)
         pass
     return EditProgram.from_dict(OmegaConf.to_container(composed, resolve=True), source=source)

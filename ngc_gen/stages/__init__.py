@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from omegaconf import DictConfig
 
-STAGES = ("prepare", "fit", "shape_latent", "diffusion")
+STAGES = ("prepare", "fit", "shape_latent", "diffusion", "pipeline")
 
 
 def run_stage(cfg: DictConfig):
@@ -19,4 +19,7 @@ def run_stage(cfg: DictConfig):
     if cfg.stage == "diffusion":
         from .diffusion import run_diffusion
         return run_diffusion(cfg)
+    if cfg.stage == "pipeline":
+        from .pipeline import run_pipeline
+        return run_pipeline(cfg)
     raise ValueError(f"unknown stage {cfg.stage!r}; choose one of {', '.join(STAGES)}")

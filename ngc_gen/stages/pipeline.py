@@ -1,0 +1,168 @@
+"""Stage `pipeline`: the whole job, step after step, in one command.
+
+    python train.py experiment=demo          # `make demo`: fit, edit, shape_latent, diffusion, sample
+
+Each step is an ordinary run of `train.py`, `edit.py` or `sample.py`, composed from its own config
+with the overrides listed under `pipeline.<step>` (what you would type after that command) and
+written to `<run>/<step>/`, exactly as the single command would write it. A step that reads an earlier one gets the link filled in (edit:
+`ckpt=<run>/fit/checkpoints/last.ckpt`, diffusion: `shape_latent_run=<run>/shape_latent`,
+sample: `run=<run>/diffusion`) unless its overrides set it. Every step's config is composed
+before the first one runs, so a typo fails in seconds, not after the fit. At the end the run
+directory holds `summary.json` (per step: directory, seconds, headline numbers) and
+`overview.png` (fitted, edited and generated shapes).
+"""
+from __future__ import annotations
+
+import json
+import logging
+import time
+from pathlib import Path
+
+from omegaconf import DictConfig, OmegaConf
+
+from ngc_gen.data.atomic import atomic_write_text
+from ngc_gen.data.errors import DataError
+
+log = logging.getLogger(__name__)
+
+# step -> (config name, the key that holds its output directory)
+STEPS = {"fit": ("train", "run_dir"), "edit": ("edit", "out_dir"),
+         "shape_latent": ("train", "run_dir"), "diffusion": ("train", "run_dir"),
+         "sample": ("sample", "out_dir")}
+# step -> (the step it reads, the override that points at it)
+LINKS = {"edit": ("fit", "ckpt={}/checkpoints/last.ckpt"),
+         "diffusion": ("shape_latent", "shape_latent_run={}"),
+         "sample": ("diffusion", "run={}")}
+
+
+def _fail(what: str, step: str | None = None, fix: str = "") -> DataError:
+    return DataError(what, field=f"pipeline.{step}" if step else "pipeline", fix=fix)
+
+
+def plan(cfg: DictConfig, run_dir: Path) -> list[tuple[str, DictConfig]]:
+    """[(step, composed config)] in run order; DataError for an unknown step, a missing link or
+    an override Hydra rejects, before anything runs."""
+    from ngc_gen.config import compose_config
+
+    p = cfg.get("pipeline")
+    if not p or not p.get("steps"):
+        raise _fail("no pipeline steps", fix="use experiment=demo, or set pipeline.steps=[...] "
+                    "with each step's overrides under pipeline.<step>")
+    order = list(p.steps)
+    out = []
+    for i, step in enumerate(order):
+        if step not in STEPS:
+            raise _fail(f"unknown step {step!r}", fix=f"steps are {', '.join(STEPS)}")
+        if step in order[:i]:
+            raise _fail(f"step {step!r} is listed twice", fix="list each step once")
+        config_name, out_key = STEPS[step]
+        spec = OmegaConf.to_container(p.get(step) or [], resolve=True)
+        if not isinstance(spec, list) or not all(isinstance(o, str) and "=" in o for o in spec):
+            raise _fail(f"pipeline.{step} must be a list of overrides, got {spec!r}", step,
+                        fix="write e.g. [data=creatures, trainer.max_steps=100]; on the command "
+                            "line quote each: 'pipeline.fit=[\"data=ant\"]'")
+        overrides = list(spec)
+        keys = {o.split("=", 1)[0].lstrip("+~") for o in overrides}
+        if step in LINKS and LINKS[step][1].split("=", 1)[0] not in keys:
+            source, template = LINKS[step]
+            if source not in order[:i]:
+                raise _fail(f"step {step!r} reads step {source!r}, which does not run before it",
+                            step, fix=f"run {source!r} first, or give {template.format('<dir>')} "
+                                      f"in pipeline.{step}")
+            overrides.append(template.format(run_dir / source))
+        overrides.append(f"{out_key}={run_dir / step}")
+        if config_name == "train":
+            overrides.append(f"stage={step}")
+        try:
+            composed = compose_config(config_name, overrides)
+        except Exception as e:  # Hydra's override / missing-config errors
+            raise _fail(f"step {step!r}: {e}", step,
+                        fix=f"check the overrides in pipeline.{step}: {overrides}") from e
+        out.append((step, composed))
+    return out
+
+
+def run_step(step: str, cfg: DictConfig) -> dict:
+    if step == "edit":
+        from ngc_gen.edit.run import run_edit
+        return run_edit(cfg)
+    if step == "sample":
+        from ngc_gen.generate import run_sample
+        return run_sample(cfg)
+    from . import run_stage
+    return run_stage(cfg)
+
+
+def headline(step: str, result: dict) -> dict:
+    """The few numbers a person looks at first, per step."""
+    r = result or {}
+    if step == "fit":
+        m = r.get("mean", {})
+        return {k: m.get(k) for k in ("cd", "hd", "fscore", "watertight")}
+    if step == "edit":
+        return {k: r.get(k) for k in ("program", "shape", "eps_v", "eps_a")}
+    if step == "shape_latent":
+        return {k: r.get(k) for k in ("l1", "param", "steps")}
+    if step == "diffusion":
+        return {k: r.get(k) for k in ("edm_loss_untrained", "edm_loss_ema", "steps")}
+    return {k: r.get(k) for k in ("n", "latent_s_per_shape", "mesh_s_per_shape")}
+
+
+def run_pipeline(cfg: DictConfig) -> dict:
+    run_dir = Path(cfg.run_dir).resolve()
+    steps = plan(cfg, run_dir)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(run_dir / "config.yaml", OmegaConf.to_yaml(cfg.pipeline))
+    summary = {"run_dir": str(run_dir), "steps": {}}
+    t_start = time.perf_counter()
+    for k, (step, step_cfg) in enumerate(steps, 1):
+        print(f"\n=== pipeline step {k}/{len(steps)}: {step} -> {run_dir / step}", flush=True)
+        t0 = time.perf_counter()
+        result = run_step(step, step_cfg)
+        seconds = time.perf_counter() - t0
+        summary["steps"][step] = {"dir": str(run_dir / step), "seconds": seconds,
+                                  **headline(step, result)}
+        summary["total_s"] = time.perf_counter() - t_start
+        atomic_write_text(run_dir / "summary.json", json.dumps(summary, indent=2))
+    render_overview(run_dir, list(summary["steps"]))
+    print_summary(summary)
+    return summary
+
+
+def print_summary(summary: dict) -> None:
+    print(f"\npipeline finished in {summary.get('total_s', 0) / 60:.1f} min: "
+          f"{summary['run_dir']}")
+    for step, s in summary["steps"].items():
+        nums = ", ".join(f"{k} {v:.3g}" if isinstance(v, float) else f"{k} {v}"
+                         for k, v in s.items() if k not in ("dir", "seconds"))
+        print(f"  {step:13s}{s['seconds']:8.1f} s   {nums}")
+    print(f"  summary.json, overview.png in {summary['run_dir']}")
+
+
+def render_overview(run_dir: Path, done: list[str], per_row: int = 4) -> None:
+    """overview.png: one row per step that made meshes (fitted / edited / generated). A failed
+    render (no off-screen OpenGL) is reported, not fatal."""
+    import trimesh
+
+    from ngc_gen.viz import render_grid
+
+    def load(paths):
+        return [trimesh.load(p, process=False) for p in paths[:per_row] if p.is_file()]
+
+    rows, labels = [], []
+    if "fit" in done:
+        rows.append(load(sorted((run_dir / "fit" / "meshes").glob("*.ply"))))
+        labels.append("fitted")
+    if "edit" in done:
+        rows.append(load([run_dir / "edit" / "undeformed.ply", run_dir / "edit" / "deformed.ply"]))
+        labels.append("edit: before, after")
+    if "sample" in done:
+        rows.append(load(sorted((run_dir / "sample").glob("*.ply"))))
+        labels.append("generated")
+    kept = [(r, lab) for r, lab in zip(rows, labels) if r]
+    if not kept:
+        return
+    try:
+        render_grid([r for r, _ in kept], run_dir / "overview.png", labels=[lab for _, lab in kept])
+    except Exception as e:  # noqa: BLE001 - rendering is a convenience
+        log.warning("could not render %s: %s", run_dir / "overview.png", e)
