@@ -8,11 +8,10 @@ import ngc_gen.config  # noqa: F401  (registers the ngc_root resolver)
 
 @hydra.main(version_base="1.3", config_path="conf", config_name="edit")
 def main(cfg: DictConfig) -> None:
-    from ngc_gen.cli import user_errors
+    from ngc_gen.cli import run_job
     from ngc_gen.edit.run import run_edit
 
-    with user_errors():
-        run_edit(cfg)
+    run_job(run_edit, cfg)
 
 
 if __name__ == "__main__":

@@ -1,4 +1,5 @@
-"""What the thin entry points share: turning user errors into one clear line and exit code 2."""
+"""What the thin entry points share: torch's thread count from the config, and user errors as
+one clear line with exit code 2."""
 from __future__ import annotations
 
 import sys
@@ -19,3 +20,23 @@ def user_errors():
     except USER_ERRORS as e:
         print(f"error: {e}", file=sys.stderr)
         sys.exit(2)
+
+
+def set_threads(threads) -> None:
+    """`threads=N`: torch's CPU threads (null keeps torch's default, all cores). One thread is
+    often faster on a machine shared with other jobs: two threads then contend for the cores."""
+    if threads is None:
+        return
+    if int(threads) < 1:
+        raise DataError(f"threads must be >= 1, got {threads}", field="threads",
+                        fix="pass threads=1 (shared machine) or threads=null (all cores)")
+    import torch
+
+    torch.set_num_threads(int(threads))
+
+
+def run_job(fn, cfg):
+    """What every entry point does: set the threads, run `fn(cfg)`, report user errors."""
+    with user_errors():
+        set_threads(cfg.get("threads"))
+        return fn(cfg)

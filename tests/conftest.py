@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+import torch
 import trimesh
 import yaml
 
@@ -18,6 +19,16 @@ def straight_gc(name: str, x0: float, x1: float, radii=(0.9, 0.9), caps=(0.8, 0.
         "keys": [{"t": 0.0, "radii": list(radii), "twist": 0.0}],
         "caps": list(caps),
     }
+
+
+@pytest.fixture(scope="module")
+def single_thread():
+    """One torch thread for a module of small tensor ops: on a shared 2-core machine two threads
+    contend and run 4-10x slower. Use with pytestmark = pytest.mark.usefixtures(...)."""
+    previous = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(previous)
 
 
 @pytest.fixture

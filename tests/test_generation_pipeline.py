@@ -21,15 +21,6 @@ RES = 24
 
 
 @pytest.fixture(scope="module")
-def single_thread():
-    """Small tensors on a shared 2-core machine: one thread is ~10x faster than two."""
-    previous = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(previous)
-
-
-@pytest.fixture(scope="module")
 def runs(tmp_path_factory, single_thread):
     base = tmp_path_factory.mktemp("generation")
     mp = pytest.MonkeyPatch()

@@ -16,13 +16,7 @@ from ngc_gen.lit.shape_latent import ShapeLatentModule
 from ngc_gen.stages.shape_latent import template_and_targets
 
 
-@pytest.fixture(autouse=True, scope="module")
-def single_thread():
-    """Small tensors on a shared 2-core machine: one thread is ~10x faster than two."""
-    previous = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(previous)
+pytestmark = pytest.mark.usefixtures("single_thread")
 
 
 @pytest.fixture(scope="module")

@@ -83,6 +83,9 @@ def plan(cfg: DictConfig, run_dir: Path) -> list[tuple[str, DictConfig]]:
 
 
 def run_step(step: str, cfg: DictConfig) -> dict:
+    from ngc_gen.cli import set_threads
+
+    set_threads(cfg.get("threads"))
     if step == "edit":
         from ngc_gen.edit.run import run_edit
         return run_edit(cfg)

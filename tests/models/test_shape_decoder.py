@@ -14,13 +14,7 @@ from ngc_gen.models.shape_decoder import GCTemplate, ShapeDecoder, param_errors
 SEEDS = (11, 12, 13, 14, 15)
 
 
-@pytest.fixture(autouse=True, scope="module")
-def single_thread():
-    """Building GCs is many small torch ops: 4x faster on one thread on a busy 2-core machine."""
-    previous = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(previous)
+pytestmark = pytest.mark.usefixtures("single_thread")
 
 
 @pytest.fixture(scope="module")

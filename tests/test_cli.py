@@ -1,0 +1,37 @@
+"""What every entry point shares: `threads=` and user errors as one line with exit code 2."""
+import pytest
+import torch
+
+from ngc_gen.cli import run_job, set_threads
+from ngc_gen.data.errors import DataError
+
+from .helpers import run_entry
+
+
+def test_set_threads_sets_torch_and_null_keeps_it():
+    before = torch.get_num_threads()
+    try:
+        set_threads(1)
+        assert torch.get_num_threads() == 1
+        set_threads(None)
+        assert torch.get_num_threads() == 1
+    finally:
+        torch.set_num_threads(before)
+
+
+def test_bad_threads_is_a_user_error():
+    with pytest.raises(DataError, match="threads must be >= 1"):
+        set_threads(0)
+    with pytest.raises(SystemExit) as e:
+        run_job(lambda cfg: pytest.fail("ran with bad threads"), {"threads": -2})
+    assert e.value.code == 2
+
+
+@pytest.mark.parametrize("script", ["train.py", "sample.py", "edit.py"])
+def test_entry_points_reject_bad_threads(script, tmp_path):
+    r = run_entry(script, "threads=0", f"hydra.run.dir={tmp_path}/run")
+    assert r.returncode == 2 and "threads must be >= 1" in r.stderr
+    assert "Traceback" not in r.stderr
+    run = tmp_path / "run"  # at most Hydra's own record of the call
+    left = {p.name for p in run.iterdir()} if run.exists() else set()
+    assert left <= {".hydra", "train.log", "sample.log", "edit.log"}, left
