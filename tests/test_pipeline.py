@@ -26,7 +26,11 @@ def test_demo_plan_links_every_step(tmp_path):
     assert edit.ckpt == str(tmp_path / "fit/checkpoints/last.ckpt")
     assert edit.edit.name == "posed_ant_leg" and edit.out_dir == str(tmp_path / "edit")
     assert sl.stage == "shape_latent" and sl.data.name == "creatures" and sl.data.split == "train"
+    recipe = compose_config(overrides=["experiment=generate"])  # bench/generate.py's
+    assert sl.shape_latent.max_steps == recipe.shape_latent.max_steps
+    assert sl.prepare.n_samples == recipe.prepare.n_samples
     assert diff.stage == "diffusion" and diff.shape_latent_run == str(tmp_path / "shape_latent")
+    assert diff.diffusion.max_steps == recipe.diffusion.max_steps
     assert sample.run == str(tmp_path / "diffusion") and sample.mode == "generate"
     assert sample.out_dir == str(tmp_path / "sample")
 

@@ -41,8 +41,34 @@ def build_module(cfg: DictConfig, n_codes: int, meta: dict):
                        **m)
 
 
+class _DropTip(logging.Filter):
+    def filter(self, record: logging.LogRecord) -> bool:
+        return "litlogger" not in record.getMessage()
+
+
+def quiet_lightning() -> None:
+    """One copy of each Lightning message: under Hydra the root handler already prints it (and
+    writes it to <run>/<job>.log), so Lightning's own console handler only repeats it. Its
+    advertising tip and a deprecation warning it raises inside itself (torch's LeafSpec) say
+    nothing about the run and are dropped too."""
+    import warnings
+
+    import lightning  # noqa: F401  (installs its handler, which is then removed)
+
+    if logging.getLogger().hasHandlers():
+        lg = logging.getLogger("lightning")
+        for h in [h for h in lg.handlers if type(h) is logging.StreamHandler]:
+            lg.removeHandler(h)
+    tip = logging.getLogger("lightning.pytorch.utilities.rank_zero")
+    if not any(isinstance(f, _DropTip) for f in tip.filters):
+        tip.addFilter(_DropTip())
+    warnings.filterwarnings("ignore", message=r".*isinstance\(treespec, LeafSpec\)")
+
+
 def build_trainer(cfg: DictConfig, run_dir: Path):
     from lightning.pytorch.callbacks import ModelCheckpoint
+
+    quiet_lightning()
 
     every = max(1, min(500, int(cfg.trainer.max_steps) // 4))
     callbacks = [

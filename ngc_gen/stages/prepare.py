@@ -7,6 +7,7 @@ from pathlib import Path
 import hydra
 from omegaconf import DictConfig, OmegaConf
 from tqdm import tqdm
+from tqdm.contrib.logging import logging_redirect_tqdm
 
 from ngc_gen.data.prepare import PrepareSettings, PreparedShape, prepare_shape
 
@@ -23,14 +24,16 @@ def prepare_dataset(cfg: DictConfig, verbose: bool = True) -> list[PreparedShape
     settings = settings_from_config(cfg)
     cache_dir = Path(cfg.prepare.cache_dir)
     out, rows = [], []
-    for ann in tqdm(annotations, desc=f"prepare {dataset.name}", unit="shape",
-                    disable=not verbose or len(annotations) < 2):
-        t0 = time.perf_counter()
-        shape = prepare_shape(ann, settings, cache_dir)
-        out.append(shape)
-        rows.append((shape.name, len(shape.gc_names), shape.coverage, len(shape.points),
-                     len(shape.pair_point), "cache" if shape.from_cache else
-                     f"{time.perf_counter() - t0:.2f} s"))
+    bar = tqdm(annotations, desc=f"prepare {dataset.name}", unit="shape",
+               disable=not verbose or len(annotations) < 2)
+    with logging_redirect_tqdm():  # per-shape log lines above the bar, not through it
+        for ann in bar:
+            t0 = time.perf_counter()
+            shape = prepare_shape(ann, settings, cache_dir)
+            out.append(shape)
+            rows.append((shape.name, len(shape.gc_names), shape.coverage, len(shape.points),
+                         len(shape.pair_point), "cache" if shape.from_cache else
+                         f"{time.perf_counter() - t0:.2f} s"))
     if verbose:
         print(f"\n{'shape':24s} {'GCs':>4s} {'coverage':>9s} {'samples':>8s} {'pairs':>8s}  source")
         for name, g, cov, n, p, src in rows:

@@ -10,6 +10,13 @@ import trimesh
 COLORS = ("#c8a27a", "#7fa7c9", "#9cc28c", "#d08c8c")
 
 
+def _poly(pv, mesh: trimesh.Trimesh):
+    """Geometry only: pv.wrap would also copy trimesh's metadata (a PLY header pyvista warns
+    it cannot store)."""
+    return pv.PolyData.from_regular_faces(np.asarray(mesh.vertices, dtype=float),
+                                          np.asarray(mesh.faces))
+
+
 def render_grid(rows: list[list], path, labels: list[str] | None = None,
                 col_titles: list[str] | None = None, cell: tuple[int, int] = (320, 260),
                 view: tuple = (1.0, -1.6, 0.9), up: tuple = (0, 0, 1)) -> Path:
@@ -30,9 +37,9 @@ def render_grid(rows: list[list], path, labels: list[str] | None = None,
             p.subplot(i, j)
             if isinstance(mesh, tuple):
                 mesh, overlay = mesh
-                p.add_mesh(pv.wrap(overlay), color="#4a78c2", opacity=0.25)
+                p.add_mesh(_poly(pv, overlay), color="#4a78c2", opacity=0.25)
             if mesh is not None and len(mesh.faces):
-                p.add_mesh(pv.wrap(mesh), color=COLORS[j % len(COLORS)], smooth_shading=True)
+                p.add_mesh(_poly(pv, mesh), color=COLORS[j % len(COLORS)], smooth_shading=True)
                 c = mesh.bounds.mean(0)
                 r = float(np.linalg.norm(mesh.extents)) * 1.3
                 d = np.asarray(view, dtype=float)
