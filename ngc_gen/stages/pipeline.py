@@ -158,7 +158,9 @@ def render_overview(run_dir: Path, done: list[str], per_row: int = 4) -> None:
         labels.append("fitted")
     if "edit" in done:
         rows.append(load([run_dir / "edit" / "undeformed.ply", run_dir / "edit" / "deformed.ply"]))
-        labels.append("edit: before, after")
+        metrics = run_dir / "edit" / "metrics.json"
+        program = json.loads(metrics.read_text()).get("program", "") if metrics.is_file() else ""
+        labels.append(f"edit {program}: before, after")
     if "sample" in done:
         rows.append(load(sorted((run_dir / "sample").glob("*.ply"))))
         labels.append("generated")
@@ -166,6 +168,7 @@ def render_overview(run_dir: Path, done: list[str], per_row: int = 4) -> None:
     if not kept:
         return
     try:
-        render_grid([r for r, _ in kept], run_dir / "overview.png", labels=[lab for _, lab in kept])
+        render_grid([r for r, _ in kept], run_dir / "overview.png", labels=[lab for _, lab in kept],
+                    frame="row")
     except Exception as e:  # noqa: BLE001 - rendering is a convenience
         log.warning("could not render %s: %s", run_dir / "overview.png", e)

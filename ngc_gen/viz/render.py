@@ -19,12 +19,16 @@ def _poly(pv, mesh: trimesh.Trimesh):
 
 def render_grid(rows: list[list], path, labels: list[str] | None = None,
                 col_titles: list[str] | None = None, cell: tuple[int, int] = (320, 260),
-                view: tuple = (1.0, -1.6, 0.9), up: tuple = (0, 0, 1)) -> Path:
+                view: tuple = (1.0, -1.6, 0.9), up: tuple = (0, 0, 1),
+                frame: str = "cell") -> Path:
     """Render rows x columns of meshes into one PNG, atomically. A cell is a mesh, None
     (empty) or a pair (mesh, overlay) whose overlay (e.g. GC surfaces) is drawn translucent.
 
     Each column gets its own colour; every cell uses the same camera direction `view` so
-    shapes can be compared side by side."""
+    shapes can be compared side by side. `frame="cell"` fits the camera to each mesh;
+    `frame="row"` to the bounds of its whole row, so before/after pairs keep one scale."""
+    if frame not in ("cell", "row"):
+        raise ValueError(f"frame must be 'cell' or 'row', got {frame!r}")
     os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
     import pyvista as pv
 
@@ -33,6 +37,9 @@ def render_grid(rows: list[list], path, labels: list[str] | None = None,
                    window_size=(cell[0] * n_cols, cell[1] * n_rows), border=False)
     p.set_background("white")
     for i, row in enumerate(rows):
+        meshes = [m[0] if isinstance(m, tuple) else m for m in row]
+        meshes = [m for m in meshes if m is not None and len(m.faces)]
+        row_bounds = (np.stack([m.bounds for m in meshes]) if meshes else None)
         for j, mesh in enumerate(row):
             p.subplot(i, j)
             if isinstance(mesh, tuple):
@@ -40,8 +47,10 @@ def render_grid(rows: list[list], path, labels: list[str] | None = None,
                 p.add_mesh(_poly(pv, overlay), color="#4a78c2", opacity=0.25)
             if mesh is not None and len(mesh.faces):
                 p.add_mesh(_poly(pv, mesh), color=COLORS[j % len(COLORS)], smooth_shading=True)
-                c = mesh.bounds.mean(0)
-                r = float(np.linalg.norm(mesh.extents)) * 1.3
+                b = mesh.bounds if frame == "cell" else np.stack(
+                    [row_bounds[:, 0].min(0), row_bounds[:, 1].max(0)])
+                c = b.mean(0)
+                r = float(np.linalg.norm(b[1] - b[0])) * 1.3
                 d = np.asarray(view, dtype=float)
                 p.camera_position = [tuple(c + r * d / np.linalg.norm(d)), tuple(c), tuple(up)]
             title = []
