@@ -10,8 +10,6 @@ records the shape-latent checkpoint, so `sample.py run=<this run>` finds everyth
 from __future__ import annotations
 
 import json
-import time
-from pathlib import Path
 
 import torch
 from omegaconf import DictConfig, OmegaConf
@@ -41,15 +39,13 @@ def run_diffusion(cfg: DictConfig) -> dict:
     from ngc_gen.lit.diffusion import LatentDiffusion
     from ngc_gen.lit.shape_latent import ShapeLatentModule, resolve_checkpoint
 
-    from .fit import build_trainer
+    from .training import start_run, train
 
     cfg = with_stage_steps(cfg, "diffusion")
     ckpt = resolve_checkpoint(cfg.shape_latent_run).resolve()
     shape_latent = ShapeLatentModule.from_checkpoint(ckpt)
     latents = shape_latent.latents.weight.detach().float().clone()
-    run_dir = Path(cfg.run_dir)
-    run_dir.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(run_dir / "config.yaml", OmegaConf.to_yaml(cfg, resolve=True))
+    run_dir = start_run(cfg)
 
     d = OmegaConf.to_container(cfg.diffusion, resolve=True)
     L.seed_everything(cfg.seed, workers=True, verbose=False)
@@ -66,10 +62,7 @@ def run_diffusion(cfg: DictConfig) -> dict:
     sampler = RandomSampler(dataset, num_samples=batch * int(d["batches_per_epoch"]),
                             generator=torch.Generator().manual_seed(int(cfg.seed)))
     loader = DataLoader(dataset, batch_size=batch, sampler=sampler, drop_last=True)
-    trainer = build_trainer(cfg, run_dir)
-    t0 = time.perf_counter()
-    trainer.fit(module, loader, ckpt_path=cfg.ckpt_path)
-    train_s = time.perf_counter() - t0
+    trainer, train_s = train(cfg, run_dir, module, loader)
     if trainer.global_rank != 0:
         return {}
     module = module.cpu().eval()

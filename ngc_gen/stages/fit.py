@@ -7,10 +7,8 @@ from __future__ import annotations
 
 import json
 import logging
-import time
 from pathlib import Path
 
-import hydra
 import torch
 from omegaconf import DictConfig, OmegaConf
 
@@ -18,6 +16,7 @@ from ngc_gen.data.atomic import atomic_write_text
 from ngc_gen.data.prepare import PreparedShape
 
 from .prepare import prepare_dataset
+from .training import start_run, train
 
 log = logging.getLogger(__name__)
 
@@ -41,63 +40,19 @@ def build_module(cfg: DictConfig, n_codes: int, meta: dict):
                        **m)
 
 
-class _DropTip(logging.Filter):
-    def filter(self, record: logging.LogRecord) -> bool:
-        return "litlogger" not in record.getMessage()
-
-
-def quiet_lightning() -> None:
-    """One copy of each Lightning message: under Hydra the root handler already prints it (and
-    writes it to <run>/<job>.log), so Lightning's own console handler only repeats it. Its
-    advertising tip and a deprecation warning it raises inside itself (torch's LeafSpec) say
-    nothing about the run and are dropped too."""
-    import warnings
-
-    import lightning  # noqa: F401  (installs its handler, which is then removed)
-
-    if logging.getLogger().hasHandlers():
-        lg = logging.getLogger("lightning")
-        for h in [h for h in lg.handlers if type(h) is logging.StreamHandler]:
-            lg.removeHandler(h)
-    tip = logging.getLogger("lightning.pytorch.utilities.rank_zero")
-    if not any(isinstance(f, _DropTip) for f in tip.filters):
-        tip.addFilter(_DropTip())
-    warnings.filterwarnings("ignore", message=r".*isinstance\(treespec, LeafSpec\)")
-
-
-def build_trainer(cfg: DictConfig, run_dir: Path):
-    from lightning.pytorch.callbacks import ModelCheckpoint
-
-    quiet_lightning()
-
-    every = max(1, min(500, int(cfg.trainer.max_steps) // 4))
-    callbacks = [
-        ModelCheckpoint(dirpath=run_dir / "checkpoints", filename="best", monitor="train/loss",
-                        mode="min", save_top_k=1, save_last=True, every_n_train_steps=every),
-    ]
-    logger = hydra.utils.instantiate(cfg.logger) if cfg.get("logger") else False
-    return hydra.utils.instantiate(cfg.trainer, callbacks=callbacks, logger=logger,
-                                   default_root_dir=str(run_dir))
-
-
 def run_fit(cfg: DictConfig) -> dict:
     import lightning as L
 
     from ngc_gen.data.datamodule import PreparedDataModule
     from ngc_gen.extract.shapes import reconstruct
 
-    run_dir = Path(cfg.run_dir)
-    run_dir.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(run_dir / "config.yaml", OmegaConf.to_yaml(cfg, resolve=True))
+    run_dir = start_run(cfg)
     prepared = prepare_dataset(cfg)
     L.seed_everything(cfg.seed, workers=True, verbose=False)
     dm = PreparedDataModule(prepared, mode=cfg.model.kind, batch_size=cfg.batch_size,
                             seed=cfg.seed)
     module = build_module(cfg, dm.n_codes, shapes_meta(prepared, cfg.model.kind))
-    trainer = build_trainer(cfg, run_dir)
-    t0 = time.perf_counter()
-    trainer.fit(module, datamodule=dm, ckpt_path=cfg.ckpt_path)
-    train_s = time.perf_counter() - t0
+    trainer, train_s = train(cfg, run_dir, module, datamodule=dm)
     if trainer.global_rank != 0:
         return {}
     module = module.cpu().eval()

@@ -11,7 +11,6 @@ metrics.json (final losses, decoded-parameter errors, train time), config.yaml, 
 from __future__ import annotations
 
 import json
-import time
 from pathlib import Path
 
 import numpy as np
@@ -137,22 +136,17 @@ def run_shape_latent(cfg: DictConfig) -> dict:
 
     from ngc_gen.data.datamodule import PreparedDataModule
 
-    from .fit import build_trainer
     from .prepare import prepare_dataset
+    from .training import start_run, train
 
     cfg = with_stage_steps(cfg, "shape_latent")
-    run_dir = Path(cfg.run_dir)
-    run_dir.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(run_dir / "config.yaml", OmegaConf.to_yaml(cfg, resolve=True))
+    run_dir = start_run(cfg)
     prepared = prepare_dataset(cfg)
     template, vectors = template_and_targets(prepared)
     L.seed_everything(cfg.seed, workers=True, verbose=False)
     dm = PreparedDataModule(prepared, mode="ngc", batch_size=cfg.batch_size, seed=cfg.seed)
     module = build_module(cfg, template, vectors, prepared)
-    trainer = build_trainer(cfg, run_dir)
-    t0 = time.perf_counter()
-    trainer.fit(module, datamodule=dm, ckpt_path=cfg.ckpt_path)
-    train_s = time.perf_counter() - t0
+    trainer, train_s = train(cfg, run_dir, module, datamodule=dm)
     if trainer.global_rank != 0:
         return {}
     module = module.cpu().eval()
