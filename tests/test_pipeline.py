@@ -8,7 +8,7 @@ import trimesh
 
 from ngc_gen.data.annotations import load_annotation
 from ngc_gen.data.errors import DataError
-from ngc_gen.stages.pipeline import STEPS, plan
+from ngc_gen.stages.pipeline import STEPS, plan, run_pipeline
 
 from .helpers import compose_config, run_entry
 
@@ -121,3 +121,22 @@ def test_tiny_pipeline_samples_come_from_its_own_runs(tiny_run):
     mesh = trimesh.load(run / "sample/sample_000.ply", process=False)
     ann = load_annotation(run / "sample/sample_000.yaml")
     assert len(mesh.faces) > 0 and len(ann.gcs) == 10
+
+
+def test_resume_keeps_finished_steps(tiny_run):
+    run, _ = tiny_run
+    before = json.loads((run / "summary.json").read_text())
+    stamp = (run / "fit/metrics.json").stat().st_mtime_ns
+    r = run_entry("train.py", "experiment=demo", "pipeline.resume=true", f"hydra.run.dir={run}")
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert r.stdout.count("finished earlier, kept") == 5
+    assert json.loads((run / "summary.json").read_text())["steps"] == before["steps"]
+    assert (run / "fit/metrics.json").stat().st_mtime_ns == stamp  # not run again
+
+
+def test_resume_needs_an_earlier_run(tmp_path):
+    cfg = compose_config(overrides=["experiment=demo", "pipeline.resume=true",
+                                    f"run_dir={tmp_path}"])
+    with pytest.raises(DataError, match="summary.json does not exist"):
+        run_pipeline(cfg)
+    assert not any(tmp_path.iterdir())

@@ -1,15 +1,17 @@
 """Stage `pipeline`: the whole job, step after step, in one command.
 
-    python train.py experiment=demo          # `make demo`: fit, edit, shape_latent, diffusion, sample
+    python train.py experiment=demo    # `make demo`: fit, edit, shape_latent, diffusion, sample
 
-Each step is an ordinary run of `train.py`, `edit.py` or `sample.py`, composed from its own config
-with the overrides listed under `pipeline.<step>` (what you would type after that command) and
-written to `<run>/<step>/`, exactly as the single command would write it. A step that reads an earlier one gets the link filled in (edit:
-`ckpt=<run>/fit/checkpoints/last.ckpt`, diffusion: `shape_latent_run=<run>/shape_latent`,
-sample: `run=<run>/diffusion`) unless its overrides set it. Every step's config is composed
+Each step is an ordinary run of `train.py`, `edit.py` or `sample.py`, composed from its own
+config with the overrides listed under `pipeline.<step>` (what you would type after that
+command) and written to `<run>/<step>/`, exactly as the single command would write it. A step
+that reads an earlier one gets the link filled in (edit: `ckpt=<run>/fit/checkpoints/last.ckpt`,
+diffusion: `shape_latent_run=<run>/shape_latent`, sample: `run=<run>/diffusion`) unless its
+overrides set it. Every step's config is composed
 before the first one runs, so a typo fails in seconds, not after the fit. At the end the run
 directory holds `summary.json` (per step: directory, seconds, headline numbers) and
-`overview.png` (fitted, edited and generated shapes).
+`overview.png` (fitted, edited and generated shapes). After a failure, rerun with
+`pipeline.resume=true hydra.run.dir=<that run>` to keep the steps that finished.
 """
 from __future__ import annotations
 
@@ -111,22 +113,42 @@ def headline(step: str, result: dict) -> dict:
     return {k: r.get(k) for k in ("n", "latent_s_per_shape", "mesh_s_per_shape")}
 
 
+def finished_steps(run_dir: Path) -> dict:
+    """The steps an earlier run of this directory finished (its summary.json), for resume."""
+    f = run_dir / "summary.json"
+    if not f.is_file():
+        raise _fail(f"pipeline.resume: {f} does not exist",
+                    fix="pass hydra.run.dir=<the directory of the run to resume>")
+    return json.loads(f.read_text())["steps"]
+
+
 def run_pipeline(cfg: DictConfig) -> dict:
+    """Run the planned steps in order. With pipeline.resume=true, steps the run directory's
+    summary.json lists as finished are kept, up to the first one that has to run; every step
+    after that runs again, since it may read what changed."""
     run_dir = Path(cfg.run_dir).resolve()
     steps = plan(cfg, run_dir)
+    done = finished_steps(run_dir) if cfg.pipeline.get("resume") else {}
     run_dir.mkdir(parents=True, exist_ok=True)
     atomic_write_text(run_dir / "config.yaml", OmegaConf.to_yaml(cfg.pipeline))
     summary = {"run_dir": str(run_dir), "steps": {}}
-    t_start = time.perf_counter()
+    rerun = False
     for k, (step, step_cfg) in enumerate(steps, 1):
-        print(f"\n=== pipeline step {k}/{len(steps)}: {step} -> {run_dir / step}", flush=True)
+        head = f"\n=== pipeline step {k}/{len(steps)}: {step} -> {run_dir / step}"
+        if step in done and not rerun:
+            print(f"{head} (finished earlier, kept)", flush=True)
+            summary["steps"][step] = done[step]
+            continue
+        rerun = True
+        print(head, flush=True)
         t0 = time.perf_counter()
         result = run_step(step, step_cfg)
         seconds = time.perf_counter() - t0
         summary["steps"][step] = {"dir": str(run_dir / step), "seconds": seconds,
                                   **headline(step, result)}
-        summary["total_s"] = time.perf_counter() - t_start
+        summary["total_s"] = sum(s["seconds"] for s in summary["steps"].values())
         atomic_write_text(run_dir / "summary.json", json.dumps(summary, indent=2))
+    summary["total_s"] = sum(s["seconds"] for s in summary["steps"].values())
     render_overview(run_dir, list(summary["steps"]))
     print_summary(summary)
     return summary
