@@ -28,6 +28,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
 import time
 from dataclasses import dataclass
@@ -312,8 +313,8 @@ def markdown(res: dict) -> str:
               f"0.1-2.6% vs ARAP 5-46% volume change). NGC: deformed vs undeformed NGC mesh, "
               f"both marching cubes at {s['resolution']}^3 over [-{BOUND}, {BOUND}]^3, fitted "
               f"{s['steps']} steps (small preset); time = handle solve (in brackets) + "
-              f"extraction of the deformed mesh (timings on a shared 2-core machine are "
-              f"noisy). ARAP: libigl spokes-and-rims, {s['arap_iters']} iterations, on "
+              f"extraction of the deformed mesh (2 CPU cores, 1-minute load average "
+              f"{s.get('load_avg_1min_at_start', float('nan')):.1f} at start). ARAP: libigl spokes-and-rims, {s['arap_iters']} iterations, on "
               f"the input mesh with the same handle and fixed vertices; time = precomputation "
               f"+ solve. NGC mean eps_V / ARAP mean eps_V = "
               f"{mv['ngc']['eps_v'] / mv['arap']['eps_v']:.2f}; eps_A ratio "
@@ -378,6 +379,7 @@ def main():
     ap.add_argument("--cases", nargs="+", default=[c.name for c in CASES])
     ap.add_argument("--results", type=Path, default=RESULTS, help="output folder")
     args = ap.parse_args()
+    load_at_start = os.getloadavg()[0]  # timings need an idle machine: record how idle it was
 
     import yaml
 
@@ -412,7 +414,9 @@ def main():
     res = {"cases": clean, "mean": mean_of(clean),
            "settings": {"resolution": args.resolution, "bound": BOUND, "steps": args.steps,
                         "arap_iters": args.arap_iters, "fixed_t": FIXED_T,
-                        "train_s": fit["train_s"], "checkpoint": fit["checkpoint"]}}
+                        "train_s": fit["train_s"],
+                        "checkpoint": str(Path(fit["checkpoint"]).relative_to(ROOT)),
+                        "load_avg_1min_at_start": load_at_start}}
     out = args.results
     out.mkdir(parents=True, exist_ok=True)
     atomic_write_text(out / "deform.json", json.dumps(res, indent=2))
