@@ -41,7 +41,7 @@ def overrides(args) -> list[str]:
 
 
 def train(args) -> dict:
-    from tests.helpers import compose_config
+    from ngc_gen.config import compose_config
 
     from ngc_gen.stages.diffusion import run_diffusion
     from ngc_gen.stages.shape_latent import run_shape_latent
@@ -109,6 +109,13 @@ def render(meshes, names, path: Path, cols: int = 4) -> None:
     p.close()
 
 
+def machine(res: dict) -> str:
+    """Where the timings come from: torch threads on the 2-core machine, and its load."""
+    load = res.get("load_avg_1min_at_start")
+    return (f"{res.get('threads', 1)} torch thread on 2 CPU cores"
+            + (f", load average {load:.1f} at start" if load is not None else ""))
+
+
 def markdown(res: dict) -> str:
     rows = [("generated", "generated (EDM, 18 Heun steps)"),
             ("train_recon", "training latents, decoded (decoder ceiling)"),
@@ -133,7 +140,7 @@ def markdown(res: dict) -> str:
               f"1-NNA ideal 50%. Trained on {res['n_train']} creatures: shape latents "
               f"{res['shape_latent_steps']} steps, diffusion {res['diffusion_steps']} steps; "
               f"sampling per shape: latent {1e3 * t['latent_s_per_shape']:.0f} ms, mesh at "
-              f"{res['resolution']}^3 {t['mesh_s_per_shape']:.2f} s (2 shared CPU cores). "
+              f"{res['resolution']}^3 {t['mesh_s_per_shape']:.2f} s ({machine(res)}). "
               f"Targets: 1-NNA <= 65%, COV >= 50%."]
     return "\n".join(lines) + "\n"
 
@@ -159,6 +166,7 @@ def main():
                     help="torch threads (on a busy 2-core machine one thread trained 12x faster "
                          "than two: 59 vs 725 ms a step, measured)")
     args = ap.parse_args()
+    load_at_start = os.getloadavg()[0]  # timings need an idle machine: record how idle it was
 
     import torch
     import trimesh
@@ -212,6 +220,7 @@ def main():
            "resolution": args.resolution, "shape_latent_steps": args.shape_latent_steps,
            "diffusion_steps": args.diffusion_steps, "batch_size": args.batch_size,
            "samples_per_shape": args.samples, "seed": args.seed, "threads": args.threads,
+           "load_avg_1min_at_start": load_at_start,
            "convention": "2048 surface points per shape, squared Chamfer (sum of the two means), "
                          "normalised frame (bbox centred, longest side 1.6); fractions; each row "
                          "the mean over sets of n_reference shapes (per_set lists them): "
