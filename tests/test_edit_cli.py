@@ -86,8 +86,9 @@ def test_a_program_writes_meshes_gcs_and_metrics(tmp_path, ckpt):
     r = edit(ckpt, out, f"program_file={prog}", "shape=one")
     assert r.returncode == 0, r.stderr
     assert {p.name for p in out.iterdir()} == {"undeformed.ply", "deformed.ply", "edited.yaml",
-                                              "program.yaml", "metrics.json"}
+                                              "program.yaml", "metrics.json", "edit.png"}
     m = json.loads((out / "metrics.json").read_text())
+    assert m["picture"] == str(out / "edit.png")
     assert m["shape"] == "one" and 0 <= m["eps_v"] < 0.2 and m["mixes"] == {"tail": "two/tail"}
     assert [o["op"] for o in m["ops"]] == ["twist_ramp", "handles", "mix"]
     ann = load_annotation(out / "edited.yaml")  # loadable again, mesh = the deformed mesh

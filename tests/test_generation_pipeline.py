@@ -70,6 +70,7 @@ def test_generate_writes_editable_shapes(runs, gen):
     out = runs["gen"]
     lat = torch.load(out / "latents.pt", weights_only=True)
     assert lat["names"] == ["sample_000", "sample_001"] and lat["latents"].shape == (2, 16)
+    assert (out / "shapes.png").is_file()  # sample.py's picture (picture=true by default)
     edit = load_autodecoder(out / "shapes.ckpt")          # the fit format edit.py loads
     metas = edit.hparams.meta["shapes"]
     assert [m["name"] for m in metas] == lat["names"]

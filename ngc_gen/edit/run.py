@@ -224,11 +224,24 @@ def run_edit(cfg) -> dict:
     atomic_write_text(out_dir / "program.yaml",
                       yaml.safe_dump(_json_safe(prog), sort_keys=False, default_flow_style=None,
                                      width=100))
+    if cfg.get("picture", True):
+        metrics["picture"] = render_edit(before.mesh, gcs, after.mesh, result.gcs,
+                                         out_dir / "edit.png", program.name)
     metrics["time_total_s"] = time.perf_counter() - t_start
     metrics["out_dir"] = str(out_dir)
     atomic_write_text(out_dir / "metrics.json", json.dumps(_json_safe(metrics), indent=2))
     print_summary(metrics)
     return metrics
+
+
+def render_edit(before, gcs, after, edited_gcs, path: Path, program: str) -> str | None:
+    """edit.png: the shape before and after, its GCs drawn translucent, one camera for both."""
+    from ngc_gen.viz import gcs_surface, render_grid, render_or_warn
+
+    done = render_or_warn(render_grid, path, [[(before, gcs_surface(gcs)),
+                                               (after, gcs_surface(edited_gcs))]],
+                          col_titles=["before", f"after {program}"], frame="row")
+    return None if done is None else str(done)
 
 
 def print_summary(m: dict) -> None:

@@ -2,7 +2,7 @@
 another. Every mode writes, into its output directory, per shape `<name>.ply` + `<name>.yaml`
 (the GC annotation, editable), `latents.pt` ({names, latents (S, D), ...}), `shapes.ckpt` (a
 fit-format checkpoint of the shapes' codes and the NGC decoder, for `edit.py ckpt=...`) and
-`summary.json` (settings and timings)."""
+`summary.json` (settings and timings); `sample.py` adds `shapes.png` (picture=true)."""
 from __future__ import annotations
 
 import json
@@ -189,11 +189,35 @@ def run_sample(cfg) -> dict:
                   normalised=bool(c["normalise"]), progress=bool(c["progress"]))
     out_dir = Path(c["out_dir"])
     if mode == "generate":
-        return generate(gen, out_dir, n=int(c["n"]), **common)
-    if mode == "interpolate":
-        return interpolate(gen, out_dir, a=c["a"], b=c["b"], steps=int(c["steps"]),
-                           method=c["interp"], **common)
-    wanted = {"truncated_linear": ("t0", "t1"), "smoothstep": ("t0", "t1"), "constant": ("w",)}
-    params = {k: c[k] for k in wanted.get(c["blend"], ()) if c.get(k) is not None}
-    return mix(gen, out_dir, a=c["a"], b=c["b"], part=c["part"], blend=c["blend"],
-               blend_params=params, **common)
+        summary = generate(gen, out_dir, n=int(c["n"]), **common)
+    elif mode == "interpolate":
+        summary = interpolate(gen, out_dir, a=c["a"], b=c["b"], steps=int(c["steps"]),
+                              method=c["interp"], **common)
+    else:
+        wanted = {"truncated_linear": ("t0", "t1"), "smoothstep": ("t0", "t1"),
+                  "constant": ("w",)}
+        params = {k: c[k] for k in wanted.get(c["blend"], ()) if c.get(k) is not None}
+        summary = mix(gen, out_dir, a=c["a"], b=c["b"], part=c["part"], blend=c["blend"],
+                      blend_params=params, **common)
+    if c.get("picture", True):
+        picture = render_shapes(summary, out_dir / "shapes.png", one_row=mode != "generate")
+        if picture is not None:
+            print(f"picture: {picture}")
+    return summary
+
+
+def render_shapes(summary: dict, path: Path, one_row: bool = False, limit: int = 32):
+    """A picture of the written shapes (at most `limit`), each with its GCs drawn translucent:
+    what was made, and the handles edit.py will move. None if nothing could be drawn."""
+    import trimesh
+
+    from ngc_gen.data.annotations import load_annotation
+    from ngc_gen.viz import gcs_surface, render_gallery, render_or_warn
+
+    shown = [(n, s) for n, s in summary["shapes"].items() if s.get("n_faces", 0) > 0][:limit]
+    if not shown:
+        return None
+    cells = [(trimesh.load(s["mesh"], process=False),
+              gcs_surface(load_annotation(s["annotation"]).gcs)) for _, s in shown]
+    per_row = len(cells) if one_row and len(cells) <= 8 else 4
+    return render_or_warn(render_gallery, path, cells, [n for n, _ in shown], per_row=per_row)

@@ -6,7 +6,6 @@ config.yaml (resolved), logs/.
 from __future__ import annotations
 
 import json
-import logging
 from pathlib import Path
 
 import torch
@@ -17,8 +16,6 @@ from ngc_gen.data.prepare import PreparedShape
 
 from .prepare import prepare_dataset
 from .training import start_run, train
-
-log = logging.getLogger(__name__)
 
 
 def shapes_meta(prepared: list[PreparedShape], kind: str) -> dict:
@@ -75,16 +72,13 @@ def render_comparison(gt: dict, run_dir: Path) -> None:
     render (no off-screen OpenGL) is reported, not fatal: the meshes are already written."""
     import trimesh
 
-    from ngc_gen.viz import render_grid
+    from ngc_gen.viz import render_grid, render_or_warn
 
     names = list(gt)
     rows = [[trimesh.Trimesh(*gt[n], process=False),
              trimesh.load(run_dir / "meshes" / f"{n}.ply", process=False)] for n in names]
-    try:
-        render_grid(rows, run_dir / "meshes.png", labels=names,
-                    col_titles=["ground truth", "fitted"])
-    except Exception as e:  # noqa: BLE001 - rendering is a convenience
-        log.warning("could not render %s: %s", run_dir / "meshes.png", e)
+    render_or_warn(render_grid, run_dir / "meshes.png", rows, labels=names,
+                   col_titles=["ground truth", "fitted"])
 
 
 def print_metrics(metrics: dict) -> None:

@@ -16,7 +16,6 @@ directory holds `summary.json` (per step: directory, seconds, headline numbers) 
 from __future__ import annotations
 
 import json
-import logging
 import time
 from pathlib import Path
 
@@ -25,7 +24,6 @@ from omegaconf import DictConfig, OmegaConf
 from ngc_gen.data.atomic import atomic_write_text
 from ngc_gen.data.errors import DataError
 
-log = logging.getLogger(__name__)
 
 # step -> (config name, the key that holds its output directory)
 STEPS = {"fit": ("train", "run_dir"), "edit": ("edit", "out_dir"),
@@ -169,7 +167,7 @@ def render_overview(run_dir: Path, done: list[str], per_row: int = 4) -> None:
     render (no off-screen OpenGL) is reported, not fatal."""
     import trimesh
 
-    from ngc_gen.viz import render_grid
+    from ngc_gen.viz import render_grid, render_or_warn
 
     def load(paths):
         return [trimesh.load(p, process=False) for p in paths[:per_row] if p.is_file()]
@@ -189,8 +187,5 @@ def render_overview(run_dir: Path, done: list[str], per_row: int = 4) -> None:
     kept = [(r, lab) for r, lab in zip(rows, labels) if r]
     if not kept:
         return
-    try:
-        render_grid([r for r, _ in kept], run_dir / "overview.png", labels=[lab for _, lab in kept],
-                    frame="row")
-    except Exception as e:  # noqa: BLE001 - rendering is a convenience
-        log.warning("could not render %s: %s", run_dir / "overview.png", e)
+    render_or_warn(render_grid, run_dir / "overview.png", [r for r, _ in kept],
+                   labels=[lab for _, lab in kept], frame="row")

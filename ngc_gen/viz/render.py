@@ -1,11 +1,14 @@
 """Off-screen renders of mesh grids with pyvista (headless: EGL, no window)."""
 from __future__ import annotations
 
+import logging
 import os
 from pathlib import Path
 
 import numpy as np
 import trimesh
+
+log = logging.getLogger(__name__)
 
 COLORS = ("#c8a27a", "#7fa7c9", "#9cc28c", "#d08c8c")
 
@@ -20,13 +23,14 @@ def _poly(pv, mesh: trimesh.Trimesh):
 def render_grid(rows: list[list], path, labels: list[str] | None = None,
                 col_titles: list[str] | None = None, cell: tuple[int, int] = (320, 260),
                 view: tuple = (1.0, -1.6, 0.9), up: tuple = (0, 0, 1),
-                frame: str = "cell") -> Path:
+                frame: str = "cell", titles: list[list[str]] | None = None) -> Path:
     """Render rows x columns of meshes into one PNG, atomically. A cell is a mesh, None
     (empty) or a pair (mesh, overlay) whose overlay (e.g. GC surfaces) is drawn translucent.
 
     Each column gets its own colour; every cell uses the same camera direction `view` so
     shapes can be compared side by side. `frame="cell"` fits the camera to each mesh;
-    `frame="row"` to the bounds of its whole row, so before/after pairs keep one scale."""
+    `frame="row"` to the bounds of its whole row, so before/after pairs keep one scale.
+    `titles[i][j]` names one cell (after the row label / column title, if any)."""
     if frame not in ("cell", "row"):
         raise ValueError(f"frame must be 'cell' or 'row', got {frame!r}")
     os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
@@ -58,6 +62,8 @@ def render_grid(rows: list[list], path, labels: list[str] | None = None,
                 title.append(col_titles[j])
             if labels and j == 0 and i < len(labels):
                 title.append(labels[i])
+            if titles and i < len(titles) and j < len(titles[i]) and titles[i][j]:
+                title.append(titles[i][j])
             if title:
                 p.add_text(" / ".join(title), font_size=9, color="black")
     p.render()
@@ -68,3 +74,20 @@ def render_grid(rows: list[list], path, labels: list[str] | None = None,
     p.close()
     os.replace(tmp, path)
     return path
+
+
+def render_gallery(meshes: list, names: list[str], path, per_row: int = 4, **kwargs) -> Path:
+    """Meshes in rows of `per_row`, each cell titled with its name."""
+    rows = [meshes[i:i + per_row] for i in range(0, len(meshes), per_row)]
+    titles = [names[i:i + per_row] for i in range(0, len(names), per_row)]
+    return render_grid(rows, path, titles=titles, **kwargs)
+
+
+def render_or_warn(render, path, *args, **kwargs) -> Path | None:
+    """`render(*args, path, ...)`, but a failure (e.g. no off-screen OpenGL on this machine) is
+    logged, not raised: a picture is a convenience beside outputs already written."""
+    try:
+        return render(*args, path, **kwargs)
+    except Exception as e:  # noqa: BLE001
+        log.warning("could not render %s: %s", path, e)
+        return None
