@@ -3,11 +3,12 @@
 ```yaml
 name: ant
 mesh: ant.ply            # relative to this file, absolute, or a resource such as pyvista:ant.ply
-normalize: {bound: 0.8}  # optional, default 0.8
+normalize: {bound: 0.8}  # optional, default 0.8; false: the mesh is already in the GCs' frame
 gcs: [ {name, curve: {type, points}, up, keys: [{t, radii, twist}], caps}, ... ]
 ```
 
-GC coordinates are in the normalised frame (after ``normalize``). Every problem raises
+GC coordinates are in the normalised frame (after ``normalize``; with ``normalize: false``, the
+mesh's own coordinates, as in the ``edited.yaml`` that edit.py writes). Every problem raises
 ``DataError`` naming the file, the GC and the field, and saying how to fix it.
 """
 
@@ -52,7 +53,7 @@ class Annotation:
     name: str
     mesh: str
     gcs: list[GeneralizedCylinder]
-    bound: float = DEFAULT_BOUND
+    bound: float | None = DEFAULT_BOUND  # None: `normalize: false`, the mesh as it is
     source: Path | None = field(default=None, compare=False)
 
     @property
@@ -76,7 +77,7 @@ class Annotation:
         return {
             "name": self.name,
             "mesh": Path(mesh).as_posix() if not is_resource(mesh) else mesh,
-            "normalize": {"bound": float(self.bound)},
+            "normalize": False if self.bound is None else {"bound": float(self.bound)},
             "gcs": [gc.to_dict() for gc in self.gcs],
         }
 
@@ -195,12 +196,15 @@ def annotation_from_dict(d, source: str | os.PathLike | None = None) -> Annotati
                         fix="add 'mesh: <file>' relative to the annotation, or a resource like pyvista:ant.ply")
     if not is_resource(mesh):
         mesh = os.path.abspath(resolve_mesh_path(mesh, path.parent if path is not None else None))
-    norm = d.get("normalize", {}) or {}
-    if not isinstance(norm, dict) or set(norm) - NORMALIZE_KEYS:
-        raise DataError(f"normalize must be a mapping {{bound: number}}, got {norm!r}", path=path,
-                        field="normalize", fix="write 'normalize: {bound: 0.8}' or leave it out")
-    bound = norm.get("bound", DEFAULT_BOUND)
-    if not _is_number(bound) or not 0 < bound < float("inf"):
+    norm = d.get("normalize", {})
+    norm = {} if norm is None else norm
+    if norm is not False and (not isinstance(norm, dict) or set(norm) - NORMALIZE_KEYS):
+        raise DataError(f"normalize must be a mapping {{bound: number}} or false, got {norm!r}",
+                        path=path, field="normalize",
+                        fix="write 'normalize: {bound: 0.8}', 'normalize: false' (the mesh is "
+                            "already in the GCs' frame) or leave it out")
+    bound = None if norm is False else norm.get("bound", DEFAULT_BOUND)
+    if bound is not None and (not _is_number(bound) or not 0 < bound < float("inf")):
         raise DataError(f"bound must be a positive number, got {bound!r}", path=path,
                         field="normalize.bound", fix="use e.g. 0.8 (the mesh then fits [-0.8, 0.8]^3)")
     gcs = d.get("gcs")
@@ -213,7 +217,8 @@ def annotation_from_dict(d, source: str | os.PathLike | None = None) -> Annotati
     if dupes:
         raise DataError(f"GC names {dupes} appear more than once", path=path, gc=dupes[0], field="name",
                         fix="give every GC a unique name")
-    return Annotation(name=name, mesh=mesh, gcs=parsed, bound=float(bound), source=path)
+    return Annotation(name=name, mesh=mesh, gcs=parsed,
+                      bound=None if bound is None else float(bound), source=path)
 
 
 def load_annotation(path: str | os.PathLike) -> Annotation:

@@ -127,14 +127,17 @@ def load_mesh(path: str | os.PathLike) -> trimesh.Trimesh:
     return trimesh.Trimesh(vertices=vertices, faces=faces.astype(np.int64), process=False)
 
 
-def normalize(mesh: trimesh.Trimesh, bound: float = 0.8) -> tuple[trimesh.Trimesh, np.ndarray, float]:
+def normalize(mesh: trimesh.Trimesh, bound: float | None = 0.8) -> tuple[trimesh.Trimesh, np.ndarray, float]:
     """Fit the mesh's bounding box into [-bound, bound]^3: centre it, scale uniformly so its
-    longest side spans 2*bound.
+    longest side spans 2*bound. ``bound=None`` keeps the mesh as it is (centre 0, scale 1): an
+    annotation with ``normalize: false`` whose mesh is already in its GCs' frame.
 
     Returns (new mesh, center (3,) float64, scale float) with
     ``normalised = (original - center) * scale`` and ``original = normalised / scale + center``.
     The input mesh is not modified.
     """
+    if bound is None:
+        return mesh.copy(), np.zeros(3), 1.0
     if not bound > 0:
         raise DataError(f"normalize bound must be > 0, got {bound}", field="normalize.bound", fix="use e.g. 0.8")
     vertices = np.asarray(mesh.vertices, dtype=np.float64)

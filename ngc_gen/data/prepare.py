@@ -207,8 +207,11 @@ def _coverage_error(ann: Annotation, uncovered: np.ndarray, n_total: int, covera
     where = ann.source if ann.source is not None else f"automatic annotation of {ann.mesh}"
     return DataError(what, path=where, gc=ann.gcs[top].name, field="gcs",
                      fix=f"enlarge the radii or caps of '{ann.gcs[top].name}', move its curve "
-                         f"towards those points, or add a GC there (coordinates are normalised: "
-                         f"the mesh is fitted into [-{ann.bound:g}, {ann.bound:g}]^3)")
+                         f"towards those points, or add a GC there ("
+                         + ("coordinates are the mesh's own: normalize is false)"
+                            if ann.bound is None else
+                            f"coordinates are normalised: the mesh is fitted into "
+                            f"[-{ann.bound:g}, {ann.bound:g}]^3)"))
 
 
 def _in_context(e: DataError, ann: Annotation) -> DataError:

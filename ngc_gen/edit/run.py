@@ -209,11 +209,12 @@ def run_edit(cfg) -> dict:
     out_dir = Path(cfg.out_dir) if cfg.get("out_dir") else \
         Path("outputs/edit") / program.name / time.strftime("%Y-%m-%d_%H-%M-%S")
     out_dir = out_dir.resolve()
-    ann0 = yaml.safe_load(meta["annotation_yaml"])
+    # GCs and mesh share the fitted NGC frame: `normalize: false` keeps it, so the file can be
+    # prepared and fitted again as it is (train.py stage=fit data=folder, or an annotations list)
     edited = Annotation(name=f"{shape}_{program.name}", mesh=str(out_dir / "deformed.ply"),
-                        gcs=result.gcs, bound=float(ann0.get("normalize", {}).get("bound", 0.8)))
+                        gcs=result.gcs, bound=None)
     header = (f"# GCs of '{shape}' after edit program '{program.name}' ({program.source}), in "
-              f"the fitted NGC frame.\n# mesh: the deformed NGC mesh"
+              f"the fitted NGC frame (normalize: false).\n# mesh: the deformed NGC mesh"
               + (f"; mixed parts (features, not stored here): {metrics['mixes']}"
                  if result.mixes else "") + "\n")
     for name, mesh in (("undeformed.ply", before.mesh), ("deformed.ply", after.mesh)):

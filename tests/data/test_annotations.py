@@ -30,6 +30,23 @@ def test_defaults_and_relative_mesh_path(tmp_path, write_yaml, gc_dict, monkeypa
     assert ann.mesh_path == tmp_path / "meshes" / "m.obj"  # relative to the YAML, not the cwd
 
 
+def test_normalize_false_keeps_the_mesh_frame(tmp_path, sphere_annotation, gc_dict):
+    """`normalize: false` (edit.py's edited.yaml): round trip, and preparation uses the mesh's
+    own coordinates, not the [-bound, bound]^3 fit."""
+    from ngc_gen.data.prepare import PrepareSettings, prepare_shape
+
+    d = {**yaml.safe_load(sphere_annotation.read_text()), "normalize": False,
+         "gcs": [gc_dict("body", -0.4, 0.4, radii=(1.1, 1.1), caps=(0.8, 0.8))]}
+    path = tmp_path / "as_is.yaml"
+    path.write_text(yaml.safe_dump(d))
+    ann = load_annotation(path)
+    assert ann.bound is None and ann.to_dict()["normalize"] is False
+    assert load_annotation(save_annotation(ann, tmp_path / "copy.yaml")).bound is None
+    prepared = prepare_shape(ann, PrepareSettings(n_samples=1000, coverage_samples=2000))
+    r = (prepared.mesh_vertices ** 2).sum(1) ** 0.5
+    assert abs(r.max() - 1.0) < 1e-6  # the unit sphere as it is (normalised: radius 0.8)
+
+
 def test_resource_mesh_is_kept(tmp_path, gc_dict):
     ann = annotation_from_dict({"name": "ant", "mesh": "pyvista:ant.ply", "gcs": [gc_dict("a", 0, 1)]})
     assert ann.mesh == "pyvista:ant.ply" and ann.mesh_path.name == "ant.ply"
@@ -73,6 +90,7 @@ BAD = {
     "missing_mesh": ({"name": "s", "gcs": [_gc()]}, None, ["'mesh'"]),
     "no_gcs": (_doc(gcs=[]), None, ["'gcs'", "non-empty"]),
     "bad_bound": (_doc(normalize={"bound": -1}), None, ["normalize.bound"]),
+    "normalize_true": (_doc(normalize=True), None, ["normalize", "false"]),
     "gc_without_name": (_doc(gcs=[_gc(name=None)]), None, ["gcs[0].name"]),
     "duplicate_gc_names": (_doc(gcs=[_gc(), _gc()]), "leg", ["more than once"]),
     "unknown_gc_field": (_doc(gcs=[_gc(radius=1)]), "leg", ["unknown", "radius"]),
