@@ -210,7 +210,7 @@ def run_edit(cfg) -> dict:
         Path("outputs/edit") / program.name / time.strftime("%Y-%m-%d_%H-%M-%S")
     out_dir = out_dir.resolve()
     # GCs and mesh share the fitted NGC frame: `normalize: false` keeps it, so the file can be
-    # prepared and fitted again as it is (train.py stage=fit data=folder, or an annotations list)
+    # prepared and fitted again as it is (an AnnotatedShapes list, see the README)
     edited = Annotation(name=f"{shape}_{program.name}", mesh=str(out_dir / "deformed.ply"),
                         gcs=result.gcs, bound=None)
     header = (f"# GCs of '{shape}' after edit program '{program.name}' ({program.source}), in "
