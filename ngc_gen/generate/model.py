@@ -99,8 +99,8 @@ def load_generator(run, shape_latent_run=None) -> ShapeGenerator:
     from ngc_gen.lit.diffusion import CHECKPOINT_KIND as DIFFUSION
     from ngc_gen.lit.diffusion import LatentDiffusion
     from ngc_gen.lit.shape_latent import CHECKPOINT_KIND as SHAPE_LATENT
-    from ngc_gen.lit.shape_latent import (ShapeLatentModule, load_checkpoint_dict,
-                                          resolve_checkpoint)
+    from ngc_gen.lit.checkpoint import load_checkpoint_dict, resolve_checkpoint
+    from ngc_gen.lit.shape_latent import ShapeLatentModule
 
     path = resolve_checkpoint(run, fix=FIX, what="run")
     kind = load_checkpoint_dict(path, fix=FIX).get("hyper_parameters", {}).get("checkpoint_kind")

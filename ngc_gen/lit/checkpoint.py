@@ -1,4 +1,5 @@
-"""Loading trained auto-decoders safely (weights_only) with a clear error for wrong files."""
+"""Loading trained LightningModules safely (weights_only) with a clear error for wrong files:
+one loader for the fitting, shape-latent and diffusion checkpoints."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -9,24 +10,54 @@ from ngc_gen.data.errors import DataError
 
 from .autodecoder import CHECKPOINT_KIND, AutoDecoder
 
+FIT_FIX = "pass the checkpoints/last.ckpt of a `train.py stage=fit` run"
 
-def load_autodecoder(path, map_location="cpu") -> AutoDecoder:
-    """An AutoDecoder from a Lightning checkpoint (`last.ckpt`, `best.ckpt`) of `stage=fit`."""
+
+def resolve_checkpoint(path, fix: str, what: str) -> Path:
+    """A checkpoint file, or `<dir>/checkpoints/last.ckpt` for a run directory."""
+    if path is None or str(path) in ("", "???"):
+        raise DataError(f"no {what} given", fix=fix)
     path = Path(path)
+    if path.is_dir():
+        ckpt = path / "checkpoints" / "last.ckpt"
+        if not ckpt.is_file():
+            raise DataError(f"{path} holds no checkpoints/last.ckpt (is it a finished "
+                            f"{what}?)", path=path, fix=fix)
+        return ckpt
     if not path.is_file():
-        raise DataError(f"checkpoint {path} does not exist",
-                        fix="pass the checkpoints/last.ckpt of a `train.py stage=fit` run")
+        raise DataError(f"{what} {path} does not exist", fix=fix)
+    return path
+
+
+def load_checkpoint_dict(path: Path, fix: str, map_location="cpu") -> dict:
+    """torch.load(weights_only=True) with a DataError for files that are not checkpoints."""
     try:
         ckpt = torch.load(path, map_location=map_location, weights_only=True)
     except Exception as e:  # not a torch file, or one holding arbitrary pickled objects
         raise DataError(f"{path} is not a loadable checkpoint ({type(e).__name__}: "
-                        f"{str(e).splitlines()[0][:200]})",
-                        fix="pass the checkpoints/last.ckpt of a `train.py stage=fit` run") from None
-    hp = ckpt.get("hyper_parameters", {}) if isinstance(ckpt, dict) else {}
-    if hp.get("checkpoint_kind") != CHECKPOINT_KIND:
-        raise DataError(f"{path} is not an NGC/DeepSDF fitting checkpoint (kind "
-                        f"{hp.get('checkpoint_kind')!r})",
-                        fix="pass the checkpoints/last.ckpt of a `train.py stage=fit` run")
-    module = AutoDecoder(**hp)
+                        f"{str(e).splitlines()[0][:200]})", fix=fix) from None
+    if not isinstance(ckpt, dict):
+        raise DataError(f"{path} is not a Lightning checkpoint", fix=fix)
+    return ckpt
+
+
+def load_module(cls, path, kind: str, what: str, fix: str, map_location="cpu"):
+    """`cls` rebuilt from its saved hyper-parameters and weights, in eval mode; DataError if the
+    file is missing, not a checkpoint, or a checkpoint of another kind (`what` names the one
+    expected, e.g. "a diffusion checkpoint")."""
+    path = Path(path)
+    if not path.is_file():
+        raise DataError(f"checkpoint {path} does not exist", fix=fix)
+    ckpt = load_checkpoint_dict(path, fix, map_location)
+    hp = ckpt.get("hyper_parameters", {})
+    if hp.get("checkpoint_kind") != kind:
+        raise DataError(f"{path} is not {what} (kind {hp.get('checkpoint_kind')!r})", fix=fix)
+    module = cls(**hp)
     module.load_state_dict(ckpt["state_dict"])
     return module.eval()
+
+
+def load_autodecoder(path, map_location="cpu") -> AutoDecoder:
+    """An AutoDecoder from a Lightning checkpoint (`last.ckpt`, `best.ckpt`) of `stage=fit`."""
+    return load_module(AutoDecoder, path, CHECKPOINT_KIND, "an NGC/DeepSDF fitting checkpoint",
+                       FIT_FIX, map_location)

@@ -12,15 +12,15 @@ Training data: batches of raw latents (B, dim), or (latents,) tuples as from a T
 from __future__ import annotations
 
 import copy
-from pathlib import Path
 
 import lightning as L
 import torch
 from torch.utils.data import TensorDataset
 
-from ngc_gen.data.errors import DataError
 from ngc_gen.models.edm import EDMLoss, EDMPrecond, ResidualMLPDenoiser
 from ngc_gen.models.sampler import edm_sampler
+
+from .checkpoint import load_module
 
 CHECKPOINT_KIND = "ngc_gen.diffusion"
 STANDARDISE = ("per_dim", "scalar", "none")
@@ -175,19 +175,6 @@ class LatentDiffusion(L.LightningModule):
     @classmethod
     def from_checkpoint(cls, path, map_location="cpu") -> "LatentDiffusion":
         """A LatentDiffusion from a Lightning checkpoint, loaded with weights_only=True."""
-        path = Path(path)
-        fix = "pass the checkpoints/last.ckpt of a `train.py stage=diffusion` run"
-        if not path.is_file():
-            raise DataError(f"checkpoint {path} does not exist", fix=fix)
-        try:
-            ckpt = torch.load(path, map_location=map_location, weights_only=True)
-        except Exception as e:  # not a torch file, or one holding arbitrary pickled objects
-            raise DataError(f"{path} is not a loadable checkpoint ({type(e).__name__}: "
-                            f"{str(e).splitlines()[0][:200]})", fix=fix) from None
-        hp = ckpt.get("hyper_parameters", {}) if isinstance(ckpt, dict) else {}
-        if hp.get("checkpoint_kind") != CHECKPOINT_KIND:
-            raise DataError(f"{path} is not a diffusion checkpoint (kind "
-                            f"{hp.get('checkpoint_kind')!r})", fix=fix)
-        module = cls(**hp)
-        module.load_state_dict(ckpt["state_dict"])
-        return module.eval()
+        return load_module(cls, path, CHECKPOINT_KIND, "a diffusion checkpoint",
+                           "pass the checkpoints/last.ckpt of a `train.py stage=diffusion` run",
+                           map_location)

@@ -20,15 +20,15 @@ buffers, so the checkpoint alone rebuilds everything.
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import lightning as L
 import torch
 from torch import nn
 
-from ngc_gen.data.errors import DataError
 from ngc_gen.models import build_decoder
 from ngc_gen.models.shape_decoder import GCTemplate, ShapeDecoder
+
+from .checkpoint import load_module, resolve_checkpoint
 
 CHECKPOINT_KIND = "ngc_gen.shape_latent"
 FIX = "pass the run directory (or checkpoints/last.ckpt) of a `train.py stage=shape_latent` run"
@@ -143,40 +143,6 @@ class ShapeLatentModule(L.LightningModule):
     def from_checkpoint(cls, path, map_location="cpu") -> "ShapeLatentModule":
         """A trained module from a Lightning checkpoint (weights_only), or the checkpoint of a
         run directory (`<run>/checkpoints/last.ckpt`)."""
-        path = resolve_checkpoint(path)
-        ckpt = load_checkpoint_dict(path, map_location)
-        hp = ckpt.get("hyper_parameters", {})
-        if hp.get("checkpoint_kind") != CHECKPOINT_KIND:
-            raise DataError(f"{path} is not a shape-latent checkpoint (kind "
-                            f"{hp.get('checkpoint_kind')!r})", fix=FIX)
-        module = cls(**hp)
-        module.load_state_dict(ckpt["state_dict"])
-        return module.eval()
-
-
-def resolve_checkpoint(path, fix: str = FIX, what: str = "shape-latent run") -> Path:
-    """A checkpoint file, or `<dir>/checkpoints/last.ckpt` for a run directory."""
-    if path is None or str(path) in ("", "???"):
-        raise DataError(f"no {what} given", fix=fix)
-    path = Path(path)
-    if path.is_dir():
-        ckpt = path / "checkpoints" / "last.ckpt"
-        if not ckpt.is_file():
-            raise DataError(f"{path} holds no checkpoints/last.ckpt (is it a finished "
-                            f"{what}?)", path=path, fix=fix)
-        return ckpt
-    if not path.is_file():
-        raise DataError(f"{what} {path} does not exist", fix=fix)
-    return path
-
-
-def load_checkpoint_dict(path: Path, map_location="cpu", fix: str = FIX) -> dict:
-    """torch.load(weights_only=True) with a DataError for files that are not checkpoints."""
-    try:
-        ckpt = torch.load(path, map_location=map_location, weights_only=True)
-    except Exception as e:  # not a torch file, or one holding arbitrary pickled objects
-        raise DataError(f"{path} is not a loadable checkpoint ({type(e).__name__}: "
-                        f"{str(e).splitlines()[0][:200]})", fix=fix) from None
-    if not isinstance(ckpt, dict):
-        raise DataError(f"{path} is not a Lightning checkpoint", fix=fix)
-    return ckpt
+        path = resolve_checkpoint(path, FIX, "shape-latent run")
+        return load_module(cls, path, CHECKPOINT_KIND, "a shape-latent checkpoint", FIX,
+                           map_location)

@@ -37,12 +37,13 @@ def run_diffusion(cfg: DictConfig) -> dict:
     from torch.utils.data import DataLoader, RandomSampler, TensorDataset
 
     from ngc_gen.lit.diffusion import LatentDiffusion
-    from ngc_gen.lit.shape_latent import ShapeLatentModule, resolve_checkpoint
+    from ngc_gen.lit.checkpoint import resolve_checkpoint
+    from ngc_gen.lit.shape_latent import FIX, ShapeLatentModule
 
     from .training import start_run, train
 
     cfg = with_stage_steps(cfg, "diffusion")
-    ckpt = resolve_checkpoint(cfg.shape_latent_run).resolve()
+    ckpt = resolve_checkpoint(cfg.shape_latent_run, FIX, "shape-latent run").resolve()
     shape_latent = ShapeLatentModule.from_checkpoint(ckpt)
     latents = shape_latent.latents.weight.detach().float().clone()
     run_dir = start_run(cfg)
