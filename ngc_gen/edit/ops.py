@@ -55,6 +55,15 @@ def check_t(op: str, gc, field: str, t) -> float:
     return v
 
 
+def check_range(op: str, gc, t0, t1, fix: str = "give t0 < t1") -> tuple[float, float]:
+    """A non-empty range 0 <= t0 < t1 <= 1 of normalised arc length."""
+    t0, t1 = check_t(op, gc, "t0", t0), check_t(op, gc, "t1", t1)
+    if not t0 < t1:
+        raise EditError(f"the range [t0, t1] = [{t0}, {t1}] is empty", op=op, gc=_name(gc),
+                        field="t1", value=t1, fix=fix)
+    return t0, t1
+
+
 def check_number(op: str, gc, field: str, x, positive: bool = False) -> float:
     try:
         v = float(x)
@@ -165,6 +174,16 @@ def with_keys_at(gc: GeneralizedCylinder, ts: Iterable[float]) -> list[Key]:
 
 def _key_index(keys: list[Key], t: float) -> int:
     return min(range(len(keys)), key=lambda i: abs(keys[i].t - t))
+
+
+def _edit_keys(op: str, gc: GeneralizedCylinder, t, falloff, fn, verb: str) -> list[Key]:
+    """`fn` applied to every key (t = None, no falloff allowed) or to the key at t."""
+    if t is None:
+        if falloff is not None:
+            raise EditError(f"needs a key t (t = None {verb} every key)", op=op, gc=gc.name,
+                            field="falloff", value=falloff)
+        return [fn(k) for k in gc.keys]
+    return _edit_key(op, gc, t, falloff, fn)
 
 
 def _edit_key(op: str, gc, t, falloff, change: Callable[[Key], Key]) -> list[Key]:
@@ -304,10 +323,7 @@ def stretch(gc: GeneralizedCylinder, t0: float, t1: float, factor: float,
     """
     op = "stretch"
     check_gc(op, gc)
-    t0, t1 = check_t(op, gc, "t0", t0), check_t(op, gc, "t1", t1)
-    if not t0 < t1:
-        raise EditError(f"the range [t0, t1] = [{t0}, {t1}] is empty", op=op, gc=gc.name,
-                        field="t1", value=t1, fix="give t0 < t1")
+    t0, t1 = check_range(op, gc, t0, t1)
     f = check_number(op, gc, "factor", factor, positive=True)
     pts = gc.curve.points
     L = gc.length
@@ -354,14 +370,7 @@ def scale_radii(gc: GeneralizedCylinder, t: float | None, factor,
     def scaled(k: Key) -> Key:
         return Key(k.t, (k.radii[0] * f[0], k.radii[1] * f[1]), k.twist)
 
-    if t is None:
-        if falloff is not None:
-            raise EditError("needs a key t (t = None scales every key)", op=op, gc=gc.name,
-                            field="falloff", value=falloff)
-        keys = [scaled(k) for k in gc.keys]
-    else:
-        keys = _edit_key(op, gc, t, falloff, scaled)
-    return rebuild(op, gc, keys=keys)
+    return rebuild(op, gc, keys=_edit_keys(op, gc, t, falloff, scaled, "scales"))
 
 
 def twist(gc: GeneralizedCylinder, t: float | None, degrees: float,
@@ -378,14 +387,7 @@ def twist(gc: GeneralizedCylinder, t: float | None, degrees: float,
     def twisted(k: Key) -> Key:
         return Key(k.t, k.radii, k.twist + deg)
 
-    if t is None:
-        if falloff is not None:
-            raise EditError("needs a key t (t = None twists every key)", op=op, gc=gc.name,
-                            field="falloff", value=falloff)
-        keys = [twisted(k) for k in gc.keys]
-    else:
-        keys = _edit_key(op, gc, t, falloff, twisted)
-    return rebuild(op, gc, keys=keys)
+    return rebuild(op, gc, keys=_edit_keys(op, gc, t, falloff, twisted, "twists"))
 
 
 def twist_ramp(gc: GeneralizedCylinder, t0: float, t1: float,
@@ -395,10 +397,7 @@ def twist_ramp(gc: GeneralizedCylinder, t0: float, t1: float,
     profile, so the added twist is exactly this ramp."""
     op = "twist_ramp"
     check_gc(op, gc)
-    t0, t1 = check_t(op, gc, "t0", t0), check_t(op, gc, "t1", t1)
-    if not t0 < t1:
-        raise EditError(f"the range [t0, t1] = [{t0}, {t1}] is empty", op=op, gc=gc.name,
-                        field="t1", value=t1, fix="give t0 < t1 (or use 'twist' at one key)")
+    t0, t1 = check_range(op, gc, t0, t1, fix="give t0 < t1 (or use 'twist' at one key)")
     deg = check_number(op, gc, "degrees", degrees)
     keys = [Key(k.t, k.radii, k.twist + deg * min(max((k.t - t0) / (t1 - t0), 0.0), 1.0))
             for k in with_keys_at(gc, [t0, t1])]
