@@ -86,6 +86,33 @@ class Annotation:
         return yaml.safe_dump(self.to_dict(relative_to), sort_keys=False, default_flow_style=None, width=100)
 
 
+def similar_gc_dict(d: dict, center, scale: float) -> dict:
+    """A GC dict under the similarity x -> (x - center) * scale (what `normalize` applies to a
+    mesh): control points move, radii and caps scale, up and twist do not, so the relative
+    coordinates of a point and its image agree and the GC's codes stay valid."""
+    import numpy as np
+
+    c = np.asarray(center, np.float64)
+    pts = (np.asarray(d["curve"]["points"], np.float64) - c) * float(scale)
+    return {**d, "curve": {**d["curve"], "points": pts.tolist()},
+            "keys": [{**k, "radii": [r * scale for r in k["radii"]]} for k in d["keys"]],
+            "caps": [x * scale for x in d["caps"]]}
+
+
+def rounded_gc_dict(d: dict, decimals: int = 7) -> dict:
+    """A GC dict with its numbers rounded (readable YAML; 1e-7 is far below a voxel), in the
+    field order of DESIGN.md section 2."""
+    r = lambda x: float(round(float(x), decimals))  # noqa: E731
+    return {"name": d["name"],
+            "curve": {"type": d["curve"].get("type", "bezier"),
+                      "points": [[r(x) for x in p] for p in d["curve"]["points"]]},
+            "up": [r(x) for x in d["up"]],
+            "keys": [{"t": r(k["t"]), "radii": [r(x) for x in k["radii"]],
+                      "twist": r(k.get("twist", 0.0))} for k in d["keys"]],
+            "caps": [r(x) for x in d["caps"]],
+            **({"reparam": d["reparam"]} if d.get("reparam") is not None else {})}
+
+
 class _UniqueKeyLoader(yaml.SafeLoader):
     """SafeLoader that refuses a mapping key given twice (PyYAML silently keeps the last)."""
 

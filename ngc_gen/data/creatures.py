@@ -34,8 +34,10 @@ import yaml
 from ngc_gen.data.atomic import atomic_write, atomic_write_text
 from ngc_gen.data.errors import DataError
 from ngc_gen.data.implicit import (block_points, grid_axes, mesh_from_field, profile_envelope,
-                                   profile_norm, smooth_min)
-from ngc_gen.geometry import GeneralizedCylinder
+                                   profile_norm)
+from ngc_gen.data.annotations import rounded_gc_dict, similar_gc_dict
+from ngc_gen.data.mesh_io import normalize
+from ngc_gen.geometry import GeneralizedCylinder, bernstein_basis, smooth_min
 
 #: Bump when the generator changes: built datasets with another version are rebuilt.
 CREATURES_VERSION = 1
@@ -281,26 +283,9 @@ def _part_field(part: Part, gc: GeneralizedCylinder, points: np.ndarray) -> np.n
     return (np.sqrt(ext * ext + n * n) - 1.0) * np.sqrt(r[:, 0] * r[:, 1])
 
 
-def _scaled_gc(d: dict, center: np.ndarray, scale: float) -> dict:
-    """The GC dict under x -> (x - center) * scale, rounded for the YAML (relative coordinates of
-    a uniformly scaled GC are unchanged)."""
-    rnd = lambda x: float(round(float(x), 7))  # noqa: E731
-    pts = (np.asarray(d["curve"]["points"]) - center) * scale
-    return {"name": d["name"],
-            "curve": {"type": "bezier", "points": [[rnd(x) for x in p] for p in pts]},
-            "up": [rnd(x) for x in d["up"]],
-            "keys": [{"t": rnd(k["t"]), "radii": [rnd(r * scale) for r in k["radii"]],
-                      "twist": rnd(k["twist"])} for k in d["keys"]],
-            "caps": [rnd(c * scale) for c in d["caps"]]}
-
-
 def _bezier_points(points: np.ndarray, samples: int = 257) -> np.ndarray:
-    """Points (samples, 3) on the Bezier curve with control points `points` (Bernstein form)."""
-    d = len(points) - 1
-    s = np.linspace(0.0, 1.0, samples)[:, None]
-    basis = np.stack([math.comb(d, i) * s[:, 0] ** i * (1 - s[:, 0]) ** (d - i)
-                      for i in range(d + 1)], 1)
-    return basis @ points
+    """Points (samples, 3) on the Bezier curve with control points `points`."""
+    return bernstein_basis(len(points) - 1, np.linspace(0.0, 1.0, samples)) @ points
 
 
 def gc_box(d: dict) -> tuple[np.ndarray, np.ndarray]:
@@ -403,12 +388,9 @@ def _make_single_thread(seed: int, resolution: int, name: str | None, check_samp
         field[sl] = smooth_min(field[sl], f, k)
     mesh = mesh_from_field(field, lo, voxel)
 
-    v = np.asarray(mesh.vertices)
-    vlo, vhi = v.min(0), v.max(0)
-    center, scale = (vlo + vhi) / 2.0, BOUND / (float((vhi - vlo).max()) / 2.0)
-    mesh = trimesh.Trimesh((v - center) * scale, mesh.faces, process=False)
+    mesh, center, scale = normalize(mesh, BOUND)
     annotation = {"name": name, "mesh": f"{name}.ply", "normalize": {"bound": BOUND},
-                  "gcs": [_scaled_gc(d, center, scale) for d in gc_dicts]}
+                  "gcs": [rounded_gc_dict(similar_gc_dict(d, center, scale)) for d in gc_dicts]}
     coverage = None
     if check_samples:
         # relative coordinates are invariant under the similarity: test in the design frame

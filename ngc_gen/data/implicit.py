@@ -8,9 +8,9 @@ from __future__ import annotations
 
 import numpy as np
 import trimesh
-from skimage.measure import marching_cubes
 
 from ngc_gen.data.errors import DataError
+from ngc_gen.extract.marching import marching_cubes_grid
 
 
 def profile_norm(alpha: np.ndarray, beta: np.ndarray, exponent: float = 2.0,
@@ -34,17 +34,6 @@ def profile_envelope(exponent: float, lobe_amp: float = 0.0) -> float:
     p > 2, times 1 + c for lobes)."""
     p = float(exponent)
     return max(1.0, 2.0 ** (0.5 - 1.0 / p)) * (1.0 + abs(lobe_amp))
-
-
-def smooth_min(a: np.ndarray, b: np.ndarray, k: float) -> np.ndarray:
-    """Polynomial (quadratic) smooth minimum with blend radius k (Quilez).
-
-    Equals min(a, b) where |a - b| >= k and lies at most k/4 below it, so a smooth union never
-    grows a part by more than k/4 in field units: the bound the GC annotations rely on."""
-    if k <= 0:
-        return np.minimum(a, b)
-    h = np.clip(k - np.abs(a - b), 0.0, None) / k
-    return np.minimum(a, b) - h * h * (k * 0.25)
 
 
 def grid_axes(lo: np.ndarray, hi: np.ndarray, resolution: int) -> tuple[list[np.ndarray], float]:
@@ -83,8 +72,7 @@ def mesh_from_field(field: np.ndarray, origin: np.ndarray, voxel: float,
     if not (border > 0).all():
         raise DataError("the implicit surface reaches the grid border",
                         fix="pad the grid so the whole shape lies strictly inside it")
-    verts, faces, _, _ = marching_cubes(field, 0.0, spacing=(voxel,) * 3, allow_degenerate=False)
-    mesh = trimesh.Trimesh(verts + np.asarray(origin), faces, process=True)
+    mesh = marching_cubes_grid(field, origin, voxel, float32_spacing=True)
     pieces = mesh.split(only_watertight=False)
     if len(pieces) > 1:
         areas = np.array([p.area for p in pieces])

@@ -6,8 +6,8 @@ so a fitted shape is deformed with no re-training. `ops`, `handles`, `blend` and
 only ngc_gen.geometry; `mixing` builds extraction fields (ngc_gen.extract); `run` (edit.py's
 runner) reads checkpoints and writes files, and is not imported here.
 """
-from .blend import (BLENDS, blend_features, blend_weight, constant, linear, smooth_min,
-                    smooth_min_all, smoothstep, truncated_linear)
+from .blend import (BLENDS, blend_features, blend_weight, constant, linear, smoothstep,
+                    truncated_linear)
 from .errors import EditError
 from .handles import HandleSolve, bend_to, deform_by_handles, hermite_of_length, kabsch
 from .mixing import PartMix, extract_smooth_union, mixed_sdf_fn
@@ -19,5 +19,5 @@ __all__ = ["BLENDS", "EditError", "EditProgram", "HandleSolve", "OPS", "PartMix"
            "apply_program", "bend_to", "blend_features", "blend_weight", "compose", "constant",
            "deform_by_handles", "extract_smooth_union", "hermite_of_length", "kabsch", "linear",
            "local_motion", "mixed_sdf_fn", "move_points", "rigid", "rotate", "scale_radii",
-           "smooth_min", "smooth_min_all", "smoothstep", "stretch", "stretch_map", "translate",
+           "smoothstep", "stretch", "stretch_map", "translate",
            "truncated_linear", "twist", "twist_ramp"]

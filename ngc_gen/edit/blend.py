@@ -3,7 +3,7 @@
 A blend weight w(t) in [0, 1] over normalised arc length says how much of part B replaces part A
 at each cross-section: f(t) = (1 - w(t)) f_A(t) + w(t) f_B(t). The paper blends with a truncated
 linear ramp over [t0, t1]; smoothstep gives a C1 seam. Where regions of different GCs overlap,
-`smooth_min` is a smooth union of their SDFs instead of the hard min.
+The smooth union of SDFs (`smooth_min`) lives in `ngc_gen.geometry.smooth`.
 
 Weights are small frozen callables (t tensor -> same-shape tensor), so an edit program can name
 one (`blend_weight("truncated_linear", t0=0.3, t1=0.6)`) and its repr says what it is.
@@ -131,29 +131,3 @@ def blend_features(fa: torch.Tensor, fb: torch.Tensor, t: torch.Tensor, fn) -> t
     t: (N,) normalised arc length; fn: a weight function. Returns (N, D)."""
     w = fn(t).to(dtype=fa.dtype, device=fa.device).unsqueeze(-1)
     return fa + w * (fb - fa)
-
-
-def smooth_min(a: torch.Tensor, b: torch.Tensor, k: float) -> torch.Tensor:
-    """Polynomial smooth minimum of SDFs a, b (same shape): a smooth union with blend width k.
-
-    h = clamp(1/2 + (b - a) / (2k), 0, 1), result = lerp(b, a, h) - k h (1 - h). It equals
-    min(a, b) where |a - b| >= k, lies in [min - k/4, min] everywhere, and tends to min as
-    k -> 0 (k = 0 gives min exactly)."""
-    k = float(k)
-    if not k >= 0.0:
-        raise EditError(f"blend width k must be >= 0, got {k}", op="smooth_min", field="k")
-    if k == 0.0:
-        return torch.minimum(a, b)
-    h = (0.5 + 0.5 * (b - a) / k).clamp(0.0, 1.0)
-    return b + h * (a - b) - k * h * (1.0 - h)
-
-
-def smooth_min_all(d: torch.Tensor, k: float) -> torch.Tensor:
-    """Smooth union of K SDFs given as columns of d (N, K) -> (N,), folded pairwise.
-
-    Each fold lies within k/4 below the min, so the result lies in [min - (K-1) k/4, min].
-    The loop runs over the K GCs (a handful), never over points."""
-    out = d[:, 0]
-    for j in range(1, d.shape[1]):
-        out = smooth_min(out, d[:, j], k)
-    return out

@@ -22,7 +22,9 @@ import torch
 from ngc_gen.extract import ExtractionResult, Grid, MinField, extract_mesh, marching_cubes_mesh
 from ngc_gen.extract.evaluate import as_numpy_grid, fill_background, gc_list
 
-from .blend import Constant, blend_features, smooth_min
+from ngc_gen.geometry import smooth_min
+
+from .blend import Constant, blend_features
 from .errors import EditError
 
 

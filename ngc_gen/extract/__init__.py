@@ -5,8 +5,8 @@ Takes the network as a callable `sdf_fn(gc_index, rel) -> sdf`; imports only ngc
 from .evaluate import MinField, SdfFn
 from .extractor import ExtractionResult, extract_mesh
 from .grid import Grid
-from .marching import empty_mesh, marching_cubes_mesh
+from .marching import empty_mesh, marching_cubes_grid, marching_cubes_mesh
 from .refine import Refinement
 
 __all__ = ["ExtractionResult", "Grid", "MinField", "Refinement", "SdfFn", "empty_mesh",
-           "extract_mesh", "marching_cubes_mesh"]
+           "extract_mesh", "marching_cubes_grid", "marching_cubes_mesh"]

@@ -3,8 +3,11 @@
 Imports nothing else of ngc_gen (DESIGN.md section 1)."""
 from .arrays import GeometryShapeError
 from .curves import BezierCurve, Curve, SplineCurve, curve_from_dict
+from .curves import bernstein_basis
 from .cylinder import GeneralizedCylinder, Key
 from .errors import GeometryError
+from .smooth import smooth_min, smooth_min_all
 
 __all__ = ["BezierCurve", "Curve", "GeneralizedCylinder", "GeometryError", "GeometryShapeError",
-           "Key", "SplineCurve", "curve_from_dict"]
+           "Key", "SplineCurve", "bernstein_basis", "curve_from_dict", "smooth_min",
+           "smooth_min_all"]

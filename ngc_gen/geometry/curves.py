@@ -30,6 +30,16 @@ def _check_points(points, kind: str, min_points: int) -> np.ndarray:
     return p
 
 
+def bernstein_basis(degree: int, s) -> np.ndarray:
+    """(N, degree + 1) Bernstein polynomials B_i(s) = C(n, i) s^i (1 - s)^(n - i) at s (N,): the one
+    Bezier basis (control points -> points is `bernstein_basis(n, s) @ points`; least-squares
+    fits solve against it)."""
+    s = np.asarray(s, dtype=np.float64)[:, None]
+    i = np.arange(degree + 1, dtype=np.float64)[None, :]
+    binom = np.array([math.comb(degree, k) for k in range(degree + 1)], dtype=np.float64)
+    return binom * s ** i * (1.0 - s) ** (degree - i)
+
+
 class Curve(ABC):
     """Base: `evaluate(s)` returns C(s), C'(s), C''(s) as (N, 3) float64 tensors."""
 

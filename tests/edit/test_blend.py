@@ -1,8 +1,9 @@
 import pytest
 import torch
 
-from ngc_gen.edit import (EditError, blend_features, blend_weight, constant, linear, smooth_min,
-                          smooth_min_all, smoothstep, truncated_linear)
+from ngc_gen.edit import (EditError, blend_features, blend_weight, constant, linear, smoothstep,
+                          truncated_linear)
+from ngc_gen.geometry import GeometryError, smooth_min, smooth_min_all
 
 T = torch.linspace(-0.2, 1.2, 14001, dtype=torch.float64)
 WEIGHTS = [linear(), truncated_linear(0.3, 0.6), smoothstep(0.2, 0.7)]
@@ -77,7 +78,7 @@ def test_smooth_min_is_a_smooth_lower_bound_of_min():
     x = torch.linspace(-1, 1, 20001, dtype=torch.float64)
     s = smooth_min(x, torch.zeros_like(x), 0.3)
     assert (s[1:] - s[:-1]).abs().max() <= (x[1] - x[0]) + 1e-12
-    with pytest.raises(EditError, match="k must be >= 0"):
+    with pytest.raises(GeometryError, match="k must be >= 0"):
         smooth_min(a, b, -1.0)
 
 
