@@ -245,11 +245,10 @@ def run_case(case: Case, module, shape_index: dict, inputs: dict, resolution: in
     from ngc_gen.edit import deform_by_handles
     from ngc_gen.edit.ops import curve_points_at
     from ngc_gen.eval import volume_area_change
-    from ngc_gen.extract import extract_mesh
-    from ngc_gen.extract.shapes import ngc_sdf_fn, shape_gcs
+    from ngc_gen.shape import Shape, recorded_gcs
 
     meta = module.hparams.meta["shapes"][shape_index[case.shape]]
-    gcs = shape_gcs(meta)
+    gcs = recorded_gcs(meta)
     codes = module.codes.weight[meta["code_offset"]:meta["code_offset"] + meta["n_codes"]].detach()
     V, F = inputs[case.shape]
     handle, fixed = constraints(case, gcs, V)
@@ -257,10 +256,10 @@ def run_case(case: Case, module, shape_index: dict, inputs: dict, resolution: in
     R, t = case.motion(gc)
     targets = V[handle] @ R.T + t
 
-    fn = ngc_sdf_fn(module.decoder, codes)
+    shape = Shape(gcs, codes, module.decoder, name=case.shape)
     with torch.no_grad():
         if case.shape not in undeformed:
-            undeformed[case.shape] = extract_mesh(gcs, fn, resolution, BOUND).mesh
+            undeformed[case.shape] = shape.mesh(resolution, BOUND).mesh
         before = undeformed[case.shape]
         # the fixed region for NGC: the fixed vertices plus the skeletons of the other GCs (a
         # part rooted inside the fixed body, like a tail in a torso, is far from its surface)
@@ -269,7 +268,7 @@ def run_case(case: Case, module, shape_index: dict, inputs: dict, resolution: in
         t0 = time.perf_counter()
         new, info = deform_by_handles(gcs, V[handle], targets, fixed_pts, return_info=True)
         solve_s = time.perf_counter() - t0
-        after = extract_mesh(new, fn, resolution, BOUND).mesh
+        after = shape.replaced(gcs=new).mesh(resolution, BOUND).mesh
         ngc_s = time.perf_counter() - t0
     # where the handle GC carries the handle vertices (their relative coordinates)
     new_gc = next(g for g in new if g.name == case.gc)

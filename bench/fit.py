@@ -48,7 +48,7 @@ def run(method: str, steps: int, resolution: int, batch_size: int) -> dict:
 def prefilter_check(checkpoint: str, resolution: int) -> dict:
     import torch
 
-    from ngc_gen.extract.shapes import extract_shape
+    from ngc_gen.shape import autodecoder_mesh
     from ngc_gen.lit.checkpoint import load_autodecoder
 
     module = load_autodecoder(checkpoint)
@@ -56,7 +56,7 @@ def prefilter_check(checkpoint: str, resolution: int) -> dict:
     for prefilter in (True, False):
         t0 = time.perf_counter()
         with torch.no_grad():
-            r = extract_shape(module, 0, resolution, keep_values=True, prefilter=prefilter)
+            r = autodecoder_mesh(module, 0, resolution, keep_values=True, prefilter=prefilter)
         key = "prefiltered" if prefilter else "dense"
         out[key] = {"n_network_evals": int(r.stats["n_network_evals"]),
                     "seconds": time.perf_counter() - t0}

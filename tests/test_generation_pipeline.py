@@ -10,7 +10,7 @@ import trimesh
 
 from ngc_gen.data.annotations import load_annotation
 from ngc_gen.data.errors import DataError
-from ngc_gen.extract.shapes import extract_shape, shape_gcs
+from ngc_gen.shape import autodecoder_mesh, recorded_gcs
 from ngc_gen.generate import generate, interpolate, load_generator, mix, run_sample
 from ngc_gen.lit.checkpoint import load_autodecoder
 from ngc_gen.stages.diffusion import run_diffusion
@@ -83,11 +83,11 @@ def test_generate_writes_editable_shapes(runs, gen):
         lo, hi = mesh.bounds                               # normalize: {bound: 0.8} is identity
         assert np.allclose((lo + hi) / 2, 0, atol=1e-6) and np.isclose((hi - lo).max(), 1.6)
         # the checkpoint's shape has the YAML's GCs and the shape's decoded codes
-        assert [g.to_dict() for g in shape_gcs(metas[i])] == [g.to_dict() for g in ann.gcs]
+        assert [g.to_dict() for g in recorded_gcs(metas[i])] == [g.to_dict() for g in ann.gcs]
         assert metas[i]["n_codes"] == 10
         torch.testing.assert_close(edit.codes.weight[10 * i:10 * (i + 1)],
                                    gen.shape_latent.decode(lat["latents"][i:i + 1])[1][0])
-        again = extract_shape(edit, i, RES, chunk=2048).mesh  # re-extracted from the checkpoint
+        again = autodecoder_mesh(edit, i, RES, chunk=2048).mesh  # re-extracted from the checkpoint
         step = 2.0 / (RES - 1)
         assert np.abs(again.bounds - mesh.bounds).max() < 2 * step
 

@@ -14,6 +14,8 @@ from dataclasses import dataclass
 
 import torch
 
+from ngc_gen.shape.features import blend_features  # noqa: F401  (re-exported)
+
 from .errors import EditError
 
 
@@ -124,10 +126,21 @@ def blend_weight(name: str, **params):
                         op="mix", field="blend") from None
 
 
-def blend_features(fa: torch.Tensor, fb: torch.Tensor, t: torch.Tensor, fn) -> torch.Tensor:
-    """(1 - w(t)) fa + w(t) fb.
+#: the parameters each mix blend takes (one table for edit programs and sample.py mode=mix)
+BLEND_PARAMS = {"replace": (), "constant": ("w",), "linear": (), "truncated_linear": ("t0", "t1"),
+                "smoothstep": ("t0", "t1")}
 
-    fa, fb: (N, D) features of parts A and B at the same points (or (D,), broadcast);
-    t: (N,) normalised arc length; fn: a weight function. Returns (N, D)."""
-    w = fn(t).to(dtype=fa.dtype, device=fa.device).unsqueeze(-1)
-    return fa + w * (fb - fa)
+
+def mix_weight(blend: str = "replace", op: str = "mix", **params):
+    """The weight function of a part mix: None for "replace" (exactly part B's features), else
+    `blend_weight(blend, **params)`; EditError naming what is missing or unexpected."""
+    if blend not in BLEND_PARAMS:
+        raise EditError(f"unknown blend; use one of {sorted(BLEND_PARAMS)}", op=op,
+                        field="blend", value=blend)
+    need = list(BLEND_PARAMS[blend])
+    missing, extra = [k for k in need if k not in params], sorted(set(params) - set(need))
+    if missing or extra:
+        raise EditError(f"blend '{blend}' takes {need or 'no parameters'}"
+                        + (f"; missing {missing}" if missing else "")
+                        + (f"; unexpected {extra}" if extra else ""), op=op, field="blend")
+    return None if blend == "replace" else blend_weight(blend, **params)

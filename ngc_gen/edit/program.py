@@ -20,7 +20,9 @@ Ops (`gc` names one GC; where marked, a list of names or `all`):
   names], [attached: {gc: [names]}], [on_unreachable]: drag the handle points of `gc` over
   t in `at` (default [0.9, 1]) by the rigid motion; `ngc_gen.edit.handles` bends the GCs.
 - mix: gc (or list), source: {shape, gc, ckpt}, [blend: replace | constant | linear |
-  truncated_linear | smoothstep, with w / t0, t1], [geometry: target | source].
+  truncated_linear | smoothstep, with w / t0, t1], [geometry: source | target]
+  (source, the default: the source part's GCs attached at this shape's joint, and its
+  features; target: this shape's GCs, features blended inside them).
 The shape-changing single-GC ops (bend, move, stretch, scale, twist, twist_ramp) take
 `carry: [names]`: those GCs follow the edit rigidly at their attachment point (a head on a
 bent neck, front legs on a stretched torso). A point (`pivot`) is [x, y, z] or {gc, t}: the
@@ -43,8 +45,10 @@ import torch
 from scipy.spatial.transform import Rotation
 
 from ngc_gen.geometry import GeneralizedCylinder
+from ngc_gen.shape import PartFeatures
+from ngc_gen.shape.mixing import mixed_parts
 
-from .blend import BLENDS, blend_weight, constant
+from .blend import BLEND_PARAMS, mix_weight
 from .errors import EditError, in_program
 from .handles import deform_by_handles
 from .ops import OPS, check_array, check_number, check_t, curve_points_at, local_motion
@@ -57,7 +61,7 @@ HANDLE_FIELDS = {"gc": True, "at": False, "rotate": False, "translate": False, "
 MIX_FIELDS = {"gc": True, "source": True, "blend": False, "t0": False, "t1": False, "w": False,
               "geometry": False}
 SOURCE_FIELDS = {"shape", "gc", "ckpt"}
-MIX_BLENDS = {"replace", *BLENDS}
+MIX_BLENDS = set(BLEND_PARAMS)
 
 
 def _signature_fields(fn) -> dict[str, bool]:
@@ -91,6 +95,17 @@ class EditProgram:
     smooth_union: float = 0.0
     description: str = ""
     source: str | None = None
+
+    def apply_to(self, shape, resolve: "SourceResolver | None" = None):
+        """The `ngc_gen.shape.Shape` after this program: edited GCs, mixed parts, the program's
+        smooth-union width; the per-op records go to `info["edit_log"]`. `Shape.edited` calls
+        this (the shape layer does not import edits)."""
+        result = apply_program(self, shape.gcs, resolve)
+        index = {n: j for j, n in enumerate(shape.gc_names)}
+        mixes = {**shape.mixes, **{index[n]: f for n, f in result.mixes.items()}}
+        return shape.replaced(gcs=result.gcs, mixes=mixes, smooth=self.smooth_union,
+                              info={**shape.info, "edit_log": result.log,
+                                    "program": self.name})
 
     @classmethod
     def from_dict(cls, d, source: str | None = None) -> "EditProgram":
@@ -164,20 +179,11 @@ SourceResolver = Callable[[str | None, str, str | None], MixSource]
 
 
 @dataclass
-class MixSpec:
-    """A planned mix of one target GC (by name): the source's code and the weight function."""
-
-    code: torch.Tensor
-    weight: Callable
-    label: str
-
-
-@dataclass
 class ProgramResult:
     """The edited GCs (input order), the planned mixes by GC name, and per-op records."""
 
     gcs: list[GeneralizedCylinder]
-    mixes: dict[str, MixSpec] = field(default_factory=dict)
+    mixes: dict[str, PartFeatures] = field(default_factory=dict)
     log: list[dict] = field(default_factory=list)
 
 
@@ -348,24 +354,8 @@ def _handles_op(entry: dict, gcs: dict) -> dict:
 
 
 def _mix_weight(entry: dict, op: str = "mix"):
-    blend = entry.get("blend", "replace")
-    if blend not in MIX_BLENDS:
-        raise EditError(f"unknown blend; use one of {sorted(MIX_BLENDS)}", op=op, field="blend",
-                        value=blend)
-    params = {k: entry[k] for k in ("t0", "t1", "w") if k in entry}
-    if blend == "replace":
-        if params:
-            raise EditError(f"'replace' takes no {sorted(params)} (it is constant weight 1)",
-                            op=op, field="blend")
-        return constant(1.0)
-    need = {"constant": ["w"], "linear": [], "truncated_linear": ["t0", "t1"],
-            "smoothstep": ["t0", "t1"]}[blend]
-    missing, extra = [k for k in need if k not in params], sorted(set(params) - set(need))
-    if missing or extra:
-        raise EditError(f"blend '{blend}' takes {need or 'no parameters'}"
-                        + (f"; missing {missing}" if missing else "")
-                        + (f"; unexpected {extra}" if extra else ""), op=op, field="blend")
-    return blend_weight(blend, **params)
+    return mix_weight(entry.get("blend", "replace"), op=op,
+                      **{k: entry[k] for k in ("t0", "t1", "w") if k in entry})
 
 
 def _mix_op(entry: dict, gcs: dict, resolve: SourceResolver | None, mixes: dict) -> dict:
@@ -384,7 +374,7 @@ def _mix_op(entry: dict, gcs: dict, resolve: SourceResolver | None, mixes: dict)
         raise EditError(f"must name one source GC per target GC ({len(names)})", op=op,
                         gc=_gc_label(names), field="source.gc", value=src.get("gc"))
     weight = _mix_weight(entry)
-    geometry = entry.get("geometry", "target")
+    geometry = entry.get("geometry", "source")
     if geometry not in ("target", "source"):
         raise EditError("must be 'target' (keep this shape's GCs) or 'source' (use the "
                         "source's GCs, moved onto this shape)", op=op, gc=_gc_label(names),
@@ -402,24 +392,12 @@ def _mix_op(entry: dict, gcs: dict, resolve: SourceResolver | None, mixes: dict)
         if n in mixes:
             raise EditError("this GC is already mixed by an earlier op", op=op, gc=n,
                             fix="mix each GC once (one source and one blend per GC)")
-    if geometry == "source":
-        a = _start_frame(gcs[names[0]])
-        b = _start_frame(sources[0].gc)
-        R = a[1:].T @ b[1:]
-        t = a[0] - R @ b[0]
-        for n, s in zip(names, sources):
-            moved = s.gc.transformed(R, t)
-            gcs[n] = moved.replace(name=n)
-    for n, s in zip(names, sources):
-        mixes[n] = MixSpec(s.code, weight, s.label)
+    parts = mixed_parts([gcs[n] for n in names], [s.gc for s in sources],
+                        [s.code for s in sources], weight, geometry, [s.label for s in sources])
+    for n, (gc, feats) in zip(names, parts):
+        gcs[n], mixes[n] = gc, feats
     return {"op": op, "gcs": names, "sources": [s.label for s in sources],
             "blend": repr(weight), "geometry": geometry}
-
-
-def _start_frame(gc: GeneralizedCylinder) -> np.ndarray:
-    """(4, 3) rows C, T, N, B at the curve's start."""
-    s = torch.zeros(1, dtype=torch.float64)
-    return torch.cat(gc.frame(s, s)).numpy()
 
 
 def apply_program(program: EditProgram, gcs: list[GeneralizedCylinder],
@@ -429,7 +407,7 @@ def apply_program(program: EditProgram, gcs: list[GeneralizedCylinder],
     resolve(shape, gc, ckpt) -> MixSource reads source parts for `mix` (None: mixing is an
     error). Any problem raises EditError with the program and op index."""
     state = {g.name: g for g in gcs}
-    mixes: dict[str, MixSpec] = {}
+    mixes: dict[str, PartFeatures] = {}
     log = []
     for i, entry in enumerate(program.ops):
         op = entry["op"]

@@ -25,12 +25,11 @@ from ngc_gen.config import repo_root
 from ngc_gen.data.annotations import Annotation
 from ngc_gen.data.atomic import atomic_write, atomic_write_text
 from ngc_gen.data.errors import DataError
-from ngc_gen.extract.shapes import shape_gcs
 from ngc_gen.lit.checkpoint import load_autodecoder
+from ngc_gen.shape import shapes_from_autodecoder
 
 from .errors import EditError
-from .mixing import PartMix, extract_smooth_union, mixed_sdf_fn
-from .program import EditProgram, MixSource, apply_program
+from .program import EditProgram, MixSource
 
 CONF_EDIT = "conf/edit"
 
@@ -113,20 +112,18 @@ class CheckpointSources:
 
     def __call__(self, shape: str | None, gc: str, ckpt: str | None) -> MixSource:
         module = self._module(ckpt)
+        shapes = shapes_from_autodecoder(module)
         shape = shape or self.shape
-        metas = {m["name"]: m for m in module.hparams.meta["shapes"]}
-        if shape not in metas:
-            raise EditError(f"unknown shape; the checkpoint holds {sorted(metas)}",
+        if shape not in shapes:
+            raise EditError(f"unknown shape; the checkpoint holds {sorted(shapes)}",
                             field="source.shape", value=shape)
-        meta = metas[shape]
-        names = [g.name for g in shape_gcs(meta)]
-        if gc not in names:
-            raise EditError(f"shape '{shape}' has no GC named so; its GCs are {names}",
+        src = shapes[shape]
+        if gc not in src.gc_names:
+            raise EditError(f"shape '{shape}' has no GC named so; its GCs are {src.gc_names}",
                             field="source.gc", value=gc)
-        j = names.index(gc)
-        code = module.codes.weight[meta["code_offset"] + j].detach().clone()
+        j = src.index(gc)
         label = f"{shape}/{gc}" + ("" if module is self.module else f" ({ckpt})")
-        return MixSource(code, shape_gcs(meta)[j], label)
+        return MixSource(src.codes[j].clone(), src.gcs[j], label)
 
 
 def _json_safe(x):
@@ -159,32 +156,29 @@ def run_edit(cfg) -> dict:
     if module.hparams.kind != "ngc":
         raise DataError(f"{cfg.ckpt} holds a {module.hparams.kind} model; edits need NGC GCs",
                         fix="pass a checkpoint fitted with model=small or model=paper")
-    metas = module.hparams.meta["shapes"]
-    names = [m["name"] for m in metas]
+    shapes = shapes_from_autodecoder(module)
+    names = list(shapes)
     shape = cfg.get("shape") or program.shape
     if shape is None or shape not in names:
         raise EditError(("the program names no shape" if shape is None else
                          "unknown shape") + f"; the checkpoint holds {names}",
                         program=program.source, field="shape", value=shape,
                         fix="pass shape=<name> on the command line")
-    index = names.index(shape)
-    meta = metas[index]
-    gcs = shape_gcs(meta)
+    original = shapes[shape]
+    gcs = original.gcs
 
     t0 = time.perf_counter()
-    result = apply_program(program, gcs, CheckpointSources(module, cfg.ckpt, shape))
+    edited = original.edited(program, CheckpointSources(module, cfg.ckpt, shape))
     t_edit = time.perf_counter() - t0
+    log = edited.info["edit_log"]
+    mixes = {original.gc_names[j]: m.label for j, m in edited.mixes.items()}
 
-    codes = module.codes.weight[meta["code_offset"]:meta["code_offset"] + meta["n_codes"]].detach()
-    gc_index = {g.name: j for j, g in enumerate(gcs)}
-    mixes = {gc_index[n]: PartMix(m.code, m.weight, m.label) for n, m in result.mixes.items()}
-    kw = dict(resolution=int(cfg.resolution), bound=float(cfg.bound), k=program.smooth_union,
-              chunk=int(cfg.chunk))
+    kw = dict(resolution=int(cfg.resolution), bound=float(cfg.bound), chunk=int(cfg.chunk))
     t0 = time.perf_counter()
-    before = extract_smooth_union(gcs, mixed_sdf_fn(module.decoder, codes), **kw)
+    before = original.replaced(smooth=program.smooth_union).mesh(**kw)
     t_before = time.perf_counter() - t0
     t0 = time.perf_counter()
-    after = extract_smooth_union(result.gcs, mixed_sdf_fn(module.decoder, codes, mixes), **kw)
+    after = edited.mesh(**kw)
     t_after = time.perf_counter() - t0
 
     metrics = {"program": program.name, "program_file": program.source, "shape": shape,
@@ -199,8 +193,7 @@ def run_edit(cfg) -> dict:
         metrics.update(eps_v=None, eps_a=None)
     metrics.update(_mesh_stats(before.mesh, "before"), **_mesh_stats(after.mesh, "after"))
     metrics.update(time_edit_s=t_edit, time_extract_before_s=t_before,
-                   time_extract_after_s=t_after, ops=result.log,
-                   mixes={n: m.label for n, m in result.mixes.items()},
+                   time_extract_after_s=t_after, ops=log, mixes=mixes,
                    convention="eps_v = |V'-V|/V, eps_a = |A'-A|/A (fractions) of the deformed "
                               "vs the undeformed NGC mesh, marching cubes at the same "
                               "resolution; V from trimesh (watertight meshes)")
@@ -212,11 +205,11 @@ def run_edit(cfg) -> dict:
     # GCs and mesh share the fitted NGC frame: `normalize: false` keeps it, so the file can be
     # prepared and fitted again as it is (an AnnotatedShapes list, see the README)
     edited = Annotation(name=f"{shape}_{program.name}", mesh=str(out_dir / "deformed.ply"),
-                        gcs=result.gcs, bound=None)
+                        gcs=edited.gcs, bound=None)
     header = (f"# GCs of '{shape}' after edit program '{program.name}' ({program.source}), in "
               f"the fitted NGC frame (normalize: false).\n# mesh: the deformed NGC mesh"
               + (f"; mixed parts (features, not stored here): {metrics['mixes']}"
-                 if result.mixes else "") + "\n")
+                 if mixes else "") + "\n")
     for name, mesh in (("undeformed.ply", before.mesh), ("deformed.ply", after.mesh)):
         atomic_write(out_dir / name, lambda f, m=mesh: f.write(m.export(file_type="ply")))
     atomic_write_text(out_dir / "edited.yaml", header + edited.to_yaml(relative_to=out_dir))
@@ -226,7 +219,7 @@ def run_edit(cfg) -> dict:
                       yaml.safe_dump(_json_safe(prog), sort_keys=False, default_flow_style=None,
                                      width=100))
     if cfg.get("picture", True):
-        metrics["picture"] = render_edit(before.mesh, gcs, after.mesh, result.gcs,
+        metrics["picture"] = render_edit(before.mesh, gcs, after.mesh, edited.gcs,
                                          out_dir / "edit.png", program.name)
     metrics["time_total_s"] = time.perf_counter() - t_start
     metrics["out_dir"] = str(out_dir)

@@ -7,6 +7,7 @@ from .extractor import ExtractionResult, extract_mesh
 from .grid import Grid
 from .marching import empty_mesh, marching_cubes_grid, marching_cubes_mesh
 from .refine import Refinement
+from .smooth_union import extract_smooth_union
 
 __all__ = ["ExtractionResult", "Grid", "MinField", "Refinement", "SdfFn", "empty_mesh",
-           "extract_mesh", "marching_cubes_grid", "marching_cubes_mesh"]
+           "extract_mesh", "extract_smooth_union", "marching_cubes_grid", "marching_cubes_mesh"]

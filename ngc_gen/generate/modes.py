@@ -15,12 +15,13 @@ from tqdm.auto import tqdm
 
 from ngc_gen.data.atomic import atomic_write, atomic_write_text
 from ngc_gen.data.errors import DataError
-from ngc_gen.edit import EditError, blend_weight
+from ngc_gen.edit import BLEND_PARAMS, EditError, mix_weight
+from ngc_gen.shape import Shape
 
 from .latents import lerp, slerp
 from .model import ShapeGenerator
-from .shapes import (DecodedShape, WrittenShape, decode_shapes, extract_decoded, mixed_sdf_fn,
-                     normalise, write_edit_checkpoint, write_shape)
+from .shapes import (WrittenShape, auto_chunk, decode_shapes, normalise, write_edit_checkpoint,
+                     write_shape)
 
 MODES = ("generate", "interpolate", "mix")
 LATENTS_KIND = "ngc_gen.generated_latents"
@@ -31,23 +32,23 @@ def _check(ok: bool, what: str, field: str, fix: str) -> None:
         raise DataError(what, field=field, fix=fix)
 
 
-def extract_and_write(gen: ShapeGenerator, shapes: list[DecodedShape], out_dir: Path,
+def extract_and_write(gen: ShapeGenerator, shapes: list[Shape], out_dir: Path,
                       resolution: int = 128, bound: float = 1.0, chunk: int | None = None,
-                      normalised: bool = True, sdf_fns: dict | None = None,
+                      normalised: bool = True,
                       progress: bool = True) -> tuple[list[WrittenShape], list[float]]:
-    """Extract each shape's mesh (decoded GCs + codes; `sdf_fns[name]` overrides the SDF) and
-    write its PLY + YAML. Returns the written shapes and the seconds per mesh."""
+    """Extract each shape's mesh and write its PLY + YAML. Returns the written shapes and the
+    seconds per mesh."""
     written, seconds = [], []
     for shape in tqdm(shapes, desc="meshes", unit="shape", disable=not progress or len(shapes) < 2):
         t0 = time.perf_counter()
-        mesh, stats = extract_decoded(gen.ngc, shape, resolution, bound, chunk,
-                                      sdf_fn=(sdf_fns or {}).get(shape.name))
-        gcs = shape.gcs
+        mesh = shape.mesh(resolution, bound, chunk=chunk or auto_chunk(resolution),
+                          progress=False).mesh
+        gcs = shape.gc_dicts()
         center, scale = np.zeros(3), 1.0
         if normalised:
             mesh, gcs, center, scale = normalise(mesh, gcs)
         seconds.append(time.perf_counter() - t0)
-        info = {**shape.info, "n_faces": len(mesh.faces), "watertight": bool(mesh.is_watertight),
+        info = {**{k: v for k, v in shape.info.items() if k != "latent"}, "n_faces": len(mesh.faces), "watertight": bool(mesh.is_watertight),
                 "normalise_center": np.asarray(center).tolist(), "normalise_scale": scale,
                 "extract_s": seconds[-1]}
         if len(mesh.faces) == 0:
@@ -137,35 +138,42 @@ def interpolate(gen: ShapeGenerator, out_dir, a=0, b=1, steps: int = 8, seed: in
     return write_outputs(gen, out_dir, "interpolate", written, latents, names, summary)
 
 
-def mix(gen: ShapeGenerator, out_dir, a=0, b=1, part: str = "head",
-        blend: str = "truncated_linear", blend_params: dict | None = None, seed: int = 0,
+def mix(gen: ShapeGenerator, out_dir, a=0, b=1, part: str = "head", blend: str = "replace",
+        blend_params: dict | None = None, geometry: str = "source", seed: int = 0,
         resolution: int = 128, bound: float = 1.0, chunk: int | None = None,
         sampler: dict | None = None, normalised: bool = True, progress: bool = True) -> dict:
-    """Shape A with GC `part`'s features blended toward shape B's (A's GCs, per-point features
-    (1 - w(t)) g(f_A(t)) + w(t) g(f_B(t)) on that GC). Writes A, B and `mix_<part>`.
+    """Shape A with part `part` of shape B (`Shape.with_part`, the edit op `mix`'s rule):
+    geometry="source" (default) takes B's GC for the part, attached at A's joint, and B's
+    features; "target" keeps A's GC and blends features by the weight (blend + blend_params).
+    Writes A, B and `mix_<part>`.
 
-    The mixed shape's field is a blend of features, not a code: it is written as mesh + YAML,
-    and shapes.ckpt holds A and B (edit those; the mix is recorded in summary.json)."""
+    The mixed shape's field blends features, not codes: it is written as mesh + YAML, and
+    shapes.ckpt holds A and B (edit those; the mix is recorded in summary.json)."""
     out_dir = Path(out_dir)
-    j = gen.shape_latent.template.index(str(part))
+    template = gen.shape_latent.template
+    _check(str(part) in template.names, f"unknown part {part!r}", "part",
+           f"use one of the template's GCs: {', '.join(template.names)}")
     try:
-        weight = blend_weight(str(blend), **(blend_params or {}))
+        weight = mix_weight(str(blend), **(blend_params or {}))
     except EditError as e:
         raise DataError(str(e), field="blend",
-                        fix="blend=truncated_linear t0=.. t1=.., blend=smoothstep t0=.. t1=.., "
-                            "blend=linear or blend=constant w=..") from None
+                        fix="blend=replace, blend=truncated_linear t0=.. t1=.., blend=smoothstep "
+                            "t0=.. t1=.., blend=linear or blend=constant w=..") from None
+    _check(geometry in ("source", "target"), f"unknown geometry {geometry!r}", "geometry",
+           "use geometry=source (B's part at A's joint) or geometry=target (A's GC)")
     name_a, za = gen.resolve(a, seed, **(sampler or {}))
     name_b, zb = gen.resolve(b, seed, **(sampler or {}))
     _check(name_a != name_b, f"a and b are the same shape ({name_a})", "a/b",
            "mix two different shapes")
     sa, sb = decode_shapes(gen.shape_latent, torch.stack([za, zb]), [name_a, name_b])
-    mixed_name = f"mix_{part}"
-    mixed = DecodedShape(mixed_name, za.clone(), sa.gcs, sa.codes,
-                         {"a": name_a, "b": name_b, "part": str(part), "blend": repr(weight)})
-    fns = {mixed_name: mixed_sdf_fn(gen.ngc, sa.codes, sb.codes, j, weight)}
+    mixed = sa.with_part(str(part), sb, weight=weight, geometry=geometry).replaced(
+        name=f"mix_{part}", info={"a": name_a, "b": name_b, "part": str(part),
+                                  "blend": repr(weight) if weight else "replace",
+                                  "geometry": geometry})
     written, secs = extract_and_write(gen, [sa, sb, mixed], out_dir, resolution, bound, chunk,
-                                      normalised, sdf_fns=fns, progress=progress)
-    summary = {"a": name_a, "b": name_b, "part": str(part), "blend": repr(weight),
+                                      normalised, progress=progress)
+    summary = {"a": name_a, "b": name_b, "part": str(part), "geometry": geometry,
+               "blend": repr(weight) if weight else "replace",
                "seed": int(seed), "resolution": int(resolution),
                "mesh_s_per_shape": float(np.mean(secs))}
     return write_outputs(gen, out_dir, "mix", written, torch.stack([za, zb]), [name_a, name_b],
@@ -194,11 +202,9 @@ def run_sample(cfg) -> dict:
         summary = interpolate(gen, out_dir, a=c["a"], b=c["b"], steps=int(c["steps"]),
                               method=c["interp"], **common)
     else:
-        wanted = {"truncated_linear": ("t0", "t1"), "smoothstep": ("t0", "t1"),
-                  "constant": ("w",)}
-        params = {k: c[k] for k in wanted.get(c["blend"], ()) if c.get(k) is not None}
+        params = {k: c[k] for k in BLEND_PARAMS.get(c["blend"], ()) if c.get(k) is not None}
         summary = mix(gen, out_dir, a=c["a"], b=c["b"], part=c["part"], blend=c["blend"],
-                      blend_params=params, **common)
+                      blend_params=params, geometry=c.get("geometry", "source"), **common)
     if c.get("picture", True):
         picture = render_shapes(summary, out_dir / "shapes.png", one_row=mode != "generate")
         if picture is not None:

@@ -17,53 +17,24 @@ import torch
 import trimesh
 import yaml
 
+from ngc_gen.data.annotations import rounded_gc_dict, similar_gc_dict
 from ngc_gen.data.atomic import atomic_write, atomic_write_text
-from ngc_gen.edit.blend import blend_features
-from ngc_gen.extract import extract_mesh
-from ngc_gen.extract.shapes import ngc_sdf_fn
+from ngc_gen.data.mesh_io import normalize
 from ngc_gen.geometry import GeneralizedCylinder
+from ngc_gen.shape import Shape
 
 BOUND = 0.8
 
 
-@dataclass
-class DecodedShape:
-    """name; latent (D,); gcs: GC dicts (template order, annotation format); codes (K, C)."""
-
-    name: str
-    latent: torch.Tensor
-    gcs: list[dict]
-    codes: torch.Tensor
-    info: dict = field(default_factory=dict)
-
-
 @torch.no_grad()
-def decode_shapes(module, latents: torch.Tensor, names: list[str]) -> list[DecodedShape]:
-    """Latents (B, D) through a ShapeLatentModule's shape decoder -> DecodedShapes."""
+def decode_shapes(module, latents: torch.Tensor, names: list[str]) -> list[Shape]:
+    """Latents (B, D) through a ShapeLatentModule's shape decoder -> Shapes (decoded GCs and
+    codes, the module's NGC decoder; info["latent"] holds the latent)."""
     latents = torch.as_tensor(latents, dtype=torch.float32)
     theta, codes = module.decode(latents)
-    return [DecodedShape(n, s.detach().clone(), module.template.gc_dicts(t), c.detach().clone())
+    return [Shape([GeneralizedCylinder.from_dict(d) for d in module.template.gc_dicts(t)],
+                  c.detach().clone(), module.ngc, name=n, info={"latent": s.detach().clone()})
             for n, s, t, c in zip(names, latents, theta, codes)]
-
-
-def gc_objects(gcs: list[dict]) -> list[GeneralizedCylinder]:
-    return [GeneralizedCylinder.from_dict(d) for d in gcs]
-
-
-def mixed_sdf_fn(ngc, codes_a: torch.Tensor, codes_b: torch.Tensor, part: int, weight):
-    """sdf_fn(gc_index, rel) for `extract_mesh`: shape A's codes, except on GC `part` where the
-    features are (1 - w(t)) g(f_A(t)) + w(t) g(f_B(t)) (paper Sec. 3.2 part mixing)."""
-    plain = ngc_sdf_fn(ngc, codes_a)
-
-    def fn(j: int, rel: torch.Tensor) -> torch.Tensor:
-        if j != part:
-            return plain(j, rel)
-        u = rel[:, 0]
-        fa = ngc.features(codes_a[j].expand(len(rel), -1), u)
-        fb = ngc.features(codes_b[j].expand(len(rel), -1), u)
-        t = ((u + 1.0) * 0.5).clamp(0.0, 1.0)
-        return ngc.sdf_from_features(rel, blend_features(fa, fb, t, weight))
-    return fn
 
 
 def auto_chunk(resolution: int) -> int:
@@ -73,56 +44,18 @@ def auto_chunk(resolution: int) -> int:
     return int(min(65536, max(2048, int(resolution) ** 3 // 128)))
 
 
-@torch.no_grad()
-def extract_decoded(ngc, shape: DecodedShape, resolution: int = 128, bound: float = 1.0,
-                    chunk: int | None = None, sdf_fn=None, progress: bool | None = False):
-    """(mesh, stats) of a decoded shape at `resolution`^3 over [-bound, bound]^3, in the
-    decoder's frame (not normalised). chunk None: `auto_chunk(resolution)`."""
-    gcs = gc_objects(shape.gcs)
-    res = extract_mesh(gcs, sdf_fn or ngc_sdf_fn(ngc, shape.codes), int(resolution), bound,
-                       chunk=chunk or auto_chunk(resolution), progress=progress)
-    return res.mesh, res.stats
-
-
 def normalise(mesh: trimesh.Trimesh, gcs: list[dict], bound: float = BOUND):
-    """Map mesh and GC dicts by x -> (x - center) * scale, the similarity that fits the mesh's
-    bounding box into [-bound, bound]^3. An empty mesh is returned unchanged (scale 1)."""
+    """Map mesh and GC dicts by x -> (x - center) * scale, the similarity `normalize` applies to
+    the mesh (`ngc_gen.data.mesh_io.normalize`). An empty mesh is returned unchanged (scale 1)."""
     if len(mesh.vertices) == 0:
         return mesh, gcs, np.zeros(3), 1.0
-    v = np.asarray(mesh.vertices, np.float64)
-    lo, hi = v.min(0), v.max(0)
-    center, scale = (lo + hi) / 2.0, float(bound) / (float((hi - lo).max()) / 2.0)
-    out = trimesh.Trimesh((v - center) * scale, np.asarray(mesh.faces), process=False)
-    return out, scale_gcs(gcs, center, scale), center, scale
-
-
-def scale_gcs(gcs: list[dict], center, scale: float) -> list[dict]:
-    """GC dicts under x -> (x - center) * scale (radii and caps scale; up and twist do not)."""
-    c = np.asarray(center, np.float64)
-    out = []
-    for d in gcs:
-        pts = (np.asarray(d["curve"]["points"], np.float64) - c) * scale
-        out.append({**d, "curve": {**d["curve"], "points": pts.tolist()},
-                    "keys": [{**k, "radii": [r * scale for r in k["radii"]]} for k in d["keys"]],
-                    "caps": [x * scale for x in d["caps"]]})
-    return out
-
-
-def _rounded(gcs: list[dict]) -> list[dict]:
-    """GC dicts with floats rounded to 7 decimals (readable YAML, still well below a voxel)."""
-    r = lambda x: float(round(float(x), 7))  # noqa: E731
-    return [{"name": d["name"],
-             "curve": {"type": d["curve"]["type"],
-                       "points": [[r(x) for x in p] for p in d["curve"]["points"]]},
-             "up": [r(x) for x in d["up"]],
-             "keys": [{"t": r(k["t"]), "radii": [r(x) for x in k["radii"]],
-                       "twist": r(k.get("twist", 0.0))} for k in d["keys"]],
-             "caps": [r(x) for x in d["caps"]]} for d in gcs]
+    out, center, scale = normalize(mesh, bound)
+    return out, [similar_gc_dict(d, center, scale) for d in gcs], center, scale
 
 
 def annotation_yaml(name: str, mesh: str, gcs: list[dict], bound: float = BOUND) -> str:
     """Annotation YAML of DESIGN.md section 2 (mesh path as given)."""
-    d = {"name": name, "mesh": mesh, "normalize": {"bound": float(bound)}, "gcs": _rounded(gcs)}
+    d = {"name": name, "mesh": mesh, "normalize": {"bound": float(bound)}, "gcs": [rounded_gc_dict(d) for d in gcs]}
     return yaml.safe_dump(d, sort_keys=False, default_flow_style=None, width=100)
 
 
@@ -148,7 +81,8 @@ def write_shape(out_dir: Path, name: str, mesh: trimesh.Trimesh, gcs: list[dict]
     mesh.export(buf, file_type="ply")
     atomic_write(ply, lambda f: f.write(buf.getvalue()))
     atomic_write_text(yml, annotation_yaml(name, ply.name, gcs))
-    return WrittenShape(name, ply, yml, codes.detach().cpu().float(), _rounded(gcs),
+    return WrittenShape(name, ply, yml, codes.detach().cpu().float(),
+                        [rounded_gc_dict(d) for d in gcs],
                         len(mesh.faces), dict(info or {}))
 
 

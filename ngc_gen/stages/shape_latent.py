@@ -118,13 +118,13 @@ def evaluate(module, dm, batches: int = 20) -> dict:
 
 def preview(module, run_dir: Path, n: int, resolution: int) -> list[str]:
     """Meshes of the first n training shapes decoded from their latents (decoded GCs + codes)."""
-    from ngc_gen.generate.shapes import decode_shapes, extract_decoded
+    from ngc_gen.generate.shapes import auto_chunk, decode_shapes
 
     names = module.names[:n]
     shapes = decode_shapes(module, module.latents.weight[:n], names)
     out = []
     for shape in shapes:
-        mesh, _ = extract_decoded(module.ngc, shape, resolution)
+        mesh = shape.mesh(resolution, chunk=auto_chunk(resolution), progress=False).mesh
         path = run_dir / "meshes" / f"{shape.name}.ply"
         atomic_write(path, lambda f, m=mesh: f.write(m.export(file_type="ply")))
         out.append(str(path))

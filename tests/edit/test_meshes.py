@@ -6,9 +6,9 @@ import torch
 from scipy.spatial.transform import Rotation
 
 from ngc_gen.edit import move_points, rigid, scale_radii, stretch, twist
-from ngc_gen.edit.mixing import mixed_sdf_fn
 from ngc_gen.eval import chamfer
-from ngc_gen.extract import Grid, extract_mesh
+from ngc_gen.extract import Grid
+from ngc_gen.shape import Shape
 
 from .conftest import surface_points
 
@@ -17,7 +17,7 @@ RES = 72
 
 def mesh_of(module, gcs, res=RES, mixes=None):
     codes = module.codes.weight[:len(gcs)].detach()
-    return extract_mesh(gcs, mixed_sdf_fn(module.decoder, codes, mixes), res).mesh
+    return Shape(gcs, codes, module.decoder, mixes=mixes).mesh(res).mesh
 
 
 @pytest.fixture(scope="module")
@@ -100,7 +100,7 @@ def test_local_stretch_carries_the_neural_field_along(module, gcs):
     body = gcs[0]
     s = stretch(body, 0.3, 0.6, 2.0)
     codes = module.codes.weight[:1].detach()
-    fn = mixed_sdf_fn(module.decoder, codes)
+    fn = Shape([body], codes, module.decoder).gc_sdf
     rng = np.random.default_rng(0)
     rel = np.stack([rng.uniform(-0.4, 0.2, 500), rng.uniform(-1, 1, 500),
                     rng.uniform(-1, 1, 500)], 1)

@@ -1,11 +1,21 @@
-"""Part mixing (features blended along t) and the smooth union extraction."""
+"""Part mixing (features blended along t, `Shape` mixes) and the smooth union extraction."""
 import numpy as np
 import pytest
 import torch
 
-from ngc_gen.edit import EditError, constant, linear, smoothstep, truncated_linear
-from ngc_gen.edit.mixing import PartMix, extract_smooth_union, mixed_sdf_fn
-from ngc_gen.extract import extract_mesh
+from ngc_gen.edit import constant, linear, smoothstep, truncated_linear
+from ngc_gen.extract import extract_mesh, extract_smooth_union
+from ngc_gen.shape import PartFeatures as PartMix
+from ngc_gen.shape import Shape
+
+
+def mixed_sdf_fn(decoder, codes, mixes=None):
+    """The shape's per-GC field (GCs do not matter for gc_sdf: placeholders)."""
+    from .conftest import GC_DICTS
+    from ngc_gen.geometry import GeneralizedCylinder
+
+    gc = GeneralizedCylinder.from_dict(GC_DICTS[0])
+    return Shape([gc] * len(codes), codes, decoder, mixes=mixes).gc_sdf
 
 
 @pytest.fixture
@@ -31,7 +41,7 @@ def test_unmixed_fn_is_the_decoder(module, rel):
 def test_weight_zero_keeps_a_and_replace_gives_b(module, rel):
     a, b = codes_of(module, 0), codes_of(module, 1)
     keep = mixed_sdf_fn(module.decoder, a, {1: PartMix(b[1], constant(0.0))})
-    repl = mixed_sdf_fn(module.decoder, a, {1: PartMix(b[1], constant(1.0))})
+    repl = mixed_sdf_fn(module.decoder, a, {1: PartMix(b[1], None)})  # replace
     plain_a, plain_b = mixed_sdf_fn(module.decoder, a), mixed_sdf_fn(module.decoder, b)
     assert torch.equal(keep(1, rel), plain_a(1, rel))
     assert torch.equal(repl(1, rel), plain_b(1, rel))
@@ -67,9 +77,9 @@ def test_linear_blend_is_the_feature_lerp(module, rel):
 
 def test_mix_checks_its_inputs(module):
     a = codes_of(module, 0)
-    with pytest.raises(EditError, match="GC index 5"):
+    with pytest.raises(ValueError, match="GC index 5"):
         mixed_sdf_fn(module.decoder, a, {5: PartMix(a[0], constant(1.0))})
-    with pytest.raises(EditError, match="same network"):
+    with pytest.raises(ValueError, match="same network"):
         mixed_sdf_fn(module.decoder, a, {0: PartMix(torch.zeros(3), constant(1.0))})
 
 
@@ -97,5 +107,5 @@ def test_smooth_union_fills_the_seam_and_only_there(module, gcs):
 
 
 def test_smooth_union_rejects_negative_width(module, gcs):
-    with pytest.raises(EditError, match="smooth union"):
+    with pytest.raises(ValueError, match="smooth union"):
         extract_smooth_union(gcs, mixed_sdf_fn(module.decoder, codes_of(module, 0)), 32, k=-1)

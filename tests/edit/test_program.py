@@ -124,7 +124,7 @@ def test_mix_plans_features_and_can_take_the_source_geometry(gcs):
     res = run(gcs, {"op": "mix", "gc": "tail", "source": {"shape": "two", "gc": "arm"},
                     "geometry": "source"},
               {"op": "mix", "gc": "arm", "source": "two", "blend": "truncated_linear",
-               "t0": 0.2, "t1": 0.8}, resolve=resolver(gcs))
+               "t0": 0.2, "t1": 0.8, "geometry": "target"}, resolve=resolver(gcs))
     assert set(res.mixes) == {"tail", "arm"} and res.mixes["tail"].label == "two/arm"
     new_tail = res.gcs[2]
     assert new_tail.name == "tail" and new_tail.length == pytest.approx(gcs[1].length)
@@ -133,6 +133,13 @@ def test_mix_plans_features_and_can_take_the_source_geometry(gcs):
     for a, b in zip(new_tail.frame(s, s), gcs[2].frame(s, s)):
         np.testing.assert_allclose(a.numpy(), b.numpy(), atol=1e-9)
     assert res.gcs[1] is gcs[1]  # geometry: target keeps the GC
+
+
+def test_mix_takes_the_source_geometry_by_default(gcs):
+    res = run(gcs, {"op": "mix", "gc": "tail", "source": {"shape": "two", "gc": "arm"}},
+              resolve=resolver(gcs))
+    assert res.gcs[2].name == "tail" and res.gcs[2].length == pytest.approx(gcs[1].length)
+    assert res.mixes["tail"].weight is None  # blend: replace by default
 
 
 @pytest.mark.parametrize("op, match", [
