@@ -118,9 +118,30 @@ def test_interpolation_ends_at_the_two_shapes(gen, tmp_path, method):
     assert all((tmp_path / f"interp_0{k}.yaml").is_file() for k in range(3))
 
 
+def test_default_mix_gives_a_part_closer_to_b_than_to_a(gen):
+    """sample.py mode=mix's default (the edit op's rule): B's part, attached at A's joint. In
+    the frame of the part's start (joint), the mixed part's surface is near B's, not A's."""
+    from ngc_gen.eval import chamfer
+    from ngc_gen.generate import decode_shapes
+    from ngc_gen.shape.mixing import start_frame
+
+    sa, sb = decode_shapes(gen.shape_latent, gen.sample_latents([0, 1], seed=0), ["a", "b"])
+    mixed = sa.with_part("tail", sb)
+
+    def part_in_joint_frame(shape):
+        gc = shape.gcs[shape.index("tail")]
+        v = np.asarray(shape.mesh(40, chunk=4096, progress=False).mesh.vertices)
+        v = v[np.asarray(gc.contains(v))]
+        F = start_frame(gc)  # rows: joint point, tangent, normal, binormal
+        return (v - F[0]) @ F[1:].T
+
+    pa, pb, pm = (part_in_joint_frame(s) for s in (sa, sb, mixed))
+    assert chamfer(pm, pb) < 0.5 * chamfer(pm, pa)
+
+
 def test_mix_with_zero_weight_is_shape_a(gen, tmp_path):
     mix(gen, tmp_path / "w0", a=0, b=1, part="tail", blend="constant", blend_params={"w": 0.0},
-        resolution=RES, progress=False)
+        geometry="target", resolution=RES, progress=False)
     a = trimesh.load(tmp_path / "w0/sample_000.ply", process=False)
     m = trimesh.load(tmp_path / "w0/mix_tail.ply", process=False)
     assert np.array_equal(a.vertices, m.vertices)

@@ -150,9 +150,7 @@ def mix(gen: ShapeGenerator, out_dir, a=0, b=1, part: str = "head", blend: str =
     The mixed shape's field blends features, not codes: it is written as mesh + YAML, and
     shapes.ckpt holds A and B (edit those; the mix is recorded in summary.json)."""
     out_dir = Path(out_dir)
-    template = gen.shape_latent.template
-    _check(str(part) in template.names, f"unknown part {part!r}", "part",
-           f"use one of the template's GCs: {', '.join(template.names)}")
+    gen.shape_latent.template.index(str(part))  # DataError naming the template's GCs
     try:
         weight = mix_weight(str(blend), **(blend_params or {}))
     except EditError as e:
