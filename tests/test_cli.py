@@ -2,7 +2,7 @@
 import pytest
 import torch
 
-from ngc_gen.cli import run_job, set_threads
+from ngc_gen.app.cli import run_job, set_threads
 from ngc_gen.data.errors import DataError
 
 from .helpers import run_entry

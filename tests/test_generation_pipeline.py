@@ -11,9 +11,10 @@ import trimesh
 from ngc_gen.data.annotations import load_annotation
 from ngc_gen.data.errors import DataError
 from ngc_gen.extract.shapes import extract_shape, shape_gcs
-from ngc_gen.generate import generate, interpolate, load_generator, mix, run_sample
+from ngc_gen.app.sample import generate, interpolate, mix, run_sample
+from ngc_gen.generate import load_generator
 from ngc_gen.lit.checkpoint import load_autodecoder
-from ngc_gen.stages.diffusion import run_diffusion
+from ngc_gen.app.diffusion import run_diffusion
 
 from .helpers import compose_config, run_entry
 
@@ -166,7 +167,7 @@ def test_entry_point_exits_2_with_a_message(tmp_path):
 
 def test_edit_runs_unchanged_on_a_generated_shape(runs, tmp_path):
     """The generated shapes.ckpt + YAML go through edit.py's code path as a fitted shape does."""
-    from ngc_gen.edit.run import run_edit
+    from ngc_gen.app.edit import run_edit
 
     run_edit(compose_config("edit", [f"ckpt={runs['gen'] / 'shapes.ckpt'}", "edit=bent_tail",
                                      "shape=sample_001", "resolution=16", "chunk=2048",

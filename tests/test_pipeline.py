@@ -8,7 +8,7 @@ import trimesh
 
 from ngc_gen.data.annotations import load_annotation
 from ngc_gen.data.errors import DataError
-from ngc_gen.stages.pipeline import STEPS, plan, run_pipeline
+from ngc_gen.app.pipeline import STEPS, plan, run_pipeline
 
 from .helpers import compose_config, run_entry
 

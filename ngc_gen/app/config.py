@@ -10,15 +10,14 @@ from omegaconf import OmegaConf
 def repo_root() -> Path:
     """The checkout this package runs from (configs, shipped datasets, default caches);
     override with the NGC_ROOT environment variable."""
-    return Path(os.environ.get("NGC_ROOT", Path(__file__).resolve().parents[1]))
+    return Path(os.environ.get("NGC_ROOT", Path(__file__).resolve().parents[2]))
 
 
 def register_resolvers() -> None:
+    """Register the project's OmegaConf resolvers (`ngc_root`); process-wide state, so called by
+    the entry points before Hydra composes and by `compose_config`, never at import time."""
     if not OmegaConf.has_resolver("ngc_root"):
         OmegaConf.register_new_resolver("ngc_root", lambda: str(repo_root()))
-
-
-register_resolvers()
 
 
 def compose_config(config_name: str = "train", overrides: list[str] | None = None):
@@ -28,6 +27,7 @@ def compose_config(config_name: str = "train", overrides: list[str] | None = Non
     from hydra import compose, initialize_config_dir
     from hydra.core.global_hydra import GlobalHydra
 
+    register_resolvers()
     running = GlobalHydra.instance().hydra if GlobalHydra.instance().is_initialized() else None
     GlobalHydra.instance().clear()
     try:

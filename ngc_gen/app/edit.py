@@ -21,16 +21,17 @@ import numpy as np
 import torch
 import yaml
 
-from ngc_gen.config import repo_root
 from ngc_gen.data.annotations import Annotation
 from ngc_gen.data.atomic import atomic_write, atomic_write_text
 from ngc_gen.data.errors import DataError
 from ngc_gen.extract.shapes import shape_gcs
 from ngc_gen.lit.checkpoint import load_autodecoder
 
-from .errors import EditError
-from .mixing import PartMix, extract_smooth_union, mixed_sdf_fn
-from .program import EditProgram, MixSource, apply_program
+from .config import repo_root
+
+from ngc_gen.edit.errors import EditError
+from ngc_gen.edit.mixing import PartMix, extract_smooth_union, mixed_sdf_fn
+from ngc_gen.edit.program import EditProgram, MixSource, apply_program
 
 CONF_EDIT = "conf/edit"
 

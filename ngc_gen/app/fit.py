@@ -8,10 +8,13 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import torch
+import trimesh
 from omegaconf import DictConfig, OmegaConf
+from tqdm import tqdm
 
-from ngc_gen.data.atomic import atomic_write_text
+from ngc_gen.data.atomic import atomic_write, atomic_write_text
 from ngc_gen.data.prepare import PreparedShape
 
 from .prepare import prepare_dataset
@@ -41,7 +44,6 @@ def run_fit(cfg: DictConfig) -> dict:
     import lightning as L
 
     from ngc_gen.data.datamodule import PreparedDataModule
-    from ngc_gen.extract.shapes import reconstruct
 
     run_dir = start_run(cfg)
     prepared = prepare_dataset(cfg)
@@ -90,3 +92,31 @@ def print_metrics(metrics: dict) -> None:
         print(f"{name:20s}{vals}{str(m.get('watertight', '')):>12s}")
     print("cd: DeepSDF Chamfer (30k points each way, squared, summed means); hd: Hausdorff; "
           "emd: exact assignment on 2048 points; fscore@0.01")
+
+
+def reconstruct(module, out_dir: Path, gt: dict, resolution: int = 256, bound: float = 1.0,
+                chunk: int = 65536, seed: int = 0) -> dict:
+    """Extract every shape into out_dir/<name>.ply and score it against its ground truth
+    gt[name] = (vertices, faces) in the normalised frame. Returns {shapes, mean}."""
+    from ngc_gen.eval import reconstruction_metrics
+    from ngc_gen.extract.shapes import extract_shape
+
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    per = {}
+    shapes = module.hparams.meta["shapes"]
+    for i, meta in enumerate(tqdm(shapes, desc="extract", unit="shape", disable=len(shapes) < 2)):
+        res = extract_shape(module, i, resolution, bound, chunk)
+        atomic_write(out_dir / f"{meta['name']}.ply",
+                     lambda f, m=res.mesh: f.write(m.export(file_type="ply")))
+        V, F = gt[meta["name"]]
+        m = reconstruction_metrics(res.mesh, trimesh.Trimesh(V, F, process=False), seed=seed)
+        m.update(n_network_evals=int(res.stats["n_network_evals"]),
+                 extract_s=float(res.stats["seconds"]))
+        per[meta["name"]] = {k: (float(v) if isinstance(v, (float, np.floating)) else v)
+                             for k, v in m.items()}
+    keys = [k for k, v in next(iter(per.values())).items()
+            if isinstance(v, (int, float)) and not isinstance(v, bool)]
+    mean = {k: float(np.mean([p[k] for p in per.values()])) for k in keys}
+    mean["watertight"] = float(np.mean([bool(p.get("watertight")) for p in per.values()]))
+    return {"shapes": per, "mean": mean, "resolution": resolution}

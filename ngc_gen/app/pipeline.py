@@ -42,7 +42,7 @@ def _fail(what: str, step: str | None = None, fix: str = "") -> DataError:
 def plan(cfg: DictConfig, run_dir: Path) -> list[tuple[str, DictConfig]]:
     """[(step, composed config)] in run order; DataError for an unknown step, a missing link or
     an override Hydra rejects, before anything runs."""
-    from ngc_gen.config import compose_config
+    from .config import compose_config
 
     p = cfg.get("pipeline")
     if not p or not p.get("steps"):
@@ -83,16 +83,16 @@ def plan(cfg: DictConfig, run_dir: Path) -> list[tuple[str, DictConfig]]:
 
 
 def run_step(step: str, cfg: DictConfig) -> dict:
-    from ngc_gen.cli import set_threads
+    from .cli import set_threads
 
     set_threads(cfg.get("threads"))
     if step == "edit":
-        from ngc_gen.edit.run import run_edit
+        from .edit import run_edit
         return run_edit(cfg)
     if step == "sample":
-        from ngc_gen.generate import run_sample
+        from .sample import run_sample
         return run_sample(cfg)
-    from . import run_stage
+    from .stages import run_stage
     return run_stage(cfg)
 
 

@@ -17,9 +17,9 @@ from ngc_gen.data.atomic import atomic_write, atomic_write_text
 from ngc_gen.data.errors import DataError
 from ngc_gen.edit import EditError, blend_weight
 
-from .latents import lerp, slerp
-from .model import ShapeGenerator
-from .shapes import (DecodedShape, WrittenShape, decode_shapes, extract_decoded, mixed_sdf_fn,
+from ngc_gen.generate.latents import lerp, slerp
+from ngc_gen.generate.model import ShapeGenerator
+from ngc_gen.generate.shapes import (DecodedShape, WrittenShape, decode_shapes, extract_decoded, mixed_sdf_fn,
                      normalise, write_edit_checkpoint, write_shape)
 
 MODES = ("generate", "interpolate", "mix")
@@ -176,7 +176,7 @@ def run_sample(cfg) -> dict:
     """Dispatch `sample.py` (conf/sample.yaml) to a mode."""
     from omegaconf import OmegaConf
 
-    from .model import load_generator
+    from ngc_gen.generate.model import load_generator
 
     c = OmegaConf.to_container(cfg, resolve=True)
     mode = c["mode"]

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from ngc_gen.config import repo_root
+from ngc_gen.app.config import repo_root
 from ngc_gen.data.annotations import load_annotation
 from ngc_gen.data.mesh_io import load_mesh, normalize
 from ngc_gen.data.sampling import sample_surface
