@@ -11,14 +11,15 @@ from pathlib import Path
 import numpy as np
 import torch
 import trimesh
-from omegaconf import DictConfig, OmegaConf
+import hydra
+from omegaconf import DictConfig
 from tqdm import tqdm
 
 from ngc_gen.data.atomic import atomic_write, atomic_write_text
 from ngc_gen.data.prepare import PreparedShape
 
 from .prepare import prepare_dataset
-from .training import start_run, train
+from .training import instantiate_group, start_run, train
 
 
 def shapes_meta(prepared: list[PreparedShape], kind: str) -> dict:
@@ -32,12 +33,14 @@ def shapes_meta(prepared: list[PreparedShape], kind: str) -> dict:
     return {"shapes": shapes}
 
 
-def build_module(cfg: DictConfig, n_codes: int, meta: dict):
-    from ngc_gen.lit.autodecoder import AutoDecoder
+def model_kind(cfg: DictConfig) -> str:
+    """'ngc' or 'deepsdf': the kind of the `model` group's decoder class (not built)."""
+    return hydra.utils.get_class(cfg.model.decoder._target_).kind
 
-    m = OmegaConf.to_container(cfg.model, resolve=True)
-    return AutoDecoder(kind=m.pop("kind"), decoder=m.pop("decoder"), n_codes=n_codes, meta=meta,
-                       **m)
+
+def build_module(cfg: DictConfig, n_codes: int, meta: dict):
+    """The `model` group's AutoDecoder (`_target_`) with n_codes codes."""
+    return instantiate_group(cfg.model, n_codes=n_codes, meta=meta)
 
 
 def run_fit(cfg: DictConfig) -> dict:
@@ -48,10 +51,10 @@ def run_fit(cfg: DictConfig) -> dict:
     run_dir = start_run(cfg)
     prepared = prepare_dataset(cfg)
     L.seed_everything(cfg.seed, workers=True, verbose=False)
-    dm = PreparedDataModule(prepared, mode=cfg.model.kind, batch_size=cfg.batch_size,
-                            seed=cfg.seed)
-    module = build_module(cfg, dm.n_codes, shapes_meta(prepared, cfg.model.kind))
-    trainer, train_s = train(cfg, run_dir, module, datamodule=dm)
+    kind = model_kind(cfg)
+    dm = PreparedDataModule(prepared, mode=kind, batch_size=cfg.batch_size, seed=cfg.seed)
+    module = build_module(cfg, dm.n_codes, shapes_meta(prepared, kind))
+    trainer, train_s, start_step = train(cfg, run_dir, module, datamodule=dm)
     if trainer.global_rank != 0:
         return {}
     module = module.cpu().eval()
@@ -60,7 +63,8 @@ def run_fit(cfg: DictConfig) -> dict:
         metrics = reconstruct(module, run_dir / "meshes", gt, resolution=cfg.extract.resolution,
                               bound=cfg.extract.bound, chunk=cfg.extract.chunk,
                               seed=cfg.metrics_seed)
-    metrics.update(steps=int(trainer.global_step), train_s=train_s, kind=cfg.model.kind,
+    metrics.update(steps=int(trainer.global_step), start_step=start_step, train_s=train_s,
+                   kind=kind,
                    checkpoint=str(run_dir / "checkpoints" / "last.ckpt"))
     atomic_write_text(run_dir / "metrics.json", json.dumps(metrics, indent=2))
     render_comparison(gt, run_dir)

@@ -1,12 +1,14 @@
-"""What the training stages share: the run directory and a Lightning trainer built from the
-config (checkpoints, logger, quiet console)."""
+"""What the training stages share: the run directory, the module of a config group, and a
+Lightning trainer built from the config (callbacks, logger, quiet console, resume)."""
 from __future__ import annotations
 
 import logging
 import time
 from pathlib import Path
+from typing import NamedTuple
 
 import hydra
+from lightning.pytorch.callbacks import Callback
 from omegaconf import DictConfig, OmegaConf
 
 from ngc_gen.data.atomic import atomic_write_text
@@ -44,26 +46,78 @@ def quiet_lightning() -> None:
     warnings.filterwarnings("ignore", message=r".*isinstance\(treespec, LeafSpec\)")
 
 
-def build_trainer(cfg: DictConfig, run_dir: Path):
-    """The Lightning trainer of `cfg.trainer` with `cfg.logger`; checkpoints/last.ckpt and
-    best.ckpt (lowest train/loss) every max_steps/4 steps (at most 500), so a resume loses
-    little."""
-    from lightning.pytorch.callbacks import ModelCheckpoint
+def instantiate_group(node: DictConfig, runner_keys: tuple[str, ...] = (), **runtime):
+    """The object a config group option names by `_target_` (its interpolations resolved in the
+    whole config), built with `runtime` arguments (sizes known only from the data); the group's
+    `runner_keys` are settings the stage reads itself and are left out. Arguments arrive as
+    plain dicts and lists (`_convert_="all"`), so hyper-parameters a module records stay
+    loadable with weights_only=True."""
+    d = OmegaConf.to_container(node, resolve=True)
+    for k in runner_keys:
+        d.pop(k, None)
+    return hydra.utils.instantiate(d, _convert_="all", **runtime)
 
+
+def build_callbacks(cfg: DictConfig) -> list:
+    """The Lightning callbacks of `cfg.callbacks` (an entry set to null is dropped).
+    `every_n_train_steps: null` means trainer.max_steps / 4, at most 500; the progress bar is
+    dropped when trainer.enable_progress_bar is false (Lightning refuses both at once)."""
+    from lightning.pytorch.callbacks import ProgressBar
+
+    out = []
+    for node in (cfg.get("callbacks") or {}).values():
+        if node is None:
+            continue
+        kw = {}
+        if "every_n_train_steps" in node and node.every_n_train_steps is None:
+            kw["every_n_train_steps"] = max(1, min(500, int(cfg.trainer.max_steps) // 4))
+        cb = hydra.utils.instantiate(node, **kw)
+        if isinstance(cb, ProgressBar) and not cfg.trainer.get("enable_progress_bar", True):
+            continue
+        out.append(cb)
+    return out
+
+
+class StartStep(Callback):
+    """Records the optimizer step training starts from (the checkpoint's when resuming)."""
+
+    step: int | None = None
+
+    def on_train_start(self, trainer, pl_module) -> None:
+        self.step = int(trainer.global_step)
+
+
+def build_trainer(cfg: DictConfig, run_dir: Path, extra_callbacks=()):
+    """The Lightning trainer of `cfg.trainer` with `cfg.callbacks` and `cfg.logger`."""
     quiet_lightning()
-    every = max(1, min(500, int(cfg.trainer.max_steps) // 4))
-    callbacks = [
-        ModelCheckpoint(dirpath=run_dir / "checkpoints", filename="best", monitor="train/loss",
-                        mode="min", save_top_k=1, save_last=True, every_n_train_steps=every),
-    ]
     logger = hydra.utils.instantiate(cfg.logger) if cfg.get("logger") else False
+    callbacks = build_callbacks(cfg) + list(extra_callbacks)
     return hydra.utils.instantiate(cfg.trainer, callbacks=callbacks, logger=logger,
                                    default_root_dir=str(run_dir))
 
 
-def train(cfg: DictConfig, run_dir: Path, module, *data, **fit_kwargs):
-    """trainer.fit (resuming from cfg.ckpt_path if set); returns (trainer, seconds)."""
-    trainer = build_trainer(cfg, run_dir)
+def resume_checkpoint(cfg: DictConfig) -> str | None:
+    """`ckpt_path`: a checkpoint file or a run directory (its checkpoints/last.ckpt), or null."""
+    from ngc_gen.lit.checkpoint import resolve_checkpoint
+
+    if cfg.get("ckpt_path") is None:
+        return None
+    return str(resolve_checkpoint(cfg.ckpt_path, what="checkpoint to resume from",
+                                  fix="pass ckpt_path=<run dir> or <run>/checkpoints/last.ckpt of "
+                                      "an interrupted run of the same stage"))
+
+
+class Trained(NamedTuple):
+    trainer: object
+    seconds: float
+    start_step: int  # the step training started from: 0, or the resumed checkpoint's step
+
+
+def train(cfg: DictConfig, run_dir: Path, module, *data, **fit_kwargs) -> Trained:
+    """trainer.fit, resuming from `ckpt_path` if set; (trainer, seconds, start step)."""
+    ckpt = resume_checkpoint(cfg)
+    start = StartStep()
+    trainer = build_trainer(cfg, run_dir, [start])
     t0 = time.perf_counter()
-    trainer.fit(module, *data, ckpt_path=cfg.ckpt_path, **fit_kwargs)
-    return trainer, time.perf_counter() - t0
+    trainer.fit(module, *data, ckpt_path=ckpt, **fit_kwargs)
+    return Trained(trainer, time.perf_counter() - t0, start.step)
