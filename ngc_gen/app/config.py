@@ -13,11 +13,44 @@ def repo_root() -> Path:
     return Path(os.environ.get("NGC_ROOT", Path(__file__).resolve().parents[2]))
 
 
+def config_groups() -> str:
+    """`${ngc_groups:}` (conf/hydra/help/ngc.yaml): one line per config group the running entry
+    point's primary config chose from, with the options its config sources hold (conf/, and the
+    package's ngc_gen/conf through the search path). Hydra's own listing shows every group under
+    conf/, including the ones this entry point never reads."""
+    from hydra.core.hydra_config import HydraConfig
+
+    runtime = HydraConfig.get().runtime
+    groups = sorted(g for g in runtime.choices if not g.startswith("hydra"))
+    return "\n".join(f"{g}: {', '.join(group_options(g, runtime.config_sources))}"
+                     for g in groups)
+
+
+def group_options(group: str, sources) -> list[str]:
+    """The option names (YAML file stems) of `group` in Hydra's file and pkg config sources."""
+    import importlib.resources
+
+    names = set()
+    for src in sources:
+        if src.schema == "file":
+            folder = Path(src.path) / group
+        elif src.schema == "pkg" and src.provider != "hydra":
+            folder = importlib.resources.files(src.path).joinpath(group)
+        else:
+            continue
+        if folder.is_dir():
+            names |= {f.name[:-5] for f in folder.iterdir() if f.name.endswith(".yaml")}
+    return sorted(names)
+
+
 def register_resolvers() -> None:
-    """Register the project's OmegaConf resolvers (`ngc_root`); process-wide state, so called by
-    the entry points before Hydra composes and by `compose_config`, never at import time."""
+    """Register the project's OmegaConf resolvers (`ngc_root`, `ngc_groups`): process-wide state,
+    so called by the entry points before Hydra composes and by `compose_config`, never at
+    import time."""
     if not OmegaConf.has_resolver("ngc_root"):
         OmegaConf.register_new_resolver("ngc_root", lambda: str(repo_root()))
+    if not OmegaConf.has_resolver("ngc_groups"):
+        OmegaConf.register_new_resolver("ngc_groups", config_groups)
 
 
 def compose_config(config_name: str = "train", overrides: list[str] | None = None):

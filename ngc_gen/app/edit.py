@@ -27,17 +27,32 @@ from ngc_gen.data.errors import DataError
 from ngc_gen.extract.shapes import shape_gcs
 from ngc_gen.lit.checkpoint import load_autodecoder
 
-from .config import repo_root
-
 from ngc_gen.edit.errors import EditError
 from ngc_gen.edit.mixing import PartMix, extract_smooth_union, mixed_sdf_fn
 from ngc_gen.edit.program import EditProgram, MixSource, apply_program
 
-CONF_EDIT = "conf/edit"
+PROGRAMS = "ngc_gen/conf/edit"  # the shipped programs: package data, Hydra group `edit`
 
 
 def available_programs() -> list[str]:
-    return sorted(p.stem for p in (repo_root() / CONF_EDIT).glob("*.yaml"))
+    """Names of the shipped edit programs (found in the installed package, not the checkout)."""
+    import importlib.resources
+
+    folder = importlib.resources.files("ngc_gen.conf").joinpath("edit")
+    return sorted(f.name[:-5] for f in folder.iterdir() if f.name.endswith(".yaml"))
+
+
+def fit_checkpoint(run) -> Path:
+    """The checkpoint edit.py reads: a fit run directory (its checkpoints/last.ckpt), a
+    checkpoint file, or a sample.py output directory (its shapes.ckpt)."""
+    from ngc_gen.lit.checkpoint import resolve_checkpoint
+
+    if run is not None and Path(run).is_dir() and (Path(run) / "shapes.ckpt").is_file() \
+            and not (Path(run) / "checkpoints").is_dir():
+        return Path(run) / "shapes.ckpt"
+    return resolve_checkpoint(run, what="fit run",
+                              fix="pass run=<dir> (or its checkpoints/last.ckpt) of a `train.py "
+                                  "stage=fit` run, or run=<a sample.py output directory>")
 
 
 def load_program_file(path) -> EditProgram:
@@ -55,7 +70,7 @@ def load_program_file(path) -> EditProgram:
 
 
 def program_from_config(cfg) -> EditProgram:
-    """The program of an edit config: `edit` (a conf/edit/*.yaml composed by Hydra) or
+    """The program of an edit config: `edit` (a shipped program composed by Hydra) or
     `program_file` (any YAML path); exactly one of them."""
     from omegaconf import OmegaConf
 
@@ -66,13 +81,13 @@ def program_from_config(cfg) -> EditProgram:
                         + (" (got both)" if file is not None else ""))
     if file is not None:
         return load_program_file(file)
-    source = CONF_EDIT + "/<edit>.yaml"
+    source = PROGRAMS + "/<edit>.yaml"
     try:
         from hydra.core.hydra_config import HydraConfig
 
         choice = HydraConfig.get().runtime.choices.get("edit")
         if choice:  # None when composed inside another app (the pipeline stage)
-            source = f"{CONF_EDIT}/{choice}.yaml"
+            source = f"{PROGRAMS}/{choice}.yaml"
     except ValueError:  # composed outside @hydra.main (tests, notebooks)
         pass
     return EditProgram.from_dict(OmegaConf.to_container(composed, resolve=True), source=source)
@@ -153,13 +168,11 @@ def run_edit(cfg) -> dict:
     """Validate and apply the program, extract both meshes, then write every output."""
     t_start = time.perf_counter()
     program = program_from_config(cfg)
-    if cfg.get("ckpt") is None:
-        raise DataError("no checkpoint given",
-                        fix="pass ckpt=<run>/checkpoints/last.ckpt of a `train.py stage=fit` run")
-    module = load_autodecoder(cfg.ckpt)
+    ckpt = fit_checkpoint(cfg.get("run"))
+    module = load_autodecoder(ckpt)
     if module.hparams.kind != "ngc":
-        raise DataError(f"{cfg.ckpt} holds a {module.hparams.kind} model; edits need NGC GCs",
-                        fix="pass a checkpoint fitted with model=small or model=paper")
+        raise DataError(f"{ckpt} holds a {module.hparams.kind} model; edits need NGC GCs",
+                        fix="pass a run fitted with model=small or model=paper")
     metas = module.hparams.meta["shapes"]
     names = [m["name"] for m in metas]
     shape = cfg.get("shape") or program.shape
@@ -173,14 +186,15 @@ def run_edit(cfg) -> dict:
     gcs = shape_gcs(meta)
 
     t0 = time.perf_counter()
-    result = apply_program(program, gcs, CheckpointSources(module, cfg.ckpt, shape))
+    result = apply_program(program, gcs, CheckpointSources(module, ckpt, shape))
     t_edit = time.perf_counter() - t0
 
     codes = module.codes.weight[meta["code_offset"]:meta["code_offset"] + meta["n_codes"]].detach()
     gc_index = {g.name: j for j, g in enumerate(gcs)}
     mixes = {gc_index[n]: PartMix(m.code, m.weight, m.label) for n, m in result.mixes.items()}
-    kw = dict(resolution=int(cfg.resolution), bound=float(cfg.bound), k=program.smooth_union,
-              chunk=int(cfg.chunk))
+    ex = cfg.extract
+    kw = dict(resolution=int(ex.resolution), bound=float(ex.bound), k=program.smooth_union,
+              chunk=int(ex.chunk))
     t0 = time.perf_counter()
     before = extract_smooth_union(gcs, mixed_sdf_fn(module.decoder, codes), **kw)
     t_before = time.perf_counter() - t0
@@ -189,7 +203,7 @@ def run_edit(cfg) -> dict:
     t_after = time.perf_counter() - t0
 
     metrics = {"program": program.name, "program_file": program.source, "shape": shape,
-               "checkpoint": str(cfg.ckpt), "resolution": int(cfg.resolution),
+               "checkpoint": str(ckpt), "resolution": int(ex.resolution),
                "smooth_union": program.smooth_union}
     # the runner is a stage in all but location: it reads the (higher) eval layer's metric
     from ngc_gen.eval import volume_area_change

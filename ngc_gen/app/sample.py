@@ -1,8 +1,9 @@
-"""What `sample.py` does: generate N shapes, interpolate between two, mix a part of one into
-another. Every mode writes, into its output directory, per shape `<name>.ply` + `<name>.yaml`
-(the GC annotation, editable), `latents.pt` ({names, latents (S, D), ...}), `shapes.ckpt` (a
-fit-format checkpoint of the shapes' codes and the NGC decoder, for `edit.py ckpt=...`) and
-`summary.json` (settings and timings); `sample.py` adds `shapes.png` (picture=true)."""
+"""What `sample.py` does (its runner): generate N shapes, interpolate between two, mix a part
+of one into another. Every mode writes, into its output directory, per shape `<name>.ply` +
+`<name>.yaml` (the GC annotation, editable), `latents.pt` ({names, latents (S, D), ...}),
+`shapes.ckpt` (a fit-format checkpoint of the shapes' codes and the NGC decoder, for
+`edit.py run=<out_dir>`) and `summary.json` (settings and timings); `sample.py` adds
+`shapes.png` (picture=true)."""
 from __future__ import annotations
 
 import json
@@ -78,7 +79,7 @@ def write_outputs(gen: ShapeGenerator, out_dir: Path, mode: str, written: list[W
     for s in written:
         print(f"  {s.name:20s} {s.n_faces:7d} faces   {s.annotation.name}")
     if edit:
-        print(f"edit one: python edit.py ckpt={ckpt} shape={edit[0].name} edit=<program>")
+        print(f"edit one: python edit.py run={out_dir} shape={edit[0].name} edit=<program>")
     return summary
 
 
@@ -181,11 +182,12 @@ def run_sample(cfg) -> dict:
     c = OmegaConf.to_container(cfg, resolve=True)
     mode = c["mode"]
     _check(mode in MODES, f"unknown mode {mode!r}", "mode", f"use one of {', '.join(MODES)}")
-    _check(int(c["resolution"]) >= 8, f"resolution must be >= 8, got {c['resolution']}",
-           "resolution", "use e.g. 128 (default) or 256")
+    ex = c["extract"]
+    _check(int(ex["resolution"]) >= 8, f"resolution must be >= 8, got {ex['resolution']}",
+           "extract.resolution", "use e.g. 128 (default) or 256")
     gen = load_generator(c["run"], c.get("shape_latent_run"))
-    common = dict(seed=int(c["seed"]), resolution=int(c["resolution"]), bound=float(c["bound"]),
-                  chunk=None if c["chunk"] is None else int(c["chunk"]), sampler=c["sampler"],
+    common = dict(seed=int(c["seed"]), resolution=int(ex["resolution"]), bound=float(ex["bound"]),
+                  chunk=None if ex["chunk"] is None else int(ex["chunk"]), sampler=c["sampler"],
                   normalised=bool(c["normalise"]), progress=bool(c["progress"]))
     out_dir = Path(c["out_dir"])
     if mode == "generate":

@@ -15,7 +15,7 @@ from ngc_gen.data.prepare import PrepareSettings, prepare_shape
 from ngc_gen.lit.shape_latent import ShapeLatentModule
 from ngc_gen.app.shape_latent import template_and_targets
 
-from .helpers import compose_config
+from ..helpers import compose_config
 
 
 pytestmark = pytest.mark.usefixtures("single_thread")

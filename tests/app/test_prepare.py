@@ -5,7 +5,7 @@ import trimesh
 import yaml
 from hydra.utils import instantiate
 
-from .helpers import compose_config, run_entry
+from ..helpers import compose_config, run_entry
 
 
 @pytest.mark.parametrize("name", ["ant", "ant_1gc", "airplane", "creatures", "folder"])

@@ -13,7 +13,7 @@ import trimesh
 
 from ngc_gen.lit.checkpoint import load_autodecoder
 
-from .helpers import ROOT, run_entry
+from ..helpers import ROOT, run_entry
 
 FAST = ["stage=fit", "data=folder", "model=small", "batch_size=2048", "prepare.n_samples=20000",
         "extract.resolution=64", "trainer.enable_progress_bar=false"]
