@@ -8,13 +8,11 @@ half-ellipsoids that hold the points past the ends. Verified with `contains` and
 from __future__ import annotations
 
 import numpy as np
-import trimesh
 
 from ngc_gen.geometry import GeneralizedCylinder
 
 from .auto_gc import _ellipse_radii, principal_axes
 from .errors import DataError
-from .sampling import sample_surface
 
 
 def _bezier_lsq(points: np.ndarray, degree: int) -> np.ndarray:
@@ -91,20 +89,3 @@ def fit_gc(points: np.ndarray, name: str, degree: int = 3, n_keys: int = 5, marg
         d["caps"] = [c * 1.05 for c in d["caps"]]
     raise DataError(f"could not enclose the points of '{name}'", gc=name,
                     fix="annotate this part by hand")
-
-
-def fit_gcs_per_piece(mesh: trimesh.Trimesh, names: list[str] | None = None,
-                      degrees: list[int] | None = None, samples: int = 20000,
-                      seed: int = 0) -> list[GeneralizedCylinder]:
-    """One fitted GC per connected piece, enclosing the piece's vertices and dense surface
-    samples; `names` / `degrees` are per piece in `mesh.split` order. Slivers below 1e-4 of the
-    total area are skipped (they hold no surface samples worth a GC)."""
-    pieces = [p for p in mesh.split(only_watertight=False) if p.area > 1e-4 * mesh.area]
-    rng = np.random.default_rng(seed)
-    out = []
-    for i, p in enumerate(pieces):
-        n = max(200, int(samples * p.area / mesh.area))
-        pts = np.concatenate([p.vertices, sample_surface(p.vertices, p.faces, n, rng)[0]])
-        out.append(fit_gc(pts, names[i] if names else f"part_{i}",
-                          degree=degrees[i] if degrees else 3))
-    return out

@@ -3,8 +3,8 @@ section 4).
 
 The neural codes never change: an edit only changes GCs (and part mixing only blends features),
 so a fitted shape is deformed with no re-training. `ops`, `handles`, `blend` and `program` use
-only ngc_gen.geometry; `mixing` builds extraction fields (ngc_gen.extract); `run` (edit.py's
-runner) reads checkpoints and writes files, and is not imported here.
+only ngc_gen.geometry; `mixing` builds extraction fields (ngc_gen.extract). edit.py's runner
+(reads checkpoints, writes files) is ngc_gen.app.edit.
 """
 from .blend import (BLENDS, blend_features, blend_weight, constant, linear, smooth_min,
                     smooth_min_all, smoothstep, truncated_linear)
