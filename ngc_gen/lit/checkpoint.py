@@ -52,6 +52,8 @@ def load_module(cls, path, kind: str, what: str, fix: str, map_location="cpu"):
     hp = ckpt.get("hyper_parameters", {})
     if hp.get("checkpoint_kind") != kind:
         raise DataError(f"{path} is not {what} (kind {hp.get('checkpoint_kind')!r})", fix=fix)
+    retired = getattr(cls, "RETIRED_HPARAMS", ())  # recorded by older versions, unused now
+    hp = {k: v for k, v in hp.items() if k not in retired}
     try:
         module = cls(**hp)
         module.load_state_dict(ckpt["state_dict"])

@@ -34,6 +34,10 @@ class LatentDiffusion(L.LightningModule):
     (Adam if None). Defaults are conf/diffusion/default.yaml's (tests/app/test_config.py keeps
     them equal)."""
 
+    # checkpoints written before the optimiser came from the config record Adam's betas; they
+    # only mattered for training, so loading such a checkpoint drops them
+    RETIRED_HPARAMS = ("betas",)
+
     def __init__(self, dim: int, denoiser=None, lr: float = 1e-3, P_mean: float = -1.2,
                  P_std: float = 1.2, sigma_data: float = 1.0, ema_halflife_steps: float = 500.0,
                  ema_rampup: float | None = 0.05, ema_decay: float | None = None,
