@@ -1,4 +1,6 @@
-"""Hydra/OmegaConf glue: the `ngc_root` resolver that anchors paths at the checkout."""
+"""Hydra/OmegaConf glue: composing the project's configs from Python, and the resolvers
+(`ngc_root` anchors data paths at the checkout; `ngc_groups` lists an entry point's groups in its
+--help), registered by the entry points and `compose_config`."""
 from __future__ import annotations
 
 import os
@@ -6,9 +8,11 @@ from pathlib import Path
 
 from omegaconf import OmegaConf
 
+CONF_DIR = Path(__file__).resolve().parents[2] / "conf"  # beside train.py, edit.py, sample.py
+
 
 def repo_root() -> Path:
-    """The checkout this package runs from (configs, shipped datasets, default caches);
+    """The checkout this package runs from (shipped datasets, default caches: `paths`);
     override with the NGC_ROOT environment variable."""
     return Path(os.environ.get("NGC_ROOT", Path(__file__).resolve().parents[2]))
 
@@ -64,7 +68,7 @@ def compose_config(config_name: str = "train", overrides: list[str] | None = Non
     running = GlobalHydra.instance().hydra if GlobalHydra.instance().is_initialized() else None
     GlobalHydra.instance().clear()
     try:
-        with initialize_config_dir(version_base="1.3", config_dir=str(repo_root() / "conf")):
+        with initialize_config_dir(version_base="1.3", config_dir=str(CONF_DIR)):
             return compose(config_name=config_name, overrides=overrides or [])
     finally:
         if running is not None:
