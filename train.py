@@ -1,17 +1,19 @@
-"""Train entry point: `python train.py stage=<prepare|...> data=<dataset> ...` (Hydra)."""
+"""Train entry point: `python train.py stage=<prepare|fit|shape_latent|diffusion|pipeline> ...`
+(Hydra, conf/train.yaml); the stages are ngc_gen.app's runners."""
 import hydra
 from omegaconf import DictConfig
 
-import ngc_gen.config  # noqa: F401  (registers the ngc_root resolver)
+from ngc_gen.app.config import register_resolvers
 
 
 @hydra.main(version_base="1.3", config_path="conf", config_name="train")
 def main(cfg: DictConfig) -> None:
-    from ngc_gen.cli import run_job
-    from ngc_gen.stages import run_stage
+    from ngc_gen.app.cli import run_job
+    from ngc_gen.app.stages import run_stage
 
     run_job(run_stage, cfg)
 
 
 if __name__ == "__main__":
+    register_resolvers()
     main()

@@ -88,7 +88,7 @@ def make_bar(out_dir: Path = BAR_DIR, spacing: float = 0.016) -> Path:
 def fit_config(steps: int, resolution: int):
     from omegaconf import OmegaConf, open_dict
 
-    from ngc_gen.config import compose_config
+    from ngc_gen.app.config import compose_config
 
     cfg = compose_config(overrides=[
         "stage=fit", "data=demo", "model=small", f"trainer.max_steps={steps}",
@@ -128,7 +128,7 @@ def fitted(steps: int, refit: bool) -> dict:
         if d.get("key") == inputs_key(steps):
             return d
     from ngc_gen.data.atomic import atomic_write_text
-    from ngc_gen.stages.fit import run_fit
+    from ngc_gen.app.fit import run_fit
 
     import shutil
 

@@ -33,8 +33,8 @@ METHODS = {  # name -> (data config, model config, extra overrides)
 
 
 def run(method: str, steps: int, resolution: int, batch_size: int) -> dict:
-    from ngc_gen.config import compose_config
-    from ngc_gen.stages.fit import run_fit
+    from ngc_gen.app.config import compose_config
+    from ngc_gen.app.fit import run_fit
 
     data, model, extra = METHODS[method]
     run_dir = ROOT / "bench/runs/fit" / method

@@ -41,10 +41,10 @@ def overrides(args) -> list[str]:
 
 
 def train(args) -> dict:
-    from ngc_gen.config import compose_config
+    from ngc_gen.app.config import compose_config
 
-    from ngc_gen.stages.diffusion import run_diffusion
-    from ngc_gen.stages.shape_latent import run_shape_latent
+    from ngc_gen.app.diffusion import run_diffusion
+    from ngc_gen.app.shape_latent import run_shape_latent
 
     times = {}
     sl_dir, diff_dir = RUNS / "shape_latent", RUNS / "diffusion"
@@ -69,7 +69,7 @@ def mesh_set(gen, latents, names, out_dir, resolution):
     """Decode and mesh latents like sample.py does; returns (meshes, seconds per mesh)."""
     import trimesh
 
-    from ngc_gen.generate.modes import extract_and_write
+    from ngc_gen.app.sample import extract_and_write
     from ngc_gen.generate.shapes import decode_shapes
 
     shapes = decode_shapes(gen.shape_latent, latents, names)
@@ -173,10 +173,11 @@ def main():
 
     torch.set_num_threads(args.threads)
 
-    from ngc_gen.config import repo_root
+    from ngc_gen.app.config import repo_root
     from ngc_gen.data.datasets import Creatures
     from ngc_gen.eval import generation_metrics, pairwise_chamfer
-    from ngc_gen.generate import generate, load_generator
+    from ngc_gen.app.sample import generate
+    from ngc_gen.generate import load_generator
 
     t_start = time.perf_counter()
     data = Creatures("creatures", repo_root() / f".cache/datasets/creatures_n{args.n}_s{args.seed}",

@@ -22,7 +22,6 @@ import hashlib
 import json
 import math
 import time
-from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -314,8 +313,7 @@ def gc_coverage(mesh: trimesh.Trimesh, gcs, samples: int = 200_000, seed: int = 
     (GC dicts, as in an annotation)."""
     objs = [GeneralizedCylinder.from_dict(d) for d in gcs]
     pts, _ = trimesh.sample.sample_surface(mesh, samples, seed=seed)
-    with _torch_threads(1):
-        return float(_union_contains(objs, [gc_box(d) for d in gcs], pts).mean())
+    return float(_union_contains(objs, [gc_box(d) for d in gcs], pts).mean())
 
 
 def make_creature(seed: int, resolution: int = 128, name: str | None = None,
@@ -331,31 +329,15 @@ def make_creature(seed: int, resolution: int = 128, name: str | None = None,
     return mesh, annotation
 
 
-@contextmanager
-def _torch_threads(n: int):
-    """Run torch with `n` intra-op threads, restoring the previous count afterwards.
-
-    The grid blocks are small (tens of thousands of points): with 2 threads on a busy 2-core
-    machine torch's thread hand-offs made a shape take 9 s median, 45 s worst, against 0.8 s with
-    one thread (measured), so shape generation runs single-threaded."""
-    previous = torch.get_num_threads()
-    torch.set_num_threads(n)
-    try:
-        yield
-    finally:
-        torch.set_num_threads(previous)
-
-
 def _make(seed: int, resolution: int, name: str | None, check_samples: int):
     """`make_creature` that also returns the measured coverage (None if not checked)."""
     if int(resolution) < MIN_RESOLUTION:
         raise DataError(f"resolution {resolution} is too coarse for the thin parts (ears, tail)",
                         field="resolution", fix=f"use at least {MIN_RESOLUTION} (default 128)")
-    with _torch_threads(1):
-        return _make_single_thread(int(seed), int(resolution), name, int(check_samples))
+    return _make_parts(int(seed), int(resolution), name, int(check_samples))
 
 
-def _make_single_thread(seed: int, resolution: int, name: str | None, check_samples: int):
+def _make_parts(seed: int, resolution: int, name: str | None, check_samples: int):
     """Sample the parts, fit their GCs, evaluate the smooth union on the grid, mesh, normalise
     and check coverage."""
     name = name or f"creature_{seed}"

@@ -142,7 +142,6 @@ def carry_up(gc: GeneralizedCylinder, curve) -> np.ndarray:
     a, b = tangent(gc.curve, [0.0])[0], tangent(curve, [0.0])[0]
     if not np.all(np.isfinite(b)) or np.linalg.norm(a - b) < 1e-12:  # (a stopped curve fails
         return gc.up                                                 # its own check later)
-        return gc.up
     n0 = gc.up - (gc.up @ a) * a
     return min_rotation(a, b, n0 / np.linalg.norm(n0)) @ gc.up
 

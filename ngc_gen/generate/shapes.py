@@ -89,7 +89,7 @@ def write_shape(out_dir: Path, name: str, mesh: trimesh.Trimesh, gcs: list[dict]
 def write_edit_checkpoint(path: Path, ngc, shapes: list[WrittenShape], source: str = "") -> Path:
     """A `stage=fit`-format checkpoint (AutoDecoder, kind ngc) holding the NGC decoder and the
     shapes' codes, meta shapes {name, code_offset, n_codes, annotation_yaml (absolute mesh
-    path)}: `edit.py ckpt=<path> shape=<name>` and `load_autodecoder` take it unchanged."""
+    path)}: `edit.py run=<path> shape=<name>` and `load_autodecoder` take it unchanged."""
     import lightning as L
 
     from ngc_gen.lit.autodecoder import AutoDecoder

@@ -11,19 +11,27 @@ import lightning as L
 import torch
 from torch import nn
 
-from ngc_gen.models import build_decoder
+from .parts import decoder_and_kind, optimizer_factory
 
 CHECKPOINT_KIND = "ngc_gen.autodecoder"
 
 
 class AutoDecoder(L.LightningModule):
-    def __init__(self, kind: str, decoder: dict, n_codes: int, lr: float = 5e-4,
-                 code_lr: float = 1e-3, code_reg: float = 1e-4, clamp: float | None = None,
-                 codes_only_from: float = 0.8, code_init_std: float = 0.01,
-                 meta: dict | None = None, checkpoint_kind: str = CHECKPOINT_KIND):
+    """`decoder`: an NGCDecoder or DeepSDFDecoder (built from conf/model's `_target_`), or its
+    sizes with `kind` (a checkpoint's record: hparams keep kind and sizes); `optimizer`: a
+    partial optimiser (Adam if None) given [decoder group, codes group]. Defaults are those of
+    conf/model/small.yaml, the default `model` (tests/app/test_config.py keeps them equal)."""
+
+    def __init__(self, decoder: nn.Module | dict, n_codes: int, kind: str | None = None,
+                 lr: float = 1e-3, code_lr: float = 1e-3, code_reg: float = 1e-4,
+                 clamp: float | None = None, codes_only_from: float = 0.8,
+                 code_init_std: float = 0.01, optimizer=None, meta: dict | None = None,
+                 checkpoint_kind: str = CHECKPOINT_KIND):
         super().__init__()
-        self.save_hyperparameters()
-        self.decoder = build_decoder(kind, **decoder)
+        self.save_hyperparameters(ignore=["decoder", "optimizer"])
+        self.decoder, kind = decoder_and_kind(decoder, kind)
+        self.hparams.update(kind=kind, decoder=dict(self.decoder.config))
+        self.make_optimizer = optimizer_factory(optimizer)
         self.codes = nn.Embedding(n_codes, self.decoder.code_dim)
         nn.init.normal_(self.codes.weight, 0.0, code_init_std)
 
@@ -56,8 +64,12 @@ class AutoDecoder(L.LightningModule):
                       on_epoch=False)
         return loss
 
+    @property
+    def kind(self) -> str:
+        return self.hparams.kind
+
     def configure_optimizers(self):
-        return torch.optim.Adam([
+        return self.make_optimizer([
             {"params": self.decoder.parameters(), "lr": self.hparams.lr},
             {"params": self.codes.parameters(), "lr": self.hparams.code_lr},
         ])

@@ -52,8 +52,16 @@ def load_module(cls, path, kind: str, what: str, fix: str, map_location="cpu"):
     hp = ckpt.get("hyper_parameters", {})
     if hp.get("checkpoint_kind") != kind:
         raise DataError(f"{path} is not {what} (kind {hp.get('checkpoint_kind')!r})", fix=fix)
-    module = cls(**hp)
-    module.load_state_dict(ckpt["state_dict"])
+    retired = getattr(cls, "RETIRED_HPARAMS", ())  # recorded by older versions, unused now
+    hp = {k: v for k, v in hp.items() if k not in retired}
+    try:
+        module = cls(**hp)
+        module.load_state_dict(ckpt["state_dict"])
+    except (TypeError, ValueError, RuntimeError) as e:  # hyper-parameters / weights of another
+        raise DataError(f"{path} does not match this version's {cls.__name__} "  # version
+                        f"({type(e).__name__}: {str(e).splitlines()[0][:200]})",
+                        fix="retrain it with this version (`train.py`), or load it with the "
+                            "version that wrote it") from None
     return module.eval()
 
 

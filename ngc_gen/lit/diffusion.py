@@ -21,26 +21,36 @@ from ngc_gen.models.edm import EDMLoss, EDMPrecond, ResidualMLPDenoiser
 from ngc_gen.models.sampler import edm_sampler
 
 from .checkpoint import load_module
+from .parts import keywords, optimizer_factory
 
 CHECKPOINT_KIND = "ngc_gen.diffusion"
 STANDARDISE = ("per_dim", "scalar", "none")
 
 
 class LatentDiffusion(L.LightningModule):
-    """EDM on latent vectors of size `dim`. `denoiser`: kwargs of ResidualMLPDenoiser
-    (width, depth, emb_dim, fourier_channels, fourier_scale, dropout)."""
+    """EDM on latent vectors of size `dim`. `denoiser`: a ResidualMLPDenoiser partial
+    (`_partial_: true`: the latent size comes from the data) or its keyword arguments (width,
+    depth, emb_dim, fourier_channels, fourier_scale, dropout); `optimizer`: a partial optimiser
+    (Adam if None). Defaults are conf/diffusion/default.yaml's (tests/app/test_config.py keeps
+    them equal)."""
 
-    def __init__(self, dim: int, denoiser: dict | None = None, lr: float = 1e-3,
-                 betas: tuple[float, float] = (0.9, 0.999), P_mean: float = -1.2,
-                 P_std: float = 1.2, sigma_data: float = 1.0, ema_halflife_steps: float = 1000.0,
+    # checkpoints written before the optimiser came from the config record Adam's betas; they
+    # only mattered for training, so loading such a checkpoint drops them
+    RETIRED_HPARAMS = ("betas",)
+
+    def __init__(self, dim: int, denoiser=None, lr: float = 1e-3, P_mean: float = -1.2,
+                 P_std: float = 1.2, sigma_data: float = 1.0, ema_halflife_steps: float = 500.0,
                  ema_rampup: float | None = 0.05, ema_decay: float | None = None,
-                 standardise: str = "per_dim", std_eps: float = 1e-6, meta: dict | None = None,
-                 checkpoint_kind: str = CHECKPOINT_KIND):
+                 standardise: str = "per_dim", std_eps: float = 1e-6, optimizer=None,
+                 meta: dict | None = None, checkpoint_kind: str = CHECKPOINT_KIND):
         super().__init__()
         if standardise not in STANDARDISE:
             raise ValueError(f"unknown standardise {standardise!r}; choose one of {STANDARDISE}")
-        self.save_hyperparameters()
-        self.net = EDMPrecond(ResidualMLPDenoiser(dim, **(denoiser or {})), sigma_data)
+        self.save_hyperparameters(ignore=["denoiser", "optimizer"])
+        net_kw = keywords(denoiser, ResidualMLPDenoiser)
+        self.hparams.update(denoiser=net_kw)
+        self.make_optimizer = optimizer_factory(optimizer)
+        self.net = EDMPrecond(ResidualMLPDenoiser(dim, **net_kw), sigma_data)
         self.ema = copy.deepcopy(self.net).requires_grad_(False)
         self.loss_fn = EDMLoss(P_mean, P_std, sigma_data)
         self.register_buffer("latent_mean", torch.zeros(dim))
@@ -123,8 +133,7 @@ class LatentDiffusion(L.LightningModule):
             self._ema_step = self.global_step
 
     def configure_optimizers(self):
-        return torch.optim.Adam(self.net.parameters(), lr=self.hparams.lr,
-                                betas=tuple(self.hparams.betas))
+        return self.make_optimizer(self.net.parameters(), lr=self.hparams.lr)
 
     @torch.no_grad()
     def evaluate_loss(self, latents: torch.Tensor, seed: int = 0, use_ema: bool = False,

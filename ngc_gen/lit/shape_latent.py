@@ -25,33 +25,40 @@ import lightning as L
 import torch
 from torch import nn
 
-from ngc_gen.models import build_decoder
 from ngc_gen.models.shape_decoder import GCTemplate, ShapeDecoder
 
 from .checkpoint import load_module, resolve_checkpoint
+from .parts import decoder_and_kind, keywords, optimizer_factory
 
 CHECKPOINT_KIND = "ngc_gen.shape_latent"
 FIX = "pass the run directory (or checkpoints/last.ckpt) of a `train.py stage=shape_latent` run"
 
 
 class ShapeLatentModule(L.LightningModule):
-    """n_shapes latents of `latent_dim`; `template`: GCTemplate.to_dict(); `ngc`: NGC decoder
-    sizes (as NGCDecoder.config, or {preset: small}); `shape_decoder`: ShapeDecoder kwargs
-    (hidden, layers, bound). meta: {"shapes": [{name, annotation_yaml}, ...]} in latent order."""
+    """n_shapes latents of `latent_dim`; `template`: GCTemplate.to_dict(); `ngc`: the NGC
+    decoder (built from the `model` group's decoder) or its sizes (a checkpoint's record);
+    `shape_decoder`: a ShapeDecoder partial (`_partial_: true`) or its keyword arguments (hidden,
+    layers, bound); `optimizer`: a partial optimiser (Adam if None). meta: {"shapes": [{name,
+    annotation_yaml}, ...]} in latent order. Defaults are conf/shape_latent/default.yaml's
+    (tests/app/test_config.py keeps them equal)."""
 
-    def __init__(self, n_shapes: int, template: dict, ngc: dict | None = None,
-                 latent_dim: int = 128, shape_decoder: dict | None = None, lr: float = 1e-3,
+    def __init__(self, n_shapes: int, template: dict, ngc: nn.Module | dict,
+                 latent_dim: int = 128, shape_decoder=None, lr: float = 1e-3,
                  latent_lr: float = 1e-3, param_weight: float = 1.0, latent_reg: float = 1e-4,
-                 latent_init_std: float = 0.01, latent_noise: float = 0.0,
-                 clamp: float | None = None,
-                 lr_min_factor: float = 0.1, meta: dict | None = None,
-                 checkpoint_kind: str = CHECKPOINT_KIND):
+                 latent_init_std: float = 0.01, latent_noise: float = 0.25,
+                 clamp: float | None = None, lr_min_factor: float = 0.1, optimizer=None,
+                 meta: dict | None = None, checkpoint_kind: str = CHECKPOINT_KIND):
         super().__init__()
-        self.save_hyperparameters()
+        self.save_hyperparameters(ignore=["ngc", "shape_decoder", "optimizer"])
         self.template = GCTemplate.from_dict(template)
-        self.ngc = build_decoder("ngc", **(ngc or {"preset": "small"}))
+        self.ngc, kind = decoder_and_kind(ngc, None if isinstance(ngc, nn.Module) else "ngc")
+        if kind != "ngc":
+            raise ValueError(f"the shape-latent model needs an NGC decoder, got a {kind} one")
+        sd = keywords(shape_decoder, ShapeDecoder)
+        self.hparams.update(ngc=dict(self.ngc.config), shape_decoder=sd)
+        self.make_optimizer = optimizer_factory(optimizer)
         self.shape_decoder = ShapeDecoder(latent_dim, self.template.size, self.template.n_gcs,
-                                          self.ngc.code_dim, **(shape_decoder or {}))
+                                          self.ngc.code_dim, **sd)
         self.latents = nn.Embedding(n_shapes, latent_dim)
         nn.init.normal_(self.latents.weight, 0.0, latent_init_std)
         self.register_buffer("target_params", torch.zeros(n_shapes, self.template.size,
@@ -121,7 +128,7 @@ class ShapeLatentModule(L.LightningModule):
 
     def configure_optimizers(self):
         hp = self.hparams
-        opt = torch.optim.Adam([
+        opt = self.make_optimizer([
             {"params": list(self.ngc.parameters()) + list(self.shape_decoder.parameters()),
              "lr": hp.lr},
             {"params": self.latents.parameters(), "lr": hp.latent_lr},

@@ -1,22 +1,18 @@
 """DeepSDF baseline decoder (Park et al. 2019): world xyz + per-shape code -> SDF.
 
-The `paper` preset is DeepSDF's 8 x 512 with the latent+xyz skip into layer 4 (ReLU, tanh
-output, no dropout/weight-norm for simplicity); `small` has about the parameter count of the
-small NGC decoder so the fitting benchmark compares equal budgets.
+Sizes are presets in conf/model: `deepsdf` is DeepSDF's 8 x 512 with the latent+xyz skip into
+layer 4 (ReLU, tanh output, no dropout/weight-norm for simplicity); `deepsdf_small` has about
+the parameter count of the small NGC decoder so the fitting benchmark compares equal budgets.
 """
 from __future__ import annotations
 
 import torch
 from torch import nn
 
-PRESETS = {
-    "paper": dict(code_dim=256, hidden=512, layers=8, skip=4),
-    "small": dict(code_dim=64, hidden=96, layers=6, skip=3),
-}
-
-
 class DeepSDFDecoder(nn.Module):
-    def __init__(self, code_dim=256, hidden=512, layers=8, skip=4):
+    kind = "deepsdf"
+
+    def __init__(self, code_dim: int, hidden: int, layers: int, skip: int):
         super().__init__()
         self.config = dict(code_dim=code_dim, hidden=hidden, layers=layers, skip=skip)
         self.code_dim, self.skip = code_dim, skip
@@ -28,10 +24,6 @@ class DeepSDFDecoder(nn.Module):
             self.layers.append(nn.Linear(d, out))
             d = out + in_dim if i + 1 == skip else out
         self.out = nn.Linear(d, 1)
-
-    @staticmethod
-    def presets() -> dict[str, dict]:
-        return {k: dict(v) for k, v in PRESETS.items()}
 
     def forward(self, codes: torch.Tensor, xyz: torch.Tensor) -> torch.Tensor:
         """codes (P, code_dim), xyz (P, 3) -> sdf (P,)."""

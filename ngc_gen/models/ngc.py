@@ -1,4 +1,5 @@
-"""The NGC decoder (paper Sec. 3.2; reference code sizes in the `paper` preset).
+"""The NGC decoder (paper Sec. 3.2). Its sizes are presets in conf/model/*.yaml (small, and
+paper: the reference code's code 256, g 3x256, h 4x256, PE 6), nowhere else.
 
     f0, f1 = split(Linear(z))                 end features of a GC from its code z
     f(t)   = (1 - t) f0 + t f1,  t = clamp((u + 1) / 2, 0, 1)
@@ -8,8 +9,6 @@ g(f(t)) is the per-point feature that part mixing blends (`features` / `sdf_from
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import torch
 from torch import nn
 
@@ -17,41 +16,23 @@ from .encoding import PositionalEncoding
 from .mlp import mlp
 
 
-@dataclass(frozen=True)
-class NGCConfig:
-    code_dim: int = 256
-    feature_dim: int = 256
-    g_hidden: int = 256
-    g_layers: int = 3
-    h_hidden: int = 256
-    h_layers: int = 4
-    pe_frequencies: int = 6
-
-
-PRESETS = {
-    "paper": NGCConfig(),  # ref code: code 256, g 3x256, h 4x256, PE 6 (39 dims), SiLU
-    "small": NGCConfig(code_dim=64, feature_dim=64, g_hidden=64, g_layers=2, h_hidden=128,
-                       h_layers=3, pe_frequencies=6),  # trains in minutes on 2 CPU cores
-}
-
-
 class NGCDecoder(nn.Module):
-    """Shared network for every GC of every shape; the per-GC code selects the part."""
+    """Shared network for every GC of every shape; the per-GC code selects the part.
+    `config`: the sizes, as a checkpoint records them."""
 
-    def __init__(self, code_dim=256, feature_dim=256, g_hidden=256, g_layers=3, h_hidden=256,
-                 h_layers=4, pe_frequencies=6):
+    kind = "ngc"
+
+    def __init__(self, code_dim: int, feature_dim: int, g_hidden: int, g_layers: int,
+                 h_hidden: int, h_layers: int, pe_frequencies: int):
         super().__init__()
-        self.config = NGCConfig(code_dim, feature_dim, g_hidden, g_layers, h_hidden, h_layers,
-                                pe_frequencies).__dict__.copy()
+        self.config = dict(code_dim=code_dim, feature_dim=feature_dim, g_hidden=g_hidden,
+                           g_layers=g_layers, h_hidden=h_hidden, h_layers=h_layers,
+                           pe_frequencies=pe_frequencies)
         self.code_dim, self.feature_dim = code_dim, feature_dim
         self.ends = nn.Linear(code_dim, 2 * feature_dim)  # ref code: one Linear to 2 x dim
         self.g = mlp(feature_dim, g_hidden, g_layers - 1, g_hidden, final_activation=True)
         self.pe = PositionalEncoding(3, pe_frequencies)
         self.h = mlp(self.pe.out_dim + g_hidden, h_hidden, h_layers - 1, 1)
-
-    @staticmethod
-    def presets() -> dict[str, dict]:
-        return {k: v.__dict__.copy() for k, v in PRESETS.items()}
 
     def features(self, codes: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
         """codes (P, code_dim), u (P,) -> g(f(t)) (P, g_hidden)."""

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from ngc_gen.config import repo_root
+from ..helpers import ROOT
 from ngc_gen.data.annotations import load_annotation
 from ngc_gen.data.mesh_io import load_mesh, normalize
 from ngc_gen.data.sampling import sample_surface
@@ -17,7 +17,7 @@ EXPECTED = {
 
 @pytest.mark.parametrize("name", sorted(EXPECTED))
 def test_shipped_annotation_covers_its_mesh(name):
-    ann = load_annotation(repo_root() / "datasets" / name / f"{name}.yaml")
+    ann = load_annotation(ROOT / "datasets" / name / f"{name}.yaml")
     assert set(ann.gc_names) == EXPECTED[name]
     mesh, _, _ = normalize(load_mesh(ann.mesh), ann.bound)
     pts, _ = sample_surface(mesh.vertices, mesh.faces, 50_000, np.random.default_rng(0))

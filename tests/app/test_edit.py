@@ -8,10 +8,10 @@ from ngc_gen.data.annotations import load_annotation
 from ngc_gen.data.creatures import CREATURE_PARTS
 from ngc_gen.edit.program import EditProgram
 from ngc_gen.edit import EditError
-from ngc_gen.edit.run import available_programs, run_edit
+from ngc_gen.app.edit import available_programs, run_edit
 
-from .edit.conftest import make_module, save_checkpoint
-from .helpers import ROOT, compose_config, run_entry
+from ..edit.conftest import make_module, save_checkpoint
+from ..helpers import ROOT, compose_config, run_entry
 
 
 @pytest.fixture(scope="module")
@@ -23,7 +23,7 @@ def ckpt(tmp_path_factory):
 
 def edit(ckpt, out, *args):
     """edit.py run from out's parent folder, so any stray file would show up there."""
-    return run_entry("edit.py", f"ckpt={ckpt}", f"out_dir={out}", "resolution=40", *args,
+    return run_entry("edit.py", f"run={ckpt}", f"out_dir={out}", "extract.resolution=40", *args,
                      cwd=out.parent, timeout=300)
 
 
@@ -47,7 +47,7 @@ def test_bad_programs_fail_before_any_output(tmp_path, ckpt, ops, match):
     """In process (fast): run_edit raises EditError naming file, op, GC, field; no output."""
     prog = write_program(tmp_path, ops)
     out = tmp_path / "out"
-    cfg = compose_config("edit", [f"ckpt={ckpt}", f"out_dir={out}", "resolution=32",
+    cfg = compose_config("edit", [f"run={ckpt}", f"out_dir={out}", "extract.resolution=32",
                                   f"program_file={prog}"])
     with pytest.raises(EditError, match=match) as e:
         run_edit(cfg)
@@ -68,7 +68,7 @@ def test_bad_program_exits_2_with_one_line_and_no_output(tmp_path, ckpt):
 
 def test_shipped_program_on_a_checkpoint_without_its_shape_is_a_clear_error(tmp_path, ckpt):
     out = tmp_path / "out"
-    cfg = compose_config("edit", [f"ckpt={ckpt}", f"out_dir={out}", "edit=bent_tail"])
+    cfg = compose_config("edit", [f"run={ckpt}", f"out_dir={out}", "edit=bent_tail"])
     with pytest.raises(EditError, match="unknown shape.*'one', 'two'.*Fix: pass shape=<name>"):
         run_edit(cfg)
     assert not out.exists()
@@ -106,7 +106,7 @@ def test_shipped_programs_are_well_formed():
     assert {"bent_tail", "twisted_leg", "scaled_head", "stretched_torso", "posed_ant_leg",
             "head_swap"} <= set(names)
     for name in names:
-        cfg = compose_config("edit", [f"edit={name}", "ckpt=x"])
+        cfg = compose_config("edit", [f"edit={name}", "run=x"])
         from omegaconf import OmegaConf
 
         prog = EditProgram.from_dict(OmegaConf.to_container(cfg.edit), source=name)
@@ -133,7 +133,7 @@ def test_edited_yaml_prepares_again_in_its_own_frame(tmp_path, ckpt):
     prog = write_program(tmp_path, [{"op": "twist", "gc": "arm", "t": 0.5, "degrees": 40}],
                          name="good.yaml")
     out = tmp_path / "out"
-    run_edit(compose_config("edit", [f"ckpt={ckpt}", f"out_dir={out}", "resolution=40",
+    run_edit(compose_config("edit", [f"run={ckpt}", f"out_dir={out}", "extract.resolution=40",
                                      f"program_file={prog}", "picture=false"]))
     assert "normalize: false" in (out / "edited.yaml").read_text()
     ann = load_annotation(out / "edited.yaml")

@@ -11,7 +11,7 @@ from ngc_gen.shape import Shape
 
 def mixed_sdf_fn(decoder, codes, mixes=None):
     """The shape's per-GC field (GCs do not matter for gc_sdf: placeholders)."""
-    from .conftest import GC_DICTS
+    from ..edit.conftest import GC_DICTS
     from ngc_gen.geometry import GeneralizedCylinder
 
     gc = GeneralizedCylinder.from_dict(GC_DICTS[0])

@@ -7,15 +7,17 @@ import numpy as np
 import pytest
 import torch
 import trimesh
+from hydra.errors import ConfigCompositionException, MissingConfigException
 
 from ngc_gen.data.annotations import load_annotation
 from ngc_gen.data.errors import DataError
 from ngc_gen.shape import autodecoder_mesh, recorded_gcs
-from ngc_gen.generate import generate, interpolate, load_generator, mix, run_sample
+from ngc_gen.app.sample import generate, interpolate, mix, run_sample
+from ngc_gen.generate import load_generator
 from ngc_gen.lit.checkpoint import load_autodecoder
-from ngc_gen.stages.diffusion import run_diffusion
+from ngc_gen.app.diffusion import run_diffusion
 
-from .helpers import compose_config, run_entry
+from ..helpers import compose_config, run_entry
 
 RES = 24
 
@@ -42,7 +44,7 @@ def runs(tmp_path_factory, single_thread):
             "diffusion.denoiser.width=32", "diffusion.denoiser.depth=1", "logger=csv",
             "trainer.enable_progress_bar=false", f"run_dir={out['diff']}"]))
         r = run_entry("sample.py", f"run={out['diff']}", "mode=generate", "n=2", "seed=0",
-                      f"resolution={RES}", "progress=false", f"hydra.run.dir={out['gen']}")
+                      f"extract.resolution={RES}", "progress=false", f"hydra.run.dir={out['gen']}")
         assert r.returncode == 0, r.stderr[-3000:]
     finally:
         mp.undo()
@@ -158,7 +160,7 @@ def test_mix_with_zero_weight_is_shape_a(gen, tmp_path):
 
 def test_bad_inputs_are_clear_errors(runs, tmp_path):
     def sample(*overrides):
-        return run_sample(compose_config("sample", [f"out_dir={tmp_path}", "resolution=16",
+        return run_sample(compose_config("sample", [f"out_dir={tmp_path}", "extract.resolution=16",
                                                     "progress=false", *overrides]))
 
     with pytest.raises(DataError, match="not a shape-latent checkpoint"):
@@ -175,8 +177,10 @@ def test_bad_inputs_are_clear_errors(runs, tmp_path):
         sample(f"run={runs['gen'] / 'shapes.ckpt'}")
     with pytest.raises(DataError, match="no training shape named 'nobody'"):
         sample(f"run={runs['diff']}", "mode=interpolate", "a=nobody")
-    with pytest.raises(DataError, match="unknown mode"):
+    with pytest.raises(MissingConfigException, match="mode/dream"):   # Hydra lists the modes
         sample(f"run={runs['diff']}", "mode=dream")
+    with pytest.raises(ConfigCompositionException, match="steps"):    # interpolate's setting
+        sample(f"run={runs['diff']}", "mode=generate", "steps=3")
 
 
 def test_entry_point_exits_2_with_a_message(tmp_path):
@@ -187,10 +191,11 @@ def test_entry_point_exits_2_with_a_message(tmp_path):
 
 def test_edit_runs_unchanged_on_a_generated_shape(runs, tmp_path):
     """The generated shapes.ckpt + YAML go through edit.py's code path as a fitted shape does."""
-    from ngc_gen.edit.run import run_edit
+    from ngc_gen.app.edit import run_edit
 
-    run_edit(compose_config("edit", [f"ckpt={runs['gen'] / 'shapes.ckpt'}", "edit=bent_tail",
-                                     "shape=sample_001", "resolution=16", "chunk=2048",
+    run_edit(compose_config("edit", [f"run={runs['gen']}", "edit=bent_tail",  # sample.py's dir
+                                     "shape=sample_001", "extract.resolution=16",
+                                     "extract.chunk=2048",
                                      f"out_dir={tmp_path}"]))
     edited = load_annotation(tmp_path / "edited.yaml")
     assert edited.gc_names == load_annotation(runs["gen"] / "sample_001.yaml").gc_names

@@ -13,10 +13,19 @@ from ngc_gen.data.datamodule import PreparedDataModule
 from ngc_gen.data.errors import DataError
 from ngc_gen.data.prepare import PrepareSettings, prepare_shape
 from ngc_gen.lit.shape_latent import ShapeLatentModule
-from ngc_gen.stages.shape_latent import template_and_targets
+from ngc_gen.app.shape_latent import template_and_targets
+
+from ..helpers import compose_config
 
 
 pytestmark = pytest.mark.usefixtures("single_thread")
+
+
+def decoder_sizes(model: str) -> dict:
+    """The NGC decoder sizes of conf/model/<model>.yaml."""
+    d = dict(compose_config(overrides=[f"model={model}"]).model.decoder)
+    d.pop("_target_")
+    return d
 
 
 @pytest.fixture(scope="module")
@@ -37,7 +46,7 @@ def prepared(tmp_path_factory):
 def make_module(prepared, **kw):
     template, vectors = template_and_targets(prepared)
     meta = {"shapes": [{"name": s.name, "annotation_yaml": s.annotation_yaml} for s in prepared]}
-    m = ShapeLatentModule(len(prepared), template.to_dict(), {"preset": "small"}, latent_dim=32,
+    m = ShapeLatentModule(len(prepared), template.to_dict(), decoder_sizes("small"), latent_dim=32,
                           shape_decoder={"hidden": 64}, meta=meta, **kw)
     m.set_targets(vectors)
     return m
@@ -123,10 +132,10 @@ def test_shapes_without_a_shared_template_are_refused(prepared):
 
 def test_ngc_decoder_can_start_from_a_fit_checkpoint(prepared, tmp_path):
     from ngc_gen.lit.autodecoder import AutoDecoder
-    from ngc_gen.stages.shape_latent import init_ngc_from_fit
+    from ngc_gen.app.shape_latent import init_ngc_from_fit
 
     module = make_module(prepared)
-    for decoder, ok in (({"preset": "small"}, True), ({"preset": "paper"}, False)):
+    for decoder, ok in ((decoder_sizes("small"), True), (decoder_sizes("paper"), False)):
         fit = AutoDecoder(kind="ngc", decoder=decoder, n_codes=4)
         path = tmp_path / "fit.ckpt"
         torch.save({"hyper_parameters": dict(fit.hparams), "state_dict": fit.state_dict()}, path)

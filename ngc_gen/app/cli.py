@@ -5,6 +5,8 @@ from __future__ import annotations
 import sys
 from contextlib import contextmanager
 
+import torch
+
 from ngc_gen.data.errors import DataError
 from ngc_gen.edit.errors import EditError
 from ngc_gen.geometry import GeometryError
@@ -30,9 +32,18 @@ def set_threads(threads) -> None:
     if int(threads) < 1:
         raise DataError(f"threads must be >= 1, got {threads}", field="threads",
                         fix="pass threads=1 (shared machine) or threads=null (all cores)")
-    import torch
-
     torch.set_num_threads(int(threads))
+
+
+@contextmanager
+def torch_threads(n: int):
+    """Run the block with `n` torch intra-op threads, then restore the previous count."""
+    previous = torch.get_num_threads()
+    torch.set_num_threads(int(n))
+    try:
+        yield
+    finally:
+        torch.set_num_threads(previous)
 
 
 def run_job(fn, cfg):

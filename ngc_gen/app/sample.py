@@ -1,8 +1,9 @@
-"""What `sample.py` does: generate N shapes, interpolate between two, mix a part of one into
-another. Every mode writes, into its output directory, per shape `<name>.ply` + `<name>.yaml`
-(the GC annotation, editable), `latents.pt` ({names, latents (S, D), ...}), `shapes.ckpt` (a
-fit-format checkpoint of the shapes' codes and the NGC decoder, for `edit.py ckpt=...`) and
-`summary.json` (settings and timings); `sample.py` adds `shapes.png` (picture=true)."""
+"""What `sample.py` does (its runner): generate N shapes, interpolate between two, mix a part
+of one into another. Every mode writes, into its output directory, per shape `<name>.ply` +
+`<name>.yaml` (the GC annotation, editable), `latents.pt` ({names, latents (S, D), ...}),
+`shapes.ckpt` (a fit-format checkpoint of the shapes' codes and the NGC decoder, for
+`edit.py run=<out_dir>`) and `summary.json` (settings and timings); `sample.py` adds
+`shapes.png` (picture=true)."""
 from __future__ import annotations
 
 import json
@@ -18,10 +19,10 @@ from ngc_gen.data.errors import DataError
 from ngc_gen.edit import BLEND_PARAMS, EditError, mix_weight
 from ngc_gen.shape import Shape
 
-from .latents import lerp, slerp
-from .model import ShapeGenerator
-from .shapes import (WrittenShape, auto_chunk, decode_shapes, normalise, write_edit_checkpoint,
-                     write_shape)
+from ngc_gen.generate.latents import lerp, slerp
+from ngc_gen.generate.model import ShapeGenerator
+from ngc_gen.generate.shapes import (WrittenShape, auto_chunk, decode_shapes, normalise,
+                                     write_edit_checkpoint, write_shape)
 
 MODES = ("generate", "interpolate", "mix")
 LATENTS_KIND = "ngc_gen.generated_latents"
@@ -79,7 +80,7 @@ def write_outputs(gen: ShapeGenerator, out_dir: Path, mode: str, written: list[W
     for s in written:
         print(f"  {s.name:20s} {s.n_faces:7d} faces   {s.annotation.name}")
     if edit:
-        print(f"edit one: python edit.py ckpt={ckpt} shape={edit[0].name} edit=<program>")
+        print(f"edit one: python edit.py run={out_dir} shape={edit[0].name} edit=<program>")
     return summary
 
 
@@ -182,16 +183,17 @@ def run_sample(cfg) -> dict:
     """Dispatch `sample.py` (conf/sample.yaml) to a mode."""
     from omegaconf import OmegaConf
 
-    from .model import load_generator
+    from ngc_gen.generate.model import load_generator
 
     c = OmegaConf.to_container(cfg, resolve=True)
     mode = c["mode"]
     _check(mode in MODES, f"unknown mode {mode!r}", "mode", f"use one of {', '.join(MODES)}")
-    _check(int(c["resolution"]) >= 8, f"resolution must be >= 8, got {c['resolution']}",
-           "resolution", "use e.g. 128 (default) or 256")
+    ex = c["extract"]
+    _check(int(ex["resolution"]) >= 8, f"resolution must be >= 8, got {ex['resolution']}",
+           "extract.resolution", "use e.g. 128 (default) or 256")
     gen = load_generator(c["run"], c.get("shape_latent_run"))
-    common = dict(seed=int(c["seed"]), resolution=int(c["resolution"]), bound=float(c["bound"]),
-                  chunk=None if c["chunk"] is None else int(c["chunk"]), sampler=c["sampler"],
+    common = dict(seed=int(c["seed"]), resolution=int(ex["resolution"]), bound=float(ex["bound"]),
+                  chunk=None if ex["chunk"] is None else int(ex["chunk"]), sampler=c["sampler"],
                   normalised=bool(c["normalise"]), progress=bool(c["progress"]))
     out_dir = Path(c["out_dir"])
     if mode == "generate":

@@ -7,7 +7,7 @@ outputs are then written atomically into the output folder:
     undeformed.ply   the NGC mesh of the shape as fitted (same resolution and union)
     deformed.ply     the NGC mesh after the program (edited GCs, mixed features)
     edited.yaml      annotation with the edited GCs (ngc_gen.data.load_annotation reads it;
-                     its mesh is deformed.ply); `extract_shape(..., gcs=...)` can use them
+                     its mesh is deformed.ply)
     program.yaml     the program as run (shape filled in)
     metrics.json     eps_v, eps_a (deformed vs undeformed), volumes, areas, timings, op log
 """
@@ -21,21 +21,37 @@ import numpy as np
 import torch
 import yaml
 
-from ngc_gen.config import repo_root
 from ngc_gen.data.annotations import Annotation
 from ngc_gen.data.atomic import atomic_write, atomic_write_text
 from ngc_gen.data.errors import DataError
 from ngc_gen.lit.checkpoint import load_autodecoder
 from ngc_gen.shape import shapes_from_autodecoder
 
-from .errors import EditError
-from .program import EditProgram, MixSource
+from ngc_gen.edit.errors import EditError
+from ngc_gen.edit.program import EditProgram, MixSource
 
-CONF_EDIT = "conf/edit"
+PROGRAMS = "ngc_gen/conf/edit"  # the shipped programs: package data, Hydra group `edit`
 
 
 def available_programs() -> list[str]:
-    return sorted(p.stem for p in (repo_root() / CONF_EDIT).glob("*.yaml"))
+    """Names of the shipped edit programs (found in the installed package, not the checkout)."""
+    import importlib.resources
+
+    folder = importlib.resources.files("ngc_gen.conf").joinpath("edit")
+    return sorted(f.name[:-5] for f in folder.iterdir() if f.name.endswith(".yaml"))
+
+
+def fit_checkpoint(run) -> Path:
+    """The checkpoint edit.py reads: a fit run directory (its checkpoints/last.ckpt), a
+    checkpoint file, or a sample.py output directory (its shapes.ckpt)."""
+    from ngc_gen.lit.checkpoint import resolve_checkpoint
+
+    if run is not None and Path(run).is_dir() and (Path(run) / "shapes.ckpt").is_file() \
+            and not (Path(run) / "checkpoints").is_dir():
+        return Path(run) / "shapes.ckpt"
+    return resolve_checkpoint(run, what="fit run",
+                              fix="pass run=<dir> (or its checkpoints/last.ckpt) of a `train.py "
+                                  "stage=fit` run, or run=<a sample.py output directory>")
 
 
 def load_program_file(path) -> EditProgram:
@@ -53,7 +69,7 @@ def load_program_file(path) -> EditProgram:
 
 
 def program_from_config(cfg) -> EditProgram:
-    """The program of an edit config: `edit` (a conf/edit/*.yaml composed by Hydra) or
+    """The program of an edit config: `edit` (a shipped program composed by Hydra) or
     `program_file` (any YAML path); exactly one of them."""
     from omegaconf import OmegaConf
 
@@ -64,13 +80,13 @@ def program_from_config(cfg) -> EditProgram:
                         + (" (got both)" if file is not None else ""))
     if file is not None:
         return load_program_file(file)
-    source = CONF_EDIT + "/<edit>.yaml"
+    source = PROGRAMS + "/<edit>.yaml"
     try:
         from hydra.core.hydra_config import HydraConfig
 
         choice = HydraConfig.get().runtime.choices.get("edit")
         if choice:  # None when composed inside another app (the pipeline stage)
-            source = f"{CONF_EDIT}/{choice}.yaml"
+            source = f"{PROGRAMS}/{choice}.yaml"
     except ValueError:  # composed outside @hydra.main (tests, notebooks)
         pass
     return EditProgram.from_dict(OmegaConf.to_container(composed, resolve=True), source=source)
@@ -149,13 +165,11 @@ def run_edit(cfg) -> dict:
     """Validate and apply the program, extract both meshes, then write every output."""
     t_start = time.perf_counter()
     program = program_from_config(cfg)
-    if cfg.get("ckpt") is None:
-        raise DataError("no checkpoint given",
-                        fix="pass ckpt=<run>/checkpoints/last.ckpt of a `train.py stage=fit` run")
-    module = load_autodecoder(cfg.ckpt)
+    ckpt = fit_checkpoint(cfg.get("run"))
+    module = load_autodecoder(ckpt)
     if module.hparams.kind != "ngc":
-        raise DataError(f"{cfg.ckpt} holds a {module.hparams.kind} model; edits need NGC GCs",
-                        fix="pass a checkpoint fitted with model=small or model=paper")
+        raise DataError(f"{ckpt} holds a {module.hparams.kind} model; edits need NGC GCs",
+                        fix="pass a run fitted with model=small or model=paper")
     shapes = shapes_from_autodecoder(module)
     names = list(shapes)
     shape = cfg.get("shape") or program.shape
@@ -168,12 +182,13 @@ def run_edit(cfg) -> dict:
     gcs = original.gcs
 
     t0 = time.perf_counter()
-    edited = original.edited(program, CheckpointSources(module, cfg.ckpt, shape))
+    edited = original.edited(program, CheckpointSources(module, ckpt, shape))
     t_edit = time.perf_counter() - t0
     log = edited.info["edit_log"]
     mixes = {original.gc_names[j]: m.label for j, m in edited.mixes.items()}
 
-    kw = dict(resolution=int(cfg.resolution), bound=float(cfg.bound), chunk=int(cfg.chunk))
+    ex = cfg.extract
+    kw = dict(resolution=int(ex.resolution), bound=float(ex.bound), chunk=int(ex.chunk))
     t0 = time.perf_counter()
     before = original.replaced(smooth=program.smooth_union).mesh(**kw)
     t_before = time.perf_counter() - t0
@@ -182,7 +197,7 @@ def run_edit(cfg) -> dict:
     t_after = time.perf_counter() - t0
 
     metrics = {"program": program.name, "program_file": program.source, "shape": shape,
-               "checkpoint": str(cfg.ckpt), "resolution": int(cfg.resolution),
+               "checkpoint": str(ckpt), "resolution": int(ex.resolution),
                "smooth_union": program.smooth_union}
     # the runner is a stage in all but location: it reads the (higher) eval layer's metric
     from ngc_gen.eval import volume_area_change

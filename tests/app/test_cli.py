@@ -2,10 +2,10 @@
 import pytest
 import torch
 
-from ngc_gen.cli import run_job, set_threads
+from ngc_gen.app.cli import run_job, set_threads
 from ngc_gen.data.errors import DataError
 
-from .helpers import run_entry
+from ..helpers import run_entry
 
 
 def test_set_threads_sets_torch_and_null_keeps_it():

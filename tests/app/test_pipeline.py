@@ -8,9 +8,9 @@ import trimesh
 
 from ngc_gen.data.annotations import load_annotation
 from ngc_gen.data.errors import DataError
-from ngc_gen.stages.pipeline import STEPS, plan, run_pipeline
+from ngc_gen.app.pipeline import STEPS, plan, run_pipeline
 
-from .helpers import compose_config, run_entry
+from ..helpers import compose_config, run_entry
 
 
 def demo(*overrides):
@@ -23,7 +23,7 @@ def test_demo_plan_links_every_step(tmp_path):
     fit, edit, sl, diff, sample = steps.values()
     assert fit.stage == "fit" and fit.data.name == "demo" and fit.trainer.max_steps == 1500
     assert fit.run_dir == str(tmp_path / "fit")
-    assert edit.ckpt == str(tmp_path / "fit/checkpoints/last.ckpt")
+    assert edit.run == str(tmp_path / "fit") and edit.extract.resolution == 160
     assert edit.edit.name == "posed_ant_leg" and edit.out_dir == str(tmp_path / "edit")
     assert sl.stage == "shape_latent" and sl.data.name == "creatures" and sl.data.split == "train"
     recipe = compose_config(overrides=["experiment=generate"])  # bench/generate.py's
@@ -32,6 +32,7 @@ def test_demo_plan_links_every_step(tmp_path):
     assert diff.stage == "diffusion" and diff.shape_latent_run == str(tmp_path / "shape_latent")
     assert diff.diffusion.max_steps == recipe.diffusion.max_steps
     assert sample.run == str(tmp_path / "diffusion") and sample.mode == "generate"
+    assert sample.n == 16 and sample.extract.resolution == 128
     assert sample.out_dir == str(tmp_path / "sample")
 
 
@@ -84,12 +85,13 @@ def tiny_run(tmp_path_factory):
             "train.py", "experiment=demo", f"hydra.run.dir={base}/run",
             "pipeline.fit=" + _q("data=creatures", "data.n=4", "data.limit=2", *data,
                                  "extract.resolution=24"),
-            "pipeline.edit=" + _q("edit=bent_tail", "resolution=24"),
+            "pipeline.edit=" + _q("edit=bent_tail", "extract.resolution=24"),
             "pipeline.shape_latent=" + _q("data=creatures", "data.n=4", *data,
                                           "shape_latent.latent_dim=16", "shape_latent.preview=0"),
             "pipeline.diffusion=" + _q("trainer.max_steps=30", "diffusion.denoiser.width=32",
                                        "diffusion.denoiser.depth=1"),
-            "pipeline.sample=" + _q("mode=generate", "n=2", "resolution=24", "progress=false"))
+            "pipeline.sample=" + _q("mode=generate", "n=2", "extract.resolution=24",
+                                    "progress=false"))
     finally:
         mp.undo()
     assert r.returncode == 0, r.stderr[-3000:]

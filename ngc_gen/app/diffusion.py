@@ -12,11 +12,14 @@ from __future__ import annotations
 import json
 
 import torch
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig
 
 from ngc_gen.data.atomic import atomic_write_text
 
 from .shape_latent import with_stage_steps
+
+# settings of the `diffusion` group the stage reads itself (not LatentDiffusion arguments)
+RUNNER_KEYS = ("batch_size", "batches_per_epoch", "max_steps")
 
 
 @torch.no_grad()
@@ -36,11 +39,10 @@ def run_diffusion(cfg: DictConfig) -> dict:
     import lightning as L
     from torch.utils.data import DataLoader, RandomSampler, TensorDataset
 
-    from ngc_gen.lit.diffusion import LatentDiffusion
     from ngc_gen.lit.checkpoint import resolve_checkpoint
     from ngc_gen.lit.shape_latent import FIX, ShapeLatentModule
 
-    from .training import start_run, train
+    from .training import instantiate_group, start_run, train
 
     cfg = with_stage_steps(cfg, "diffusion")
     ckpt = resolve_checkpoint(cfg.shape_latent_run, FIX, "shape-latent run").resolve()
@@ -48,28 +50,25 @@ def run_diffusion(cfg: DictConfig) -> dict:
     latents = shape_latent.latents.weight.detach().float().clone()
     run_dir = start_run(cfg)
 
-    d = OmegaConf.to_container(cfg.diffusion, resolve=True)
     L.seed_everything(cfg.seed, workers=True, verbose=False)
-    module = LatentDiffusion(
-        latents.shape[1], denoiser=d["denoiser"], lr=d["lr"], P_mean=d["P_mean"],
-        P_std=d["P_std"], ema_halflife_steps=d["ema_halflife_steps"],
-        ema_rampup=d["ema_rampup"], standardise=d["standardise"],
+    module = instantiate_group(
+        cfg.diffusion, RUNNER_KEYS, dim=latents.shape[1],
         meta={"shape_latent_checkpoint": str(ckpt), "names": shape_latent.names,
               "n_latents": int(len(latents))})
     module.fit_standardisation(latents)
     before = module.evaluate_loss(latents, seed=1, repeats=8)
     dataset = TensorDataset(latents)
-    batch = min(int(d["batch_size"]), len(latents))
-    sampler = RandomSampler(dataset, num_samples=batch * int(d["batches_per_epoch"]),
+    batch = min(int(cfg.diffusion.batch_size), len(latents))
+    sampler = RandomSampler(dataset, num_samples=batch * int(cfg.diffusion.batches_per_epoch),
                             generator=torch.Generator().manual_seed(int(cfg.seed)))
     loader = DataLoader(dataset, batch_size=batch, sampler=sampler, drop_last=True)
-    trainer, train_s = train(cfg, run_dir, module, loader)
+    trainer, train_s, start_step = train(cfg, run_dir, module, loader)
     if trainer.global_rank != 0:
         return {}
     module = module.cpu().eval()
     after = module.evaluate_loss(latents, seed=1, repeats=8, use_ema=True)
     samples = module.sample(min(256, 4 * len(latents)), seed=0)
-    metrics = {"steps": int(trainer.global_step), "train_s": train_s,
+    metrics = {"steps": int(trainer.global_step), "start_step": start_step, "train_s": train_s,
                "n_latents": int(len(latents)), "dim": int(latents.shape[1]),
                "edm_loss_untrained": before, "edm_loss_ema": after,
                **nearest_neighbour_stats(samples, latents, module.latent_std),

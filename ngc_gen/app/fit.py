@@ -8,14 +8,18 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import torch
-from omegaconf import DictConfig, OmegaConf
+import trimesh
+import hydra
+from omegaconf import DictConfig
+from tqdm import tqdm
 
-from ngc_gen.data.atomic import atomic_write_text
+from ngc_gen.data.atomic import atomic_write, atomic_write_text
 from ngc_gen.data.prepare import PreparedShape
 
 from .prepare import prepare_dataset
-from .training import start_run, train
+from .training import instantiate_group, start_run, train
 
 
 def shapes_meta(prepared: list[PreparedShape], kind: str) -> dict:
@@ -29,27 +33,28 @@ def shapes_meta(prepared: list[PreparedShape], kind: str) -> dict:
     return {"shapes": shapes}
 
 
-def build_module(cfg: DictConfig, n_codes: int, meta: dict):
-    from ngc_gen.lit.autodecoder import AutoDecoder
+def model_kind(cfg: DictConfig) -> str:
+    """'ngc' or 'deepsdf': the kind of the `model` group's decoder class (not built)."""
+    return hydra.utils.get_class(cfg.model.decoder._target_).kind
 
-    m = OmegaConf.to_container(cfg.model, resolve=True)
-    return AutoDecoder(kind=m.pop("kind"), decoder=m.pop("decoder"), n_codes=n_codes, meta=meta,
-                       **m)
+
+def build_module(cfg: DictConfig, n_codes: int, meta: dict):
+    """The `model` group's AutoDecoder (`_target_`) with n_codes codes."""
+    return instantiate_group(cfg.model, n_codes=n_codes, meta=meta)
 
 
 def run_fit(cfg: DictConfig) -> dict:
     import lightning as L
 
     from ngc_gen.data.datamodule import PreparedDataModule
-    from ngc_gen.extract.shapes import reconstruct
 
     run_dir = start_run(cfg)
     prepared = prepare_dataset(cfg)
     L.seed_everything(cfg.seed, workers=True, verbose=False)
-    dm = PreparedDataModule(prepared, mode=cfg.model.kind, batch_size=cfg.batch_size,
-                            seed=cfg.seed)
-    module = build_module(cfg, dm.n_codes, shapes_meta(prepared, cfg.model.kind))
-    trainer, train_s = train(cfg, run_dir, module, datamodule=dm)
+    kind = model_kind(cfg)
+    dm = PreparedDataModule(prepared, mode=kind, batch_size=cfg.batch_size, seed=cfg.seed)
+    module = build_module(cfg, dm.n_codes, shapes_meta(prepared, kind))
+    trainer, train_s, start_step = train(cfg, run_dir, module, datamodule=dm)
     if trainer.global_rank != 0:
         return {}
     module = module.cpu().eval()
@@ -58,7 +63,8 @@ def run_fit(cfg: DictConfig) -> dict:
         metrics = reconstruct(module, run_dir / "meshes", gt, resolution=cfg.extract.resolution,
                               bound=cfg.extract.bound, chunk=cfg.extract.chunk,
                               seed=cfg.metrics_seed)
-    metrics.update(steps=int(trainer.global_step), train_s=train_s, kind=cfg.model.kind,
+    metrics.update(steps=int(trainer.global_step), start_step=start_step, train_s=train_s,
+                   kind=kind,
                    checkpoint=str(run_dir / "checkpoints" / "last.ckpt"))
     atomic_write_text(run_dir / "metrics.json", json.dumps(metrics, indent=2))
     render_comparison(gt, run_dir)
@@ -90,3 +96,31 @@ def print_metrics(metrics: dict) -> None:
         print(f"{name:20s}{vals}{str(m.get('watertight', '')):>12s}")
     print("cd: DeepSDF Chamfer (30k points each way, squared, summed means); hd: Hausdorff; "
           "emd: exact assignment on 2048 points; fscore@0.01")
+
+
+def reconstruct(module, out_dir: Path, gt: dict, resolution: int = 256, bound: float = 1.0,
+                chunk: int = 65536, seed: int = 0) -> dict:
+    """Extract every shape into out_dir/<name>.ply and score it against its ground truth
+    gt[name] = (vertices, faces) in the normalised frame. Returns {shapes, mean}."""
+    from ngc_gen.eval import reconstruction_metrics
+    from ngc_gen.shape import autodecoder_mesh
+
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    per = {}
+    shapes = module.hparams.meta["shapes"]
+    for i, meta in enumerate(tqdm(shapes, desc="extract", unit="shape", disable=len(shapes) < 2)):
+        res = autodecoder_mesh(module, i, resolution, bound, chunk)
+        atomic_write(out_dir / f"{meta['name']}.ply",
+                     lambda f, m=res.mesh: f.write(m.export(file_type="ply")))
+        V, F = gt[meta["name"]]
+        m = reconstruction_metrics(res.mesh, trimesh.Trimesh(V, F, process=False), seed=seed)
+        m.update(n_network_evals=int(res.stats["n_network_evals"]),
+                 extract_s=float(res.stats["seconds"]))
+        per[meta["name"]] = {k: (float(v) if isinstance(v, (float, np.floating)) else v)
+                             for k, v in m.items()}
+    keys = [k for k, v in next(iter(per.values())).items()
+            if isinstance(v, (int, float)) and not isinstance(v, bool)]
+    mean = {k: float(np.mean([p[k] for p in per.values()])) for k in keys}
+    mean["watertight"] = float(np.mean([bool(p.get("watertight")) for p in per.values()]))
+    return {"shapes": per, "mean": mean, "resolution": resolution}

@@ -8,9 +8,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import torch
 import trimesh
 
-from .helpers import ROOT, run_entry
+from ngc_gen.lit.checkpoint import load_autodecoder
+
+from ..helpers import ROOT, run_entry
 
 FAST = ["stage=fit", "data=folder", "model=small", "batch_size=2048", "prepare.n_samples=20000",
         "extract.resolution=64", "trainer.enable_progress_bar=false"]
@@ -47,7 +50,9 @@ def test_fit_recovers_a_watertight_mesh(torus_folder, tmp_path):
     # measured 9e-4 after 300 steps (an untrained network gives > 1e-2): bound with headroom
     assert torus["cd"] < 3e-3, torus
     assert torus["watertight"] and torus["gt_watertight"]
-    assert metrics["steps"] == 300
+    assert metrics["steps"] == 300 and metrics["start_step"] == 0
+    module = load_autodecoder(run / "checkpoints/last.ckpt")  # weights_only: plain hparams
+    assert module.kind == "ngc" and module.hparams.decoder["code_dim"] == 64
     mesh = trimesh.load(run / "meshes/torus.ply")
     assert mesh.is_watertight
     parts = mesh.split(only_watertight=False)
@@ -75,11 +80,14 @@ def test_resume_after_kill_continues_to_the_same_step(torus_folder, tmp_path):
     p.send_signal(signal.SIGKILL)
     p.wait()
     assert ckpt.exists() and not (run / "metrics.json").exists(), "run finished before the kill"
+    saved_step = torch.load(ckpt, map_location="cpu", weights_only=True)["global_step"]
+    assert 0 < saved_step < steps
 
     r = fit(torus_folder, run, cache, f"trainer.max_steps={steps}", "extract.resolution=32",
-            f"ckpt_path={ckpt}")
+            f"ckpt_path={run}")  # a run directory: its checkpoints/last.ckpt
     assert r.returncode == 0, r.stderr[-3000:]
     resumed = json.loads((run / "metrics.json").read_text())
+    assert resumed["start_step"] == saved_step  # 0 if the checkpoint were ignored
     assert resumed["steps"] == steps
     a, b = final_l1(base), final_l1(run)
     assert abs(a - b) < 0.5 * max(a, b), (a, b)  # within training noise of each other

@@ -5,7 +5,7 @@
 Each step is an ordinary run of `train.py`, `edit.py` or `sample.py`, composed from its own
 config with the overrides listed under `pipeline.<step>` (what you would type after that
 command) and written to `<run>/<step>/`, exactly as the single command would write it. A step
-that reads an earlier one gets the link filled in (edit: `ckpt=<run>/fit/checkpoints/last.ckpt`,
+that reads an earlier one gets the link filled in (edit: `run=<run>/fit`,
 diffusion: `shape_latent_run=<run>/shape_latent`, sample: `run=<run>/diffusion`) unless its
 overrides set it. Every step's config is composed
 before the first one runs, so a typo fails in seconds, not after the fit. At the end the run
@@ -30,7 +30,7 @@ STEPS = {"fit": ("train", "run_dir"), "edit": ("edit", "out_dir"),
          "shape_latent": ("train", "run_dir"), "diffusion": ("train", "run_dir"),
          "sample": ("sample", "out_dir")}
 # step -> (the step it reads, the override that points at it)
-LINKS = {"edit": ("fit", "ckpt={}/checkpoints/last.ckpt"),
+LINKS = {"edit": ("fit", "run={}"),
          "diffusion": ("shape_latent", "shape_latent_run={}"),
          "sample": ("diffusion", "run={}")}
 
@@ -42,7 +42,7 @@ def _fail(what: str, step: str | None = None, fix: str = "") -> DataError:
 def plan(cfg: DictConfig, run_dir: Path) -> list[tuple[str, DictConfig]]:
     """[(step, composed config)] in run order; DataError for an unknown step, a missing link or
     an override Hydra rejects, before anything runs."""
-    from ngc_gen.config import compose_config
+    from .config import compose_config
 
     p = cfg.get("pipeline")
     if not p or not p.get("steps"):
@@ -83,16 +83,16 @@ def plan(cfg: DictConfig, run_dir: Path) -> list[tuple[str, DictConfig]]:
 
 
 def run_step(step: str, cfg: DictConfig) -> dict:
-    from ngc_gen.cli import set_threads
+    from .cli import set_threads
 
     set_threads(cfg.get("threads"))
     if step == "edit":
-        from ngc_gen.edit.run import run_edit
+        from .edit import run_edit
         return run_edit(cfg)
     if step == "sample":
-        from ngc_gen.generate import run_sample
+        from .sample import run_sample
         return run_sample(cfg)
-    from . import run_stage
+    from .stages import run_stage
     return run_stage(cfg)
 
 

@@ -16,13 +16,17 @@ from pathlib import Path
 import numpy as np
 import torch
 import yaml
-from omegaconf import DictConfig, OmegaConf, open_dict
+from omegaconf import DictConfig, open_dict
 
 from ngc_gen.data.atomic import atomic_write, atomic_write_text
 from ngc_gen.data.errors import DataError
 from ngc_gen.data.prepare import PreparedShape
 
+from .training import instantiate_group, start_run, train
+
 LATENTS_KIND = "ngc_gen.shape_latents"
+# settings of the `shape_latent` group the stage reads itself (not ShapeLatentModule arguments)
+RUNNER_KEYS = ("init_decoder", "max_steps", "preview", "preview_resolution")
 
 
 def with_stage_steps(cfg: DictConfig, group: str) -> DictConfig:
@@ -49,32 +53,21 @@ def template_and_targets(prepared: list[PreparedShape]):
     return template, vectors
 
 
-def ngc_config(cfg: DictConfig) -> dict:
-    """Explicit NGC decoder sizes from the `model` group (presets resolved)."""
-    from ngc_gen.models import build_decoder
-
-    m = OmegaConf.to_container(cfg.model, resolve=True)
-    if m.get("kind") != "ngc":
-        raise DataError(f"stage shape_latent needs an NGC decoder, model.kind is {m.get('kind')!r}",
-                        field="model", fix="use model=small or model=paper")
-    return dict(build_decoder("ngc", **m["decoder"]).config)
-
-
 def build_module(cfg: DictConfig, template, vectors, prepared: list[PreparedShape]):
-    from ngc_gen.lit.shape_latent import ShapeLatentModule
+    """The `shape_latent` group's ShapeLatentModule (`_target_`; its NGC decoder is the `model`
+    group's), with the annotated parameter vectors as targets."""
+    from .fit import model_kind
 
-    c = OmegaConf.to_container(cfg.shape_latent, resolve=True)
+    if model_kind(cfg) != "ngc":
+        raise DataError(f"stage shape_latent needs an NGC decoder, model is {model_kind(cfg)!r}",
+                        field="model", fix="use model=small or model=paper")
     meta = {"dataset": str(cfg.data.name),
             "shapes": [{"name": s.name, "annotation_yaml": s.annotation_yaml} for s in prepared]}
-    module = ShapeLatentModule(
-        n_shapes=len(prepared), template=template.to_dict(), ngc=ngc_config(cfg),
-        latent_dim=c["latent_dim"], shape_decoder=c["decoder"], lr=c["lr"],
-        latent_lr=c["latent_lr"], param_weight=c["param_weight"], latent_reg=c["latent_reg"],
-        latent_init_std=c["latent_init_std"], latent_noise=c["latent_noise"], clamp=c["clamp"],
-        lr_min_factor=c["lr_min_factor"], meta=meta)
+    module = instantiate_group(cfg.shape_latent, RUNNER_KEYS, n_shapes=len(prepared),
+                               template=template.to_dict(), meta=meta)
     module.set_targets(vectors)
-    if c.get("init_decoder"):
-        init_ngc_from_fit(module, c["init_decoder"])
+    if cfg.shape_latent.get("init_decoder"):
+        init_ngc_from_fit(module, cfg.shape_latent.init_decoder)
     return module
 
 
@@ -137,7 +130,6 @@ def run_shape_latent(cfg: DictConfig) -> dict:
     from ngc_gen.data.datamodule import PreparedDataModule
 
     from .prepare import prepare_dataset
-    from .training import start_run, train
 
     cfg = with_stage_steps(cfg, "shape_latent")
     run_dir = start_run(cfg)
@@ -146,14 +138,15 @@ def run_shape_latent(cfg: DictConfig) -> dict:
     L.seed_everything(cfg.seed, workers=True, verbose=False)
     dm = PreparedDataModule(prepared, mode="ngc", batch_size=cfg.batch_size, seed=cfg.seed)
     module = build_module(cfg, template, vectors, prepared)
-    trainer, train_s = train(cfg, run_dir, module, datamodule=dm)
+    trainer, train_s, start_step = train(cfg, run_dir, module, datamodule=dm)
     if trainer.global_rank != 0:
         return {}
     module = module.cpu().eval()
     last = run_dir / "checkpoints" / "last.ckpt"
     save_latents(run_dir / "latents.pt", module, last)
     metrics = evaluate(module, dm)
-    metrics.update(steps=int(trainer.global_step), train_s=train_s, n_shapes=len(prepared),
+    metrics.update(steps=int(trainer.global_step), start_step=start_step, train_s=train_s,
+                   n_shapes=len(prepared),
                    latent_dim=int(module.hparams.latent_dim), n_params=template.size,
                    gcs=template.names, checkpoint=str(last),
                    latents=str(run_dir / "latents.pt"))

@@ -1,0 +1,29 @@
+"""The package's layering (DESIGN.md section 1): imports point down the layer list (import-linter's
+contract in pyproject.toml), and only the runner layer changes process-wide state."""
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+from .helpers import ROOT
+
+# calls that change the whole process: torch threads, log handlers, warning filters, resolvers
+PROCESS_WIDE = re.compile(r"set_num_threads\(|warnings\.(filterwarnings|simplefilter)\(|"
+                          r"register_new_resolver\(|logging\.basicConfig\(|\.(add|remove)Handler\(")
+
+
+def test_imports_follow_the_layers():
+    lint = Path(sys.executable).parent / "lint-imports"
+    r = subprocess.run([str(lint), "--no-cache"], cwd=ROOT, capture_output=True, text=True,
+                       env={**os.environ, "PYTHONPATH": str(ROOT)}, timeout=300)
+    assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-2000:]
+    assert "1 kept, 0 broken" in r.stdout
+
+
+def test_only_the_runner_layer_sets_process_wide_state():
+    offenders = [f"{p.relative_to(ROOT)}:{i}" for p in sorted((ROOT / "ngc_gen").rglob("*.py"))
+                 if "app" not in p.relative_to(ROOT / "ngc_gen").parts[:1]
+                 for i, line in enumerate(p.read_text().splitlines(), 1)
+                 if PROCESS_WIDE.search(line)]
+    assert not offenders, offenders
