@@ -192,6 +192,8 @@ def run_sample(cfg) -> dict:
     _check(int(ex["resolution"]) >= 8, f"resolution must be >= 8, got {ex['resolution']}",
            "extract.resolution", "use e.g. 128 (default) or 256")
     gen = load_generator(c["run"], c.get("shape_latent_run"))
+    if c.get("latents"):
+        gen.add_latents(c["latents"])
     common = dict(seed=int(c["seed"]), resolution=int(ex["resolution"]), bound=float(ex["bound"]),
                   chunk=None if ex["chunk"] is None else int(ex["chunk"]), sampler=c["sampler"],
                   normalised=bool(c["normalise"]), progress=bool(c["progress"]))

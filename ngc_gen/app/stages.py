@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from omegaconf import DictConfig
 
-STAGES = ("prepare", "fit", "shape_latent", "diffusion", "pipeline")
+STAGES = ("prepare", "fit", "shape_latent", "diffusion", "reconstruct", "pipeline")
 
 
 def run_stage(cfg: DictConfig):
@@ -19,6 +19,9 @@ def run_stage(cfg: DictConfig):
     if cfg.stage == "diffusion":
         from .diffusion import run_diffusion
         return run_diffusion(cfg)
+    if cfg.stage == "reconstruct":
+        from .reconstruct import run_reconstruct
+        return run_reconstruct(cfg)
     if cfg.stage == "pipeline":
         from .pipeline import run_pipeline
         return run_pipeline(cfg)

@@ -7,7 +7,7 @@ no sampling). Shapes are named by training shape name (str) or generated index (
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import torch
@@ -25,6 +25,23 @@ class ShapeGenerator:
     shape_latent: object                 # ShapeLatentModule
     diffusion: object | None = None      # LatentDiffusion
     source: str = ""
+    extra: dict = field(default_factory=dict)  # name -> latent (D,): reconstructed shapes
+
+    def add_latents(self, path) -> list[str]:
+        """Make the shapes of a latents file (`train.py stage=reconstruct` into this model's
+        shape-latent run) resolvable by name; their latents must have this model's size."""
+        from ngc_gen.lit.checkpoint import load_checkpoint_dict
+
+        d = load_checkpoint_dict(Path(path), fix="pass latents=<reconstruct run>/latents.pt")
+        z, names = d.get("latents"), d.get("names")
+        dim = self.train_latents.shape[1]
+        if not isinstance(z, torch.Tensor) or z.ndim != 2 or z.shape[1] != dim \
+                or not isinstance(names, list) or len(names) != len(z):
+            raise DataError(f"{path} does not hold named latents of size {dim} (this model's)",
+                            field="latents", fix="pass the latents.pt of a `train.py "
+                            "stage=reconstruct run=<this model's shape-latent run>` run")
+        self.extra.update({str(n): v.float() for n, v in zip(names, z)})
+        return [str(n) for n in names]
 
     @property
     def names(self) -> list[str]:
@@ -83,6 +100,8 @@ class ShapeGenerator:
         if spec is None:
             raise DataError("no shape given", field="a/b",
                             fix="pass a training shape name or a generated shape index")
+        if str(spec) in self.extra:
+            return str(spec), self.extra[str(spec)].clone()
         names = self.names
         if str(spec) not in names:
             shown = ", ".join(names[:6]) + (", ..." if len(names) > 6 else "")

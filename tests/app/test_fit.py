@@ -39,10 +39,16 @@ def final_l1(run_dir: Path) -> float:
     return float(np.mean(vals[-3:]))
 
 
-def test_fit_recovers_a_watertight_mesh(torus_folder, tmp_path):
-    run = tmp_path / "run"
-    r = fit(torus_folder, run, tmp_path / "cache", "trainer.max_steps=300",
+@pytest.fixture(scope="module")
+def torus_run(torus_folder, tmp_path_factory):
+    base = tmp_path_factory.mktemp("torus_fit")
+    r = fit(torus_folder, base / "run", base / "cache", "trainer.max_steps=300",
             "trainer.log_every_n_steps=10")
+    return base / "run", r
+
+
+def test_fit_recovers_a_watertight_mesh(torus_run):
+    run, r = torus_run
     assert r.returncode == 0, r.stderr[-3000:]
     assert (run / "checkpoints/last.ckpt").is_file() and (run / "config.yaml").is_file()
     metrics = json.loads((run / "metrics.json").read_text())
@@ -91,3 +97,29 @@ def test_resume_after_kill_continues_to_the_same_step(torus_folder, tmp_path):
     assert resumed["steps"] == steps
     a, b = final_l1(base), final_l1(run)
     assert abs(a - b) < 0.5 * max(a, b), (a, b)  # within training noise of each other
+
+
+def test_reconstruct_puts_a_new_mesh_into_the_fit_with_the_decoder_frozen(torus_run, tmp_path):
+    """stage=reconstruct: only the new shape's codes move; the result is a fit checkpoint that
+    edit.py opens, and the new mesh is recovered about as well as the fitted one."""
+    from ngc_gen.app.stages import run_stage
+    from ngc_gen.shape import load_shapes
+
+    from ..helpers import compose_config
+
+    run, _ = torus_run
+    folder = tmp_path / "new"
+    folder.mkdir()
+    trimesh.creation.torus(major_radius=0.6, minor_radius=0.2).export(folder / "thin.ply")
+    out = tmp_path / "rec"
+    metrics = run_stage(compose_config(overrides=[
+        "stage=reconstruct", f"run={run}", "data=folder", f"data.path={folder}",
+        f"paths.cache_dir={tmp_path / 'cache'}", "prepare.n_samples=20000", "batch_size=2048",
+        "reconstruct.max_steps=150", "extract.resolution=64", "trainer.enable_progress_bar=false",
+        f"run_dir={out}"]))
+    fitted = json.loads((run / "metrics.json").read_text())["shapes"]["torus"]["cd"]
+    assert metrics["shapes"]["thin"]["cd"] < max(3 * fitted, 3e-3), (metrics["shapes"], fitted)
+    before = load_autodecoder(run / "checkpoints/last.ckpt").decoder.state_dict()
+    after = load_autodecoder(out / "checkpoints/last.ckpt").decoder.state_dict()
+    assert all(torch.equal(before[k], after[k]) for k in before)  # the decoder never moved
+    assert list(load_shapes(out)) == ["thin"]  # what edit.py run=<out> opens

@@ -200,3 +200,31 @@ def test_edit_runs_unchanged_on_a_generated_shape(runs, tmp_path):
     edited = load_annotation(tmp_path / "edited.yaml")
     assert edited.gc_names == load_annotation(runs["gen"] / "sample_001.yaml").gc_names
     assert len(trimesh.load(tmp_path / "deformed.ply", process=False).faces) > 0
+
+
+def test_reconstruct_a_held_out_creature_and_interpolate_to_a_generated_one(runs, tmp_path):
+    """stage=reconstruct into the shape-latent run: one latent for the held-out creature (the
+    decoders frozen); sample.py interpolates from it to a generated shape by name."""
+    from ngc_gen.app.stages import run_stage
+
+    base = runs["sl"].parent
+    out = tmp_path / "rec"
+    common = ["data=creatures", "data.n=4", f"data.out_dir={base}/data",
+              f"prepare.cache_dir={base}/prepared", "prepare.n_samples=4000",
+              "+prepare.coverage_samples=4000", "batch_size=1024",
+              "trainer.enable_progress_bar=false"]
+    metrics = run_stage(compose_config(overrides=[
+        "stage=reconstruct", f"run={runs['sl']}", *common, "data.split=test",
+        "reconstruct.max_steps=40", f"extract.resolution={RES}", f"run_dir={out}"]))
+    held_out = json.loads((base / "data/split.json").read_text())["test"]
+    lat = torch.load(out / "latents.pt", weights_only=True)
+    assert lat["names"] == held_out and lat["latents"].shape == (1, 16)
+    assert set(metrics["shapes"]) == set(held_out) and (out / "shapes.ckpt").is_file()
+    run_sample(compose_config("sample", [
+        f"run={runs['diff']}", "mode=interpolate", f"latents={out / 'latents.pt'}",
+        f"a={held_out[0]}", "b=0", "steps=3", f"extract.resolution={RES}", "progress=false",
+        "picture=false", f"out_dir={tmp_path / 'interp'}"]))
+    z = torch.load(tmp_path / "interp/latents.pt", weights_only=True)["latents"]
+    assert torch.equal(z[0], lat["latents"][0])
+    with pytest.raises(DataError, match="named latents of size 16"):
+        load_generator(runs["diff"]).add_latents(runs["sl"] / "checkpoints/last.ckpt")

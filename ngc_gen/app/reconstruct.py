@@ -1,0 +1,157 @@
+"""Stage `reconstruct`: put new meshes into a trained model (DeepSDF's `reconstruct`).
+
+    python train.py stage=reconstruct run=<fit or shape-latent run> data=folder data.path=DIR
+
+A fit run: the new shapes' per-GC codes are optimised with the decoder frozen; the run's
+checkpoints/last.ckpt is a fit checkpoint of the new shapes (`edit.py run=<this run>`).
+A shape-latent run: one latent per new shape is optimised with the shape decoder and the NGC
+decoder frozen (the shapes' annotations must follow the model's GC template); the run writes
+latents.pt (sample.py can interpolate from them: `latents=<this run>/latents.pt`) and
+shapes.ckpt (the decoded shapes, for edit.py). Both write meshes/<name>.ply and metrics.json
+(Chamfer etc. against the input meshes, as stage=fit does).
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import torch
+from omegaconf import DictConfig, open_dict
+
+from ngc_gen.data.atomic import atomic_write, atomic_write_text
+from ngc_gen.data.errors import DataError
+
+FIX = ("pass run=<dir or checkpoint> of a `train.py stage=fit` run (codes) or a "
+       "`train.py stage=shape_latent` run (latents)")
+
+
+def checkpoint_kind(run) -> tuple[Path, str]:
+    from ngc_gen.lit.checkpoint import load_checkpoint_dict, resolve_checkpoint
+
+    path = resolve_checkpoint(run, fix=FIX, what="run to reconstruct into")
+    kind = load_checkpoint_dict(path, fix=FIX).get("hyper_parameters", {}).get("checkpoint_kind")
+    return path, kind
+
+
+def run_reconstruct(cfg: DictConfig) -> dict:
+    from ngc_gen.lit.autodecoder import CHECKPOINT_KIND as FIT
+    from ngc_gen.lit.shape_latent import CHECKPOINT_KIND as SHAPE_LATENT
+
+    path, kind = checkpoint_kind(cfg.get("run"))
+    if kind not in (FIT, SHAPE_LATENT):
+        raise DataError(f"{path} is neither a fit nor a shape-latent checkpoint (kind {kind!r})",
+                        field="run", fix=FIX)
+    cfg = cfg.copy()
+    with open_dict(cfg):
+        cfg.trainer.max_steps = int(cfg.reconstruct.max_steps)
+    if kind == FIT:
+        return _codes(cfg, path)
+    return _latents(cfg, path)
+
+
+def _codes(cfg: DictConfig, path: Path) -> dict:
+    import lightning as L
+
+    from ngc_gen.data.datamodule import PreparedDataModule
+    from ngc_gen.lit.checkpoint import load_autodecoder
+    from ngc_gen.lit.reconstruct import codes_only_autodecoder
+
+    from .fit import print_metrics, reconstruct, render_comparison, shapes_meta
+    from .prepare import prepare_dataset
+    from .training import start_run, train
+
+    fit = load_autodecoder(path)
+    run_dir = start_run(cfg)
+    prepared = prepare_dataset(cfg)
+    kind = fit.hparams.kind
+    L.seed_everything(cfg.seed, workers=True, verbose=False)
+    dm = PreparedDataModule(prepared, mode=kind, batch_size=cfg.batch_size, seed=cfg.seed)
+    module = codes_only_autodecoder(fit, dm.n_codes, shapes_meta(prepared, kind),
+                                    code_lr=float(cfg.reconstruct.code_lr))
+    trained = train(cfg, run_dir, module, datamodule=dm)
+    if trained.trainer.global_rank != 0:
+        return {}
+    module = module.cpu().eval()
+    gt = {s.name: (s.mesh_vertices, s.mesh_faces) for s in prepared}
+    with torch.no_grad():
+        metrics = reconstruct(module, run_dir / "meshes", gt, resolution=cfg.extract.resolution,
+                              bound=cfg.extract.bound, chunk=cfg.extract.chunk,
+                              seed=cfg.metrics_seed)
+    metrics.update(into=str(path), kind=kind, steps=int(trained.trainer.global_step),
+                   train_s=trained.seconds,
+                   checkpoint=str(run_dir / "checkpoints" / "last.ckpt"))
+    atomic_write_text(run_dir / "metrics.json", json.dumps(metrics, indent=2))
+    render_comparison(gt, run_dir)
+    print_metrics(metrics)
+    print(f"run directory: {run_dir}\nedit one: python edit.py run={run_dir} "
+          f"shape={prepared[0].name} edit=<program>")
+    return metrics
+
+
+def _latents(cfg: DictConfig, path: Path) -> dict:
+    import lightning as L
+    import trimesh
+
+    from ngc_gen.data.datamodule import PreparedDataModule
+    from ngc_gen.eval import reconstruction_metrics
+    from ngc_gen.generate.shapes import (auto_chunk, decode_shapes, normalise,
+                                         write_edit_checkpoint, write_shape)
+    from ngc_gen.lit.reconstruct import latent_only_module
+    from ngc_gen.lit.shape_latent import ShapeLatentModule
+
+    from .fit import print_metrics
+    from .prepare import prepare_dataset
+    from .shape_latent import save_latents, template_and_targets
+    from .training import start_run, train
+
+    trained_model = ShapeLatentModule.from_checkpoint(path)
+    run_dir = start_run(cfg)
+    prepared = prepare_dataset(cfg)
+    template, vectors = template_and_targets(prepared)
+    if template.to_dict() != trained_model.template.to_dict():
+        raise DataError(f"the meshes' GCs ({template.names}) do not follow the model's GC "
+                        f"template ({trained_model.template.names}, with the same curve degrees "
+                        "and keys)", field="data",
+                        fix="annotate the meshes with the model's template (e.g. held-out "
+                            "creatures), or reconstruct into a fit run instead")
+    meta = {"dataset": str(cfg.data.name), "reconstructed_into": str(path),
+            "shapes": [{"name": s.name, "annotation_yaml": s.annotation_yaml} for s in prepared]}
+    module = latent_only_module(trained_model, vectors, meta,
+                                latent_lr=float(cfg.reconstruct.latent_lr),
+                                param_weight=cfg.reconstruct.param_weight)
+    L.seed_everything(cfg.seed, workers=True, verbose=False)
+    dm = PreparedDataModule(prepared, mode="ngc", batch_size=cfg.batch_size, seed=cfg.seed)
+    trained = train(cfg, run_dir, module, datamodule=dm)
+    if trained.trainer.global_rank != 0:
+        return {}
+    module = module.cpu().eval()
+    last = run_dir / "checkpoints" / "last.ckpt"
+    save_latents(run_dir / "latents.pt", module, last)
+    res = int(cfg.extract.resolution)
+    per, written = {}, []
+    with torch.no_grad():
+        shapes = decode_shapes(module, module.latents.weight, module.names)
+        for shape, s in zip(shapes, prepared):
+            mesh = shape.mesh(res, float(cfg.extract.bound), chunk=auto_chunk(res),
+                              progress=False).mesh
+            gt = trimesh.Trimesh(s.mesh_vertices, s.mesh_faces, process=False)
+            per[shape.name] = {k: v for k, v in reconstruction_metrics(
+                mesh, gt, seed=cfg.metrics_seed).items() if isinstance(v, (int, float, bool))}
+            atomic_write(run_dir / "meshes" / f"{shape.name}.ply",
+                         lambda f, m=mesh: f.write(m.export(file_type="ply")))
+            m, gcs, _, _ = normalise(mesh, shape.gc_dicts())
+            written.append(write_shape(run_dir / "shapes", shape.name, m, gcs, shape.codes))
+    write_edit_checkpoint(run_dir / "shapes.ckpt", module.ngc, written,
+                          source=f"train.py stage=reconstruct run={path}")
+    keys = [k for k, v in next(iter(per.values())).items() if not isinstance(v, bool)]
+    mean = {k: float(sum(p[k] for p in per.values()) / len(per)) for k in keys}
+    metrics = {"shapes": per, "mean": mean, "into": str(path), "kind": "shape_latent",
+               "steps": int(trained.trainer.global_step), "train_s": trained.seconds,
+               "checkpoint": str(last), "latents": str(run_dir / "latents.pt"),
+               "edit_checkpoint": str(run_dir / "shapes.ckpt"), "resolution": res}
+    atomic_write_text(run_dir / "metrics.json", json.dumps(metrics, indent=2))
+    print_metrics(metrics)
+    print(f"run directory: {run_dir}\ninterpolate toward a generated shape: python sample.py "
+          f"run=<diffusion run> mode=interpolate latents={run_dir / 'latents.pt'} "
+          f"a={prepared[0].name} b=0")
+    return metrics
