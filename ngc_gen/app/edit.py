@@ -109,9 +109,14 @@ class CheckpointSources:
         self._loaded: dict[Path, object] = {}
 
     def _module(self, ckpt):
-        if ckpt is None or Path(ckpt).resolve() == self.path:
+        if ckpt is None:
             return self.module
-        path = Path(ckpt).resolve()
+        try:
+            path = fit_checkpoint(ckpt).resolve()  # a run directory or a checkpoint file
+        except DataError as e:
+            raise EditError(str(e), field="source.ckpt", value=str(ckpt)) from None
+        if path == self.path:
+            return self.module
         if path not in self._loaded:
             try:
                 other = load_autodecoder(path)

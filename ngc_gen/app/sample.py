@@ -19,7 +19,7 @@ from ngc_gen.data.errors import DataError
 from ngc_gen.edit import BLEND_PARAMS, EditError, mix_weight
 from ngc_gen.shape import Shape
 
-from ngc_gen.generate.latents import lerp, slerp
+from ngc_gen.generate.latents import latent_path
 from ngc_gen.generate.model import ShapeGenerator
 from ngc_gen.generate.shapes import (WrittenShape, auto_chunk, decode_shapes, normalise,
                                      write_edit_checkpoint, write_shape)
@@ -120,13 +120,7 @@ def interpolate(gen: ShapeGenerator, out_dir, a=0, b=1, steps: int = 8, seed: in
     out_dir = Path(out_dir)
     name_a, za = gen.resolve(a, seed, **(sampler or {}))
     name_b, zb = gen.resolve(b, seed, **(sampler or {}))
-    alphas = torch.linspace(0.0, 1.0, int(steps), dtype=torch.float64)
-    if method == "lerp":
-        latents = lerp(za.double(), zb.double(), alphas)
-    else:
-        latents = slerp(za.double(), zb.double(), alphas, gen.train_latents.double().mean(0))
-    latents = latents.float()
-    latents[0], latents[-1] = za, zb
+    alphas, latents = latent_path(za, zb, int(steps), method, gen.train_latents.double().mean(0))
     names = [f"interp_{k:02d}" for k in range(int(steps))]
     shapes = decode_shapes(gen.shape_latent, latents, names)
     for s, al in zip(shapes, alphas.tolist()):

@@ -72,9 +72,11 @@ def build_module(cfg: DictConfig, template, vectors, prepared: list[PreparedShap
 
 
 def init_ngc_from_fit(module, path) -> None:
-    """Start the NGC decoder from a `stage=fit` checkpoint with the same decoder sizes."""
-    from ngc_gen.lit.checkpoint import load_autodecoder
+    """Start the NGC decoder from a `stage=fit` run (directory or checkpoint) with the same
+    decoder sizes."""
+    from ngc_gen.lit.checkpoint import FIT_FIX, load_autodecoder, resolve_checkpoint
 
+    path = resolve_checkpoint(path, FIT_FIX, "fit run")
     fit = load_autodecoder(path)
     if fit.hparams.kind != "ngc" or dict(fit.decoder.config) != dict(module.ngc.config):
         raise DataError(f"{path}: its decoder ({fit.hparams.kind}, {fit.decoder.config}) differs "

@@ -1,4 +1,4 @@
-"""Latent-space helpers: per-shape seeds, linear and spherical interpolation."""
+"""Latent-space helpers: per-shape seeds, linear and spherical interpolation, paths."""
 from __future__ import annotations
 
 import numpy as np
@@ -34,3 +34,19 @@ def slerp(a: torch.Tensor, b: torch.Tensor, alpha: torch.Tensor,
     out[alpha == 0] = a       # exact endpoints (sin(pi) etc. are not exactly 0 in float)
     out[alpha == 1] = b
     return out
+
+
+def latent_path(a: torch.Tensor, b: torch.Tensor, steps: int, method: str = "lerp",
+                center: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+    """`steps` latents from a to b (D,): (alphas (S,) float64 from 0 to 1, latents (S, D) in a's
+    dtype), by lerp, or slerp about `center`; computed in float64, the ends exactly a and b."""
+    if method not in ("lerp", "slerp"):
+        raise ValueError(f"unknown interpolation {method!r}; use lerp or slerp")
+    alphas = torch.linspace(0.0, 1.0, int(steps), dtype=torch.float64)
+    if method == "lerp":
+        out = lerp(a.double(), b.double(), alphas)
+    else:
+        out = slerp(a.double(), b.double(), alphas, None if center is None else center.double())
+    out = out.to(a.dtype)
+    out[0], out[-1] = a, b
+    return alphas, out

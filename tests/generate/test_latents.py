@@ -1,9 +1,11 @@
-"""Latent-space helpers of sample.py: per-shape seeds, lerp and slerp."""
+"""Latent-space helpers of sample.py: per-shape seeds, lerp, slerp and interpolation paths."""
 import math
 
 import torch
 
-from ngc_gen.generate import latent_seed, lerp, slerp
+import pytest
+
+from ngc_gen.generate import latent_path, latent_seed, lerp, slerp
 
 
 def test_latent_seeds_are_distinct_and_stable():
@@ -35,3 +37,17 @@ def test_slerp_follows_the_great_circle():
     torch.testing.assert_close(slerp(a + c, b + c, al, center=c), p + c)
     # parallel vectors fall back to lerp
     torch.testing.assert_close(slerp(a, 2 * a, al), lerp(a, 2 * a, al))
+
+
+def test_latent_path_ends_at_the_two_latents_in_their_dtype():
+    g = torch.Generator().manual_seed(1)
+    a, b = torch.randn(16, generator=g), torch.randn(16, generator=g)
+    alphas, path = latent_path(a, b, 5)
+    assert path.dtype == torch.float32 and torch.equal(path[0], a) and torch.equal(path[-1], b)
+    assert alphas.tolist() == [0.0, 0.25, 0.5, 0.75, 1.0]
+    torch.testing.assert_close(path[2], (a + b) / 2)
+    _, arc = latent_path(a, b, 5, "slerp", center=torch.zeros(16))
+    assert torch.equal(arc[0], a) and torch.equal(arc[-1], b)
+    assert float(arc[2].norm()) > float(path[2].norm())  # the arc bulges out, the chord does not
+    with pytest.raises(ValueError, match="lerp or slerp"):
+        latent_path(a, b, 3, "cubic")
