@@ -233,7 +233,7 @@ def test_each_entry_point_composes_its_own_groups():
 
 @pytest.mark.parametrize("script, groups", [
     ("train.py", {"callbacks", "data", "diffusion", "experiment", "extract", "logger", "model",
-                  "paths", "prepare", "shape_latent", "trainer"}),
+                  "paths", "prepare", "reconstruct", "shape_latent", "trainer"}),
     ("edit.py", {"edit", "extract"}),
     ("sample.py", {"extract", "mode"}),
 ])
