@@ -9,16 +9,20 @@ parameters that vary in the training data,
     r(s) = z(s) - z*,          z* = (theta* - mean) / std,     gc error = rms(r)  (std units)
 
 Guidance (reconstruction guidance on the denoised estimate, in the EDM symbols): at every
-sampler evaluation the denoised estimate D(x; sigma) (standardised latent space) is moved by a
-damped Gauss-Newton step on r,
+sampler evaluation the denoised estimate D(x; sigma) (standardised latents, sigma_data = 1) is
+replaced by the posterior mean of the clean latent given x AND the condition, for a decoder
+linearised at D, a clean latent ~ N(D, c_out(sigma)^2 I) given x, and GC parameters observed
+with noise std 1/w (std units):
 
-    D~(x; sigma) = D(x; sigma) - w (J^T J + mu I)^-1 J^T r(D),      J = dr/dD
+    D~(x; sigma) = D - (J^T J + (w c_out(sigma))^-2 I)^-1 J^T r(D),     J = dr/dD
 
-so w in [0, 1] is the fraction of the (linearised) GC residual removed at each step, and the
-step is the smallest latent change that does it: latent directions the condition does not
-constrain (the other GCs, the surface detail) keep what the diffusion model sampled. After the
-sampler, `project_steps` more steps of the same kind on the latent itself (the decoder alone)
-remove what is left. Strength w = 0 is the unconditional sampler, bit for bit.
+w = `strength` is the precision of the condition: 0 is the unconditional sampler bit for bit,
+10 asks for the GCs within about 0.1 std. The step is the smallest latent change that removes
+the residual where the condition constrains the latent (J large against 1/(w c_out)); latent
+directions it does not constrain keep what the diffusion model sampled (the other GCs, surface
+detail). c_out -> sigma at low noise, so the correction fades as the sample settles;
+`project_steps` more steps with scale 1 on the final latent (decoder only) remove what is left
+(at the cost of diversity: bench/condition.py --sweep measures both).
 
 "Replace GCs" (`replace_gcs`): the output takes the conditioned GCs verbatim (the user's
 drawing, including its `up`) and keeps the sampled codes and the other decoded GCs.
@@ -200,10 +204,21 @@ class GuidedDenoiser:
 def project(shape_decoder, diffusion, latents: torch.Tensor, cond: GCCondition, strength: float,
             steps: int) -> torch.Tensor:
     """`steps` posterior steps (scale 1: the prior std of standardised latents) on latents
-    (B, D) (original space) after sampling. Returns float32 latents."""
+    (B, D) (original space) after sampling, each halved (up to 5 times) until it lowers the GC
+    error of every latent: a far target makes the linearised step overshoot. float32 latents."""
     x = diffusion.standardise(latents.to(torch.float64))
+
+    def err(x):
+        return gc_error(shape_decoder, diffusion.destandardise(x), cond)
+
     for _ in range(int(steps)):
-        x = x - posterior_step(shape_decoder, diffusion, x, cond, strength, 1.0)
+        step, before = posterior_step(shape_decoder, diffusion, x, cond, strength, 1.0), err(x)
+        for _ in range(6):
+            worse = err(x - step) >= before
+            if not bool(worse.any()):
+                break
+            step = torch.where(worse[:, None], 0.5 * step, step)
+        x = torch.where((err(x - step) < before)[:, None], x - step, x)
     return diffusion.destandardise(x).to(torch.float32)
 
 
