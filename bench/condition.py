@@ -354,8 +354,9 @@ def main():
           f"Chamfer (x1e-3) "
           f"conditional {1e3 * res['cd_conditional']:.3f}, unconditional "
           f"{1e3 * res['cd_unconditional']:.3f}, refit {1e3 * res['cd_refit']:.3f}; diversity "
-          f"{1e3 * res['diversity']:.3f} (unconditional {1e3 * res['diversity_unconditional']:.3f});"
-          f" {1e3 * res['s_per_sample']:.0f} ms/sample guided vs "
+          f"{1e3 * res['diversity']:.3f} (unconditional "
+          f"{1e3 * res['diversity_unconditional']:.3f}); "
+          f"{1e3 * res['s_per_sample']:.0f} ms/sample guided vs "
           f"{1e3 * res['s_per_sample_unconditional']:.0f} plain; load {load_at_start[0]:.1f}")
     print(f"targets: {res['targets']}; total {res['total_s'] / 60:.1f} min; "
           f"{RESULTS / 'condition.json'}")

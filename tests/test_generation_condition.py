@@ -142,18 +142,22 @@ def test_replace_takes_the_target_gcs_and_keeps_the_codes(gen, target):
             assert d == decoded
 
 
+def with_points(d: dict, points) -> dict:
+    return {**d, "curve": {"type": "bezier", "points": points}}
+
+
+def with_keys(d: dict, **values) -> dict:
+    return {**d, "keys": [{**k, **values} for k in d["keys"]]}
+
+
 @pytest.mark.parametrize("bad, match", [
     (lambda gcs: [{**gcs[0], "name": "wing"}], "no GC named 'wing'"),
-    (lambda gcs: [{**gcs[1], "curve": {"type": "bezier",
-                                       "points": gcs[1]["curve"]["points"] + [[0.1, 0.2, 0.3]]}}],
+    (lambda gcs: [with_points(gcs[1], gcs[1]["curve"]["points"] + [[0.1, 0.2, 0.3]])],
      "curve degree 3.*template's is 2"),
-    (lambda gcs: [{**gcs[2], "curve": {"type": "bezier",
-                                       "points": [[float("nan"), 0, 0]] + gcs[2]["curve"]["points"][1:]}}],
+    (lambda gcs: [with_points(gcs[2], [[float("nan"), 0, 0]] + gcs[2]["curve"]["points"][1:])],
      "NaN or inf"),
-    (lambda gcs: [{**gcs[3], "keys": [{**k, "twist": float("inf")} for k in gcs[3]["keys"]]}],
-     "twist must be finite"),
-    (lambda gcs: [{**gcs[4], "keys": [{**k, "radii": [float("nan"), 0.1]}
-                                      for k in gcs[4]["keys"]]}], "radii"),
+    (lambda gcs: [with_keys(gcs[3], twist=float("inf"))], "twist must be finite"),
+    (lambda gcs: [with_keys(gcs[4], radii=[float("nan"), 0.1])], "radii"),
     (lambda gcs: [{**gcs[0], "keys": gcs[0]["keys"][:3]}], "key t's"),
     (lambda gcs: [gcs[0], gcs[0]], "given twice"),
     (lambda gcs: [], "non-empty list"),

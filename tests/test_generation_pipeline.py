@@ -1,6 +1,6 @@
 """Generation end to end on a tiny run: `train.py stage=shape_latent` -> `stage=diffusion` ->
-`sample.py` (generate, interpolate, mix, condition), the files a generated shape needs to be edited, seed
-reproducibility, and clear errors (exit 2) for bad inputs."""
+`sample.py` (generate, interpolate, mix, condition), the files a generated shape needs to be
+edited, seed reproducibility, and clear errors (exit 2) for bad inputs."""
 import json
 
 import numpy as np

@@ -204,8 +204,8 @@ class GuidedDenoiser:
 def project(shape_decoder, diffusion, latents: torch.Tensor, cond: GCCondition, strength: float,
             steps: int) -> torch.Tensor:
     """`steps` posterior steps (scale 1: the prior std of standardised latents) on latents
-    (B, D) (original space) after sampling, each halved (up to 5 times) until it lowers the GC
-    error of every latent: a far target makes the linearised step overshoot. float32 latents."""
+    (B, D) (original space) after sampling, each halved (at most 6 times) until it lowers the
+    GC error (else not taken): a far target makes the linearised step overshoot. float32."""
     x = diffusion.standardise(latents.to(torch.float64))
 
     def err(x):
