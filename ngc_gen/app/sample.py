@@ -21,10 +21,10 @@ from ngc_gen.shape import Shape
 
 from ngc_gen.generate.latents import latent_path
 from ngc_gen.generate.model import ShapeGenerator
-from ngc_gen.generate.shapes import (WrittenShape, auto_chunk, decode_shapes, normalise,
+from ngc_gen.generate.shapes import (BOUND, WrittenShape, auto_chunk, decode_shapes, normalise,
                                      write_edit_checkpoint, write_shape)
 
-MODES = ("generate", "interpolate", "mix")
+MODES = ("generate", "interpolate", "mix", "condition")
 LATENTS_KIND = "ngc_gen.generated_latents"
 
 
@@ -55,7 +55,8 @@ def extract_and_write(gen: ShapeGenerator, shapes: list[Shape], out_dir: Path,
         if len(mesh.faces) == 0:
             tqdm.write(f"warning: {shape.name}: the decoded SDF has no zero level set inside its "
                        f"GCs (empty mesh)")
-        written.append(write_shape(out_dir, shape.name, mesh, gcs, shape.codes, info))
+        written.append(write_shape(out_dir, shape.name, mesh, gcs, shape.codes, info,
+                                   BOUND if normalised else None))
     return written, seconds
 
 
@@ -194,6 +195,10 @@ def run_sample(cfg) -> dict:
     out_dir = Path(c["out_dir"])
     if mode == "generate":
         summary = generate(gen, out_dir, n=int(c["n"]), **common)
+    elif mode == "condition":
+        from .condition import condition
+        kw = {k: v for k, v in common.items() if k != "normalised"}  # the given GCs' frame
+        summary = condition(gen, out_dir, gcs=c["gcs"], n=int(c["n"]), **c["condition"], **kw)
     elif mode == "interpolate":
         summary = interpolate(gen, out_dir, a=c["a"], b=c["b"], steps=int(c["steps"]),
                               method=c["interp"], **common)
@@ -201,7 +206,12 @@ def run_sample(cfg) -> dict:
         params = {k: c[k] for k in BLEND_PARAMS.get(c["blend"], ()) if c.get(k) is not None}
         summary = mix(gen, out_dir, a=c["a"], b=c["b"], part=c["part"], blend=c["blend"],
                       blend_params=params, geometry=c.get("geometry", "source"), **common)
-    if c.get("picture", True):
+    if c.get("picture", True) and mode == "condition":
+        from .condition import render_condition
+        picture = render_condition(summary, out_dir / "shapes.png")
+        if picture is not None:
+            print(f"picture: {picture}")
+    elif c.get("picture", True):
         picture = render_shapes(summary, out_dir / "shapes.png", one_row=mode != "generate")
         if picture is not None:
             print(f"picture: {picture}")

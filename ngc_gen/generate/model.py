@@ -64,14 +64,15 @@ class ShapeGenerator:
     @torch.no_grad()
     def sample_latents(self, indices, seed: int, steps: int = 18, churn: float = 0.0,
                        S_min: float = 0.0, S_max: float | None = None, S_noise: float = 1.0,
-                       use_ema: bool = True) -> torch.Tensor:
+                       use_ema: bool = True, guide=None) -> torch.Tensor:
         """Latents (len(indices), D) of generated shapes `indices` under `seed`: shape i is the
-        EDM sample from noise seeded by latent_seed(seed, i) (independent of the other shapes)."""
+        EDM sample from noise seeded by latent_seed(seed, i) (independent of the other shapes).
+        guide: a denoiser wrapper for conditional sampling (LatentDiffusion.sample)."""
         self._need_diffusion("sampling new shapes")
         kw = dict(steps=int(steps), churn=float(churn), S_min=float(S_min),
                   S_max=float("inf") if S_max is None else float(S_max),
                   S_noise=float(S_noise), use_ema=bool(use_ema))
-        out = [self.diffusion.sample(1, seed=latent_seed(seed, int(i)), **kw)[0]
+        out = [self.diffusion.sample(1, seed=latent_seed(seed, int(i)), guide=guide, **kw)[0]
                for i in indices]
         return torch.stack(out) if out else torch.zeros(0, self.train_latents.shape[1])
 

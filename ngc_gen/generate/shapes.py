@@ -53,9 +53,12 @@ def normalise(mesh: trimesh.Trimesh, gcs: list[dict], bound: float = BOUND):
     return out, [similar_gc_dict(d, center, scale) for d in gcs], center, scale
 
 
-def annotation_yaml(name: str, mesh: str, gcs: list[dict], bound: float = BOUND) -> str:
-    """Annotation YAML of DESIGN.md section 2 (mesh path as given)."""
-    d = {"name": name, "mesh": mesh, "normalize": {"bound": float(bound)}, "gcs": [rounded_gc_dict(d) for d in gcs]}
+def annotation_yaml(name: str, mesh: str, gcs: list[dict], bound: float | None = BOUND) -> str:
+    """Annotation YAML of DESIGN.md section 2 (mesh path as given); bound None writes
+    `normalize: false` (mesh and GCs in the decoder's frame, not normalised)."""
+    d = {"name": name, "mesh": mesh,
+         "normalize": False if bound is None else {"bound": float(bound)},
+         "gcs": [rounded_gc_dict(g) for g in gcs]}
     return yaml.safe_dump(d, sort_keys=False, default_flow_style=None, width=100)
 
 
@@ -70,20 +73,23 @@ class WrittenShape:
     gcs: list[dict]
     n_faces: int
     info: dict = field(default_factory=dict)
+    bound: float | None = BOUND      # the YAML's normalize bound (None: normalize: false)
 
 
 def write_shape(out_dir: Path, name: str, mesh: trimesh.Trimesh, gcs: list[dict],
-                codes: torch.Tensor, info: dict | None = None) -> WrittenShape:
-    """<out_dir>/<name>.ply and <name>.yaml (mesh: <name>.ply, normalize: {bound: 0.8})."""
+                codes: torch.Tensor, info: dict | None = None,
+                bound: float | None = BOUND) -> WrittenShape:
+    """<out_dir>/<name>.ply and <name>.yaml (mesh: <name>.ply, normalize: {bound: 0.8}, or
+    normalize: false for bound None)."""
     out_dir = Path(out_dir)
     ply, yml = out_dir / f"{name}.ply", out_dir / f"{name}.yaml"
     buf = io.BytesIO()
     mesh.export(buf, file_type="ply")
     atomic_write(ply, lambda f: f.write(buf.getvalue()))
-    atomic_write_text(yml, annotation_yaml(name, ply.name, gcs))
+    atomic_write_text(yml, annotation_yaml(name, ply.name, gcs, bound))
     return WrittenShape(name, ply, yml, codes.detach().cpu().float(),
-                        [rounded_gc_dict(d) for d in gcs],
-                        len(mesh.faces), dict(info or {}))
+                        [rounded_gc_dict(g) for g in gcs], len(mesh.faces), dict(info or {}),
+                        bound)
 
 
 def write_edit_checkpoint(path: Path, ngc, shapes: list[WrittenShape], source: str = "") -> Path:
@@ -98,7 +104,7 @@ def write_edit_checkpoint(path: Path, ngc, shapes: list[WrittenShape], source: s
     for s in shapes:
         metas.append({"name": s.name, "code_offset": offset, "n_codes": len(s.codes),
                       "annotation_yaml": annotation_yaml(s.name, str(Path(s.mesh).resolve()),
-                                                         s.gcs)})
+                                                         s.gcs, s.bound)})
         offset += len(s.codes)
     module = AutoDecoder(kind="ngc", decoder=dict(ngc.config), n_codes=max(offset, 1),
                          meta={"shapes": metas, "source": source})

@@ -150,13 +150,16 @@ class LatentDiffusion(L.LightningModule):
     def sample(self, n: int, generator: torch.Generator | None = None, seed: int | None = None,
                steps: int = 18, churn: float = 0.0, S_min: float = 0.0,
                S_max: float = float("inf"), S_noise: float = 1.0, sigma_min: float = 0.002,
-               sigma_max: float = 80.0, rho: float = 7.0, use_ema: bool = True) -> torch.Tensor:
+               sigma_max: float = 80.0, rho: float = 7.0, use_ema: bool = True,
+               guide=None) -> torch.Tensor:
         """n latents (n, dim) float32 in the ORIGINAL space, on the module's device.
 
         Noise comes from `generator` (a CPU generator makes results device-independent), else
         from `seed` (default 0): the same seed gives the same latents. churn > 0 selects the
         stochastic sampler (EDM's S_churn; S_min, S_max, S_noise as in NVlabs/edm); give it more
-        steps than 18 (gamma saturates at sqrt(2) - 1 and its discretisation error is larger)."""
+        steps than 18 (gamma saturates at sqrt(2) - 1 and its discretisation error is larger).
+        guide: None, or a function (module, net) -> net' that replaces the denoiser D(x; sigma)
+        in the sampler (conditional sampling, ngc_gen.generate.condition)."""
         self._require_standardisation()
         if generator is None:
             generator = torch.Generator().manual_seed(0 if seed is None else int(seed))
@@ -173,7 +176,8 @@ class LatentDiffusion(L.LightningModule):
         try:
             noise = randn_like(torch.empty(n, self.hparams.dim, dtype=torch.float64,
                                            device=self.device))
-            x = edm_sampler(net, noise, randn_like, num_steps=steps, sigma_min=sigma_min,
+            denoiser = net if guide is None else guide(self, net)
+            x = edm_sampler(denoiser, noise, randn_like, num_steps=steps, sigma_min=sigma_min,
                             sigma_max=sigma_max, rho=rho, S_churn=churn, S_min=S_min,
                             S_max=S_max, S_noise=S_noise)
         finally:

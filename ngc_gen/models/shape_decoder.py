@@ -151,16 +151,7 @@ class GCTemplate:
     def vector(self, gcs: list[dict], where: str | None = None) -> np.ndarray:
         """GC dicts (template order) -> theta (P,) float64."""
         self.check(gcs, where)
-        parts = []
-        for d in gcs:
-            keys = d["keys"]
-            radii = [[float(k["radii"])] * 2 if np.isscalar(k["radii"]) else k["radii"]
-                     for k in keys]
-            parts += [np.asarray(d["curve"]["points"], np.float64).ravel(),
-                      np.log(np.asarray(radii, np.float64)).ravel(),
-                      np.asarray([float(k.get("twist", 0.0)) for k in keys], np.float64),
-                      np.log(np.asarray(d.get("caps", (0.1, 0.1)), np.float64))]
-        return np.concatenate(parts)
+        return np.concatenate([gc_vector(d) for d in gcs])
 
     def gc_dicts(self, theta) -> list[dict]:
         """theta (P,) (numpy or torch) -> GC dicts in annotation format (twist in degrees)."""
@@ -185,6 +176,16 @@ class GCTemplate:
                                  for t, r, w in zip(s.key_ts, radii, twist)],
                         "caps": caps.tolist()})
         return out
+
+
+def gc_vector(d: dict) -> np.ndarray:
+    """One GC dict -> its slice of theta (float64): points | log radii | twists | log caps."""
+    keys = d["keys"]
+    radii = [[float(k["radii"])] * 2 if np.isscalar(k["radii"]) else k["radii"] for k in keys]
+    return np.concatenate([np.asarray(d["curve"]["points"], np.float64).ravel(),
+                           np.log(np.asarray(radii, np.float64)).ravel(),
+                           np.asarray([float(k.get("twist", 0.0)) for k in keys], np.float64),
+                           np.log(np.asarray(d.get("caps", (0.1, 0.1)), np.float64))])
 
 
 def _check_gc(d, where) -> None:
@@ -257,10 +258,16 @@ class ShapeDecoder(nn.Module):
     def forward(self, s: torch.Tensor):
         """s (B, latent_dim) -> z (B, P) in std units, bounded to +-bound; codes (B, K, C)."""
         h = self.trunk(s)
-        b = self.bound
-        z = b * torch.tanh(self.param_head(h) / b)
         codes = self.code_head(h).reshape(len(s), self.n_gcs, self.code_dim)
-        return z, codes
+        return self._bounded(self.param_head(h)), codes
+
+    def param_z(self, s: torch.Tensor) -> torch.Tensor:
+        """s (B, latent_dim) -> z (B, P) only (no codes: conditional sampling's Jacobians)."""
+        return self._bounded(self.param_head(self.trunk(s)))
+
+    def _bounded(self, out: torch.Tensor) -> torch.Tensor:
+        b = self.bound
+        return b * torch.tanh(out / b)
 
     def decode(self, s: torch.Tensor):
         """s (B, latent_dim) -> (raw theta (B, P), codes (B, K, C))."""

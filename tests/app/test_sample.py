@@ -1,6 +1,6 @@
 """Generation end to end on a tiny run: `train.py stage=shape_latent` -> `stage=diffusion` ->
-`sample.py` (generate, interpolate, mix), the files a generated shape needs to be edited, seed
-reproducibility, and clear errors (exit 2) for bad inputs."""
+`sample.py` (generate, interpolate, mix, condition), the files a generated shape needs to be
+edited, seed reproducibility, and clear errors (exit 2) for bad inputs."""
 import json
 
 import numpy as np
@@ -8,6 +8,7 @@ import pytest
 import torch
 import trimesh
 from hydra.errors import ConfigCompositionException, MissingConfigException
+import yaml
 
 from ngc_gen.data.annotations import load_annotation
 from ngc_gen.data.errors import DataError
@@ -228,3 +229,39 @@ def test_reconstruct_a_held_out_creature_and_interpolate_to_a_generated_one(runs
     assert torch.equal(z[0], lat["latents"][0])
     with pytest.raises(DataError, match="named latents of size 16"):
         load_generator(runs["diff"]).add_latents(runs["sl"] / "checkpoints/last.ckpt")
+
+
+def test_condition_mode_takes_the_given_gcs(runs, tmp_path, write_yaml):
+    """`sample.py mode=condition gcs=<held-out creature's annotation>`: shapes + YAMLs whose GCs
+    are the given ones (replace), in the given frame, plus the picture and an edit checkpoint."""
+    split = json.loads((runs["sl"].parent / "data/split.json").read_text())
+    given = runs["sl"].parent / "data" / f"{split['test'][0]}.yaml"
+    out = tmp_path / "cond"
+    r = run_entry("sample.py", f"run={runs['diff']}", "mode=condition", f"gcs={given}", "n=2",
+                  "seed=0", f"extract.resolution={RES}", "progress=false", f"hydra.run.dir={out}")
+    assert r.returncode == 0, r.stderr[-3000:]
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["mode"] == "condition" and len(summary["gc_err_std"]) == 2
+    want = [g.to_dict() for g in load_annotation(given).gcs]
+    for name in ("cond_000", "cond_001"):
+        ann = load_annotation(out / f"{name}.yaml")
+        assert ann.bound is None                      # the given GCs' frame: normalize: false
+        got = [g.to_dict() for g in ann.gcs]
+        assert [g["name"] for g in got] == [g["name"] for g in want]
+        for a, b in zip(got, want):
+            np.testing.assert_allclose(a["curve"]["points"], b["curve"]["points"], atol=1e-9)
+            np.testing.assert_allclose([k["radii"] for k in a["keys"]],
+                                       [k["radii"] for k in b["keys"]], atol=1e-9)
+            np.testing.assert_allclose(a["caps"], b["caps"], atol=1e-9)
+        assert len(trimesh.load(out / f"{name}.ply", process=False).faces) > 0
+    assert (out / "shapes.png").is_file() and (out / "condition.yaml").is_file()
+    metas = load_autodecoder(out / "shapes.ckpt").hparams.meta["shapes"]
+    assert [m["name"] for m in metas] == ["cond_000", "cond_001"]
+
+    bad = yaml.safe_load(given.read_text())
+    bad["gcs"][0]["name"] = "wing"
+    with pytest.raises(DataError, match="GC 'wing'.*no GC named 'wing' in the template"):
+        run_sample(compose_config("sample", [
+            f"run={runs['diff']}", "mode=condition", f"gcs={write_yaml(bad)}",
+            f"out_dir={tmp_path}/bad", "extract.resolution=16", "progress=false"]))
+    assert not (tmp_path / "bad").exists()            # nothing written

@@ -1,0 +1,368 @@
+"""Generation from a skeleton benchmark (issue 15): the GCs of the 16 held-out creatures (never
+trained on) as conditions, 4 samples each, on the generation recipe of bench/generate.py (its
+runs in bench/runs/generate are reused, or trained once).
+
+    python bench/condition.py [--strength S] [--project-steps K] [--sweep]
+
+Reports (2048 surface points per shape, squared Chamfer = sum of the two mean squared nearest
+distances; every mesh in the held-out creatures' frame, no renormalisation):
+  gc_err           rms decoded GC parameter error against the condition, std units of the
+                   training parameters, before "replace" (mean over samples)
+  cd_conditional   Chamfer of the conditioned samples (GCs replaced) to the held-out creature the
+                   GCs came from
+  cd_unconditional the floor: unconditional samples from the same noise (strength 0), decoded
+  cd_refit         the ceiling: the creature's own latent fitted with the decoders frozen (SDF L1
+                   on its samples + GC parameter loss, as the shape-latent stage trains), decoded
+                   with its GCs replaced like the conditioned samples
+  diversity        mean pairwise Chamfer between the 4 samples of one condition (mean over the
+                   conditions); diversity_unconditional the same for unconditional samples
+  s_per_sample     guided latent sampling time per sample (s_per_sample_unconditional: the
+                   plain sampler, same run); mesh_s_per_sample the extraction at --resolution
+--sweep adds the GC error and the spread of the decoded GCs across samples against strength
+(latents only, no meshes), and the same for a partial condition (the four legs).
+Writes bench/results/condition.json and condition.png (a drawn skeleton, four shapes for it;
+the legs-only condition below).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "bench"))
+RUNS = ROOT / "bench/runs/condition"
+RESULTS = ROOT / "bench/results"
+LEGS = ("leg_fl", "leg_fr", "leg_bl", "leg_br")
+
+
+def defaults() -> dict:
+    """The condition settings sample.py uses (conf/sample.yaml), the bench's defaults."""
+    from ngc_gen.config import compose_config
+
+    return dict(compose_config("sample").condition)
+
+
+def refit_latent(shape_latent, prepared, steps: int, lr: float, batch: int, seed: int):
+    """A latent (1, D) for a prepared shape the decoders never saw: Adam on the shape-latent loss
+    (SDF L1 through the annotated GCs' relative coordinates + param_weight * GC parameter MSE
+    in std units + latent_reg ||s||^2) with the shape decoder and NGC decoder frozen."""
+    import torch
+    import yaml
+
+    sl, sd, hp = shape_latent, shape_latent.shape_decoder, shape_latent.hparams
+    theta = sl.template.vector(yaml.safe_load(prepared.annotation_yaml)["gcs"])
+    target = sd.normalise(torch.as_tensor(theta, dtype=torch.float64)).float()
+    gc = torch.from_numpy(prepared.pair_gc.astype(np.int64))
+    rel = torch.from_numpy(prepared.pair_rel.astype(np.float32))
+    sdf = torch.from_numpy(prepared.sdf[prepared.pair_point].astype(np.float32))
+    s = sl.latents.weight.detach().mean(0, keepdim=True).clone().requires_grad_(True)
+    opt = torch.optim.Adam([s], lr=lr)
+    g = torch.Generator().manual_seed(seed)
+    for p in sl.parameters():
+        p.requires_grad_(False)
+    for _ in range(steps):
+        idx = torch.randint(len(gc), (batch,), generator=g)
+        z, codes = sd(s)
+        pred = sl.ngc(codes[0, gc[idx]], rel[idx])
+        loss = ((pred - sdf[idx]).abs().mean()
+                + hp.param_weight * ((z[0] - target)[sd.varying] ** 2).mean()
+                + hp.latent_reg * (s * s).sum())
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+    for p in sl.parameters():
+        p.requires_grad_(True)
+    return s.detach()
+
+
+def decoder_floor(gen, cond, steps: int = 1500, lr: float = 1e-2) -> float:
+    """The lowest GC error any latent reaches: Adam on the latent alone (no prior, no bound on
+    its norm) from the best training latent. What no sampler can beat with this decoder."""
+    import torch
+
+    from ngc_gen.generate.condition import gc_error, residual
+
+    sd = gen.shape_latent.shape_decoder
+    start = int(gc_error(sd, gen.train_latents, cond).argmin())
+    s = gen.train_latents[start:start + 1].clone().requires_grad_(True)
+    opt = torch.optim.Adam([s], lr=lr)
+    for _ in range(steps):
+        opt.zero_grad()
+        residual(sd, s, cond).pow(2).mean().backward()
+        opt.step()
+    return float(gc_error(sd, s.detach(), cond)[0])
+
+
+def mesh_shapes(gen, shapes, out_dir: Path, resolution: int):
+    """Meshes (decoder frame, not renormalised) of decoded Shapes, written as sample.py does;
+    returns (meshes, seconds per mesh)."""
+    import trimesh
+
+    from ngc_gen.app.sample import extract_and_write
+
+    written, secs = extract_and_write(gen, shapes, out_dir, resolution, normalised=False,
+                                      progress=False)
+    return [trimesh.load(w.mesh, process=False) for w in written], secs
+
+
+def clouds(meshes, n_points: int):
+    from generate import clouds as _clouds
+
+    return _clouds(meshes, n_points, 0)
+
+
+def spread(gen, latents, names) -> float:
+    """Mean over the named GCs' varying parameters of their std across samples (std units)."""
+    import torch
+
+    sd = gen.shape_latent.shape_decoder
+    with torch.no_grad():
+        z = sd(latents)[0]
+    cols = [z[:, sl][:, sd.varying[sl]] for n, _, sl in gen.shape_latent.template.fields()
+            if n in names]
+    z = torch.cat(cols, 1)
+    return float(z.std(0).mean()) if len(z) > 1 else 0.0
+
+
+def sweep(gen, conds, args) -> list[dict]:
+    """GC error and GC spread across samples against strength, full and legs-only conditions."""
+    from ngc_gen.generate.condition import condition_from_gcs, conditional_latents, gc_error
+
+    sd, template = gen.shape_latent.shape_decoder, gen.shape_latent.template
+    others = [n for n in template.names if n not in LEGS]
+    rows = []
+    for strength in args.sweep_strengths:
+        for project in args.sweep_project:
+            if strength == 0 and project > 0:
+                continue
+            row = {"strength": strength, "project_steps": project}
+            for kind in ("full", "legs"):
+                errs, sp_c, sp_o, t = [], [], [], 0.0
+                for k, (name, cond) in enumerate(conds):
+                    if kind == "legs":
+                        cond = condition_from_gcs(template, [d for d in cond.gcs
+                                                             if d["name"] in LEGS])
+                    t0 = time.perf_counter()
+                    z = conditional_latents(gen, cond, range(args.sweep_per_condition),
+                                            args.seed * 1000 + k, strength, project)
+                    t += time.perf_counter() - t0
+                    errs.append(float(gc_error(sd, z, cond).mean()))
+                    if kind == "legs":
+                        sp_c.append(spread(gen, z, LEGS))
+                        sp_o.append(spread(gen, z, others))
+                row[kind] = {"gc_err": float(np.mean(errs)),
+                             "s_per_sample": t / (len(conds) * args.sweep_per_condition)}
+                if kind == "legs":
+                    row[kind].update(spread_legs=float(np.mean(sp_c)),
+                                     spread_others=float(np.mean(sp_o)))
+            rows.append(row)
+            print(f"strength {strength:6.1f} project {project}: gc_err full "
+                  f"{row['full']['gc_err']:.3f}, legs {row['legs']['gc_err']:.3f} "
+                  f"(spread legs {row['legs']['spread_legs']:.3f}, others "
+                  f"{row['legs']['spread_others']:.3f} std), "
+                  f"{1e3 * row['full']['s_per_sample']:.0f} ms/sample", flush=True)
+    return rows
+
+
+def render(rows, path: Path) -> None:
+    """rows of (given GCs as a mesh, [shapes], [titles]): one row each, one scale per row."""
+    from ngc_gen.viz import render_grid
+
+    render_grid([[g] + shapes for g, shapes, _ in rows], path,
+                titles=[titles for _, _, titles in rows], frame="row")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=int, default=64, help="creatures in the dataset (bench/generate)")
+    ap.add_argument("--test-fraction", type=float, default=0.25)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--samples", type=int, default=50_000, help="prepare.n_samples per shape")
+    ap.add_argument("--batch-size", type=int, default=8192)
+    ap.add_argument("--shape-latent-steps", type=int, default=6000)
+    ap.add_argument("--diffusion-steps", type=int, default=3000)
+    ap.add_argument("--per-condition", type=int, default=4, help="samples per condition")
+    ap.add_argument("--limit", type=int, default=None, help="use only the first held-out shapes")
+    ap.add_argument("--strength", type=float, default=None, help="default: conf/sample.yaml")
+    ap.add_argument("--project-steps", type=int, default=None, help="default: conf/sample.yaml")
+    ap.add_argument("--resolution", type=int, default=128)
+    ap.add_argument("--points", type=int, default=2048)
+    ap.add_argument("--refit-steps", type=int, default=400)
+    ap.add_argument("--refit-lr", type=float, default=1e-2)
+    ap.add_argument("--sweep", action="store_true", help="GC error vs strength (latents only)")
+    ap.add_argument("--sweep-strengths", type=float, nargs="+",
+                    default=[0.0, 1.0, 3.0, 10.0, 30.0, 100.0])
+    ap.add_argument("--sweep-project", type=int, nargs="+", default=[0, 2])
+    ap.add_argument("--sweep-per-condition", type=int, default=2)
+    ap.add_argument("--threads", type=int, default=1)
+    args = ap.parse_args()
+    load_at_start = os.getloadavg()
+
+    import torch
+    import trimesh
+
+    torch.set_num_threads(args.threads)
+
+    from generate import RUNS as GEN_RUNS
+    from generate import train
+
+    from ngc_gen.data.annotations import load_annotation
+    from ngc_gen.data.datasets import Creatures
+    from ngc_gen.data.prepare import PrepareSettings, prepare_shape
+    from ngc_gen.eval import pairwise_chamfer
+    from ngc_gen.generate import load_generator
+    from ngc_gen.generate.condition import (condition_from_gcs, conditional_latents, gc_error,
+                                            load_condition, with_given_gcs)
+    from ngc_gen.generate.shapes import decode_shapes
+    from ngc_gen.geometry import GeneralizedCylinder
+
+    def gc_objects(dicts):
+        return [GeneralizedCylinder.from_dict(d) for d in dicts]
+    from ngc_gen.viz import gcs_surface
+
+    conf = defaults()
+    strength = conf["strength"] if args.strength is None else args.strength
+    project = conf["project_steps"] if args.project_steps is None else args.project_steps
+    t_start = time.perf_counter()
+    data = Creatures("creatures", ROOT / f".cache/datasets/creatures_n{args.n}_s{args.seed}",
+                     n=args.n, seed=args.seed, test_fraction=args.test_fraction)
+    data.shapes()
+    split = json.loads((data.out_dir / "split.json").read_text())
+    held = split["test"][:args.limit]
+    print(f"{len(held)} held-out creatures as conditions, {args.per_condition} samples each; "
+          f"strength {strength}, project_steps {project}")
+    args.reuse = True
+    train(args)                                   # bench/generate.py's runs (reused if there)
+    gen = load_generator(GEN_RUNS / "diffusion")
+    sd, template = gen.shape_latent.shape_decoder, gen.shape_latent.template
+    conds = [(n, load_condition(data.out_dir / f"{n}.yaml", template)) for n in held]
+    res = {"n_conditions": len(held), "per_condition": args.per_condition,
+           "strength": strength, "project_steps": project, "resolution": args.resolution,
+           "points": args.points, "seed": args.seed, "threads": args.threads,
+           "load_avg_at_start": list(load_at_start),
+           "convention": "gc_err: rms over the conditioned GC parameters that vary in training, "
+                         "std units, before replace; Chamfer: 2048 surface points, squared, sum "
+                         "of the two means, in the held-out creatures' frame (no "
+                         "renormalisation); diversity: mean pairwise Chamfer of the samples of "
+                         "one condition; s_per_sample: guided latent sampling per sample"}
+    if args.sweep:
+        res["sweep"] = sweep(gen, conds, args)
+
+    # ---- conditioned and unconditioned samples (the same noise), refitted latents ----------
+    n_per = args.per_condition
+    cond_meshes, plain_meshes, refit_meshes, errs, errs_u, floors = [], [], [], [], [], []
+    t_cond = t_plain = 0.0
+    mesh_secs = []
+    settings = PrepareSettings(n_samples=args.samples)
+    cache = ROOT / f".cache/prepared/creatures_gen{args.samples // 1000}k_heldout"
+    picture = []
+    for k, (name, cond) in enumerate(conds):
+        seed = args.seed * 1000 + k
+        t0 = time.perf_counter()
+        z = conditional_latents(gen, cond, range(n_per), seed, strength, project)
+        t_cond += time.perf_counter() - t0
+        t0 = time.perf_counter()
+        z0 = gen.sample_latents(range(n_per), seed)
+        t_plain += time.perf_counter() - t0
+        errs.append(gc_error(sd, z, cond).numpy())
+        errs_u.append(gc_error(sd, z0, cond).numpy())
+        floors.append(decoder_floor(gen, cond))
+        shapes = [with_given_gcs(s, cond) for s in
+                  decode_shapes(gen.shape_latent, z, [f"{name}_c{i}" for i in range(n_per)])]
+        m, secs = mesh_shapes(gen, shapes, RUNS / "conditional", args.resolution)
+        cond_meshes.append(m)
+        mesh_secs += secs
+        m, _ = mesh_shapes(gen, decode_shapes(gen.shape_latent, z0, [f"{name}_u{i}" for i in
+                                                                       range(n_per)]),
+                           RUNS / "unconditional", args.resolution)
+        plain_meshes.append(m)
+        prepared = prepare_shape(load_annotation(data.out_dir / f"{name}.yaml"), settings, cache)
+        s_fit = refit_latent(gen.shape_latent, prepared, args.refit_steps, args.refit_lr,
+                             args.batch_size, args.seed)
+        fit = decode_shapes(gen.shape_latent, s_fit, [f"{name}_refit"])[0]
+        fit = with_given_gcs(fit, cond)
+        refit_meshes.append(mesh_shapes(gen, [fit], RUNS / "refit", args.resolution)[0][0])
+        if k == 0:
+            picture.append((gcs_surface(gc_objects(list(cond.gcs))), cond_meshes[-1],
+                            [f"{name}: all GCs"] + [f"sample {i}" for i in range(n_per)]))
+        print(f"{k + 1:2d}/{len(conds)} {name}: gc_err {errs[-1].mean():.3f} std (decoder floor "
+              f"{floors[-1]:.3f})", flush=True)
+
+    # ---- metrics -------------------------------------------------------------------------
+    gt = [trimesh.load(data.out_dir / f"{n}.ply", process=False) for n in held]
+    gt_pts, _ = clouds(gt, args.points)
+    cd_c, cd_u, cd_r, div_c, div_u = [], [], [], [], []
+    empty = {"conditional": 0, "unconditional": 0, "refit": 0}
+    for k in range(len(held)):
+        pc, e = clouds(cond_meshes[k], args.points)
+        empty["conditional"] += e
+        pu, e = clouds(plain_meshes[k], args.points)
+        empty["unconditional"] += e
+        pr, e = clouds([refit_meshes[k]], args.points)
+        empty["refit"] += e
+        cd_c.append(pairwise_chamfer(pc, gt_pts[k:k + 1]).mean())
+        cd_u.append(pairwise_chamfer(pu, gt_pts[k:k + 1]).mean())
+        cd_r.append(pairwise_chamfer(pr, gt_pts[k:k + 1]).mean())
+        iu = np.triu_indices(n_per, 1)
+        div_c.append(pairwise_chamfer(pc)[iu].mean())
+        div_u.append(pairwise_chamfer(pu)[iu].mean())
+    n_samples = len(held) * n_per
+    res.update({
+        "gc_err": float(np.mean(np.concatenate(errs))),
+        "gc_err_max": float(np.max(np.concatenate(errs))),
+        "gc_err_decoder_floor": float(np.mean(floors)),
+        "gc_err_unconditional": float(np.mean(np.concatenate(errs_u))),
+        "cd_conditional": float(np.mean(cd_c)), "cd_unconditional": float(np.mean(cd_u)),
+        "cd_refit": float(np.mean(cd_r)), "diversity": float(np.mean(div_c)),
+        "diversity_unconditional": float(np.mean(div_u)),
+        "s_per_sample": t_cond / n_samples, "s_per_sample_unconditional": t_plain / n_samples,
+        "mesh_s_per_sample": float(np.mean(mesh_secs)),
+        "per_condition": {n: {"gc_err": float(e.mean()), "gc_err_floor": f,
+                              "cd_conditional": float(c),
+                              "cd_unconditional": float(u), "cd_refit": float(r),
+                              "diversity": float(d)}
+                          for n, e, f, c, u, r, d in zip(held, errs, floors, cd_c, cd_u,
+                                                         cd_r, div_c)},
+        "empty_meshes": empty, "total_s": time.perf_counter() - t_start,
+        "load_avg_at_end": list(os.getloadavg()),
+    })
+    res["targets"] = {"gc_err <= 0.1": res["gc_err"] <= 0.1,
+                      "cd_conditional * 3 <= cd_unconditional":
+                          3 * res["cd_conditional"] <= res["cd_unconditional"]}
+
+    # legs-only picture row: the first condition's legs
+    name0, cond0 = conds[0]
+    legs = condition_from_gcs(template, [d for d in cond0.gcs if d["name"] in LEGS])
+    z = conditional_latents(gen, legs, range(n_per), args.seed * 1000, strength, project)
+    shapes = [with_given_gcs(s, legs) for s in
+              decode_shapes(gen.shape_latent, z, [f"{name0}_legs{i}" for i in range(n_per)])]
+    legs_meshes, _ = mesh_shapes(gen, shapes, RUNS / "legs", args.resolution)
+    picture.append((gcs_surface(gc_objects(list(legs.gcs))), legs_meshes,
+                    [f"{name0}: legs only"] + [f"sample {i}" for i in range(n_per)]))
+    RESULTS.mkdir(parents=True, exist_ok=True)
+    render(picture, RESULTS / "condition.png")
+    tmp = RESULTS / "condition.json.tmp"
+    tmp.write_text(json.dumps(res, indent=2))
+    os.replace(tmp, RESULTS / "condition.json")
+    print(f"\ngc_err {res['gc_err']:.3f} std (max {res['gc_err_max']:.3f}, unconditional "
+          f"{res['gc_err_unconditional']:.3f}, decoder floor {res['gc_err_decoder_floor']:.3f}); "
+          f"Chamfer (x1e-3) "
+          f"conditional {1e3 * res['cd_conditional']:.3f}, unconditional "
+          f"{1e3 * res['cd_unconditional']:.3f}, refit {1e3 * res['cd_refit']:.3f}; diversity "
+          f"{1e3 * res['diversity']:.3f} (unconditional "
+          f"{1e3 * res['diversity_unconditional']:.3f}); "
+          f"{1e3 * res['s_per_sample']:.0f} ms/sample guided vs "
+          f"{1e3 * res['s_per_sample_unconditional']:.0f} plain; load {load_at_start[0]:.1f}")
+    print(f"targets: {res['targets']}; total {res['total_s'] / 60:.1f} min; "
+          f"{RESULTS / 'condition.json'}")
+
+
+if __name__ == "__main__":
+    main()
