@@ -6,6 +6,8 @@ import numpy as np
 import pytest
 import trimesh
 
+from ngc_gen.app.editor.library import ShapeLibrary
+from ngc_gen.app.editor.session import EditorSession
 from ngc_gen.app.editor.start import open_session
 from ngc_gen.eval.fitting import chamfer
 
@@ -27,9 +29,19 @@ def editor_config(checkpoint, *overrides):
     return compose_config("edit", [f"ckpt={checkpoint}", "viewer=true", *overrides])
 
 
-@pytest.fixture
-def session(checkpoint):
+@pytest.fixture(scope="module")
+def opened(checkpoint):
+    """One session opened from the real config per module (composing and loading are the slow
+    part); tests get fresh copies."""
     return open_session(editor_config(checkpoint, "shape=one"))[0]
+
+
+@pytest.fixture
+def session(opened):
+    """A fresh session on shape 'one' (its own library, so added shapes stay in the test)."""
+    library = ShapeLibrary(dict(opened.library.shapes), opened.library.checkpoint)
+    return EditorSession(library, "one", opened.limits, pose_at=opened.pose_at,
+                         chunk=opened.chunk, name=opened.name)
 
 
 def mesh_chamfer(a: trimesh.Trimesh, b: trimesh.Trimesh) -> float:
