@@ -20,7 +20,8 @@ pytestmark = pytest.mark.usefixtures("single_thread")
 def server(checkpoint, tmp_path):
     cfg = editor_config(checkpoint, "shape=one", f"editor.port={browser.free_port()}",
                         "editor.preview_resolution=24", f"editor.refine_resolution={RES}",
-                        "editor.refine_delay_s=0.2", f"editor.out_dir={tmp_path / 'editor'}")
+                        "editor.refine_delay_s=0.2", "editor.environment=null",
+                        f"editor.out_dir={tmp_path / 'editor'}")
     session, latent = open_session(cfg)
     srv = EditorServer(session, cfg.editor, latent, out_dir=tmp_path / "editor")
     yield srv

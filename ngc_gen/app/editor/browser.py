@@ -40,9 +40,8 @@ def open_editor(page, url: str, resolution: int, timeout_s: float = 60.0) -> Non
     """Load the editor and wait until its first mesh (version 0, `resolution`) is shown."""
     page.goto(url)
     wait_for_mesh(page, 0, resolution, timeout_s)
-    close = page.get_by_role("button", name=re.compile("close", re.I))
-    for i in range(close.count()):  # e.g. the "software WebGL" notice of a headless browser
-        close.nth(i).click()
+    # hide notices (a headless browser gets "software WebGL rendering detected")
+    page.add_style_tag(content=".mantine-Notification-root { display: none !important; }")
 
 
 def wait_for_mesh(page, version: int, resolution: int, timeout_s: float = 60.0) -> str:
@@ -52,23 +51,21 @@ def wait_for_mesh(page, version: int, resolution: int, timeout_s: float = 60.0) 
     return line.inner_text()
 
 
+def number_box(page, label: str):
+    """The number box beside the slider labelled `label` (viser: label row, slider, box)."""
+    return page.locator(f"xpath=//label[normalize-space()='{label}']"
+                        "/ancestor::div[.//input[@type='text']][1]//input[@type='text']").first
+
+
 def set_number(page, label: str, value: float) -> None:
     """Type a value into the number box of the slider labelled `label` (and press Enter)."""
-    row = page.locator("label", has_text=re.compile(rf"^{re.escape(label)}$")).locator(
-        "xpath=ancestor::div[.//input[@type='text']][1]")
-    box = row.first.locator("input[type=text]")
+    box = number_box(page, label)
     box.fill(str(value))
     box.press("Enter")
 
 
-def number_value(page, label: str) -> str:
-    row = page.locator("label", has_text=re.compile(rf"^{re.escape(label)}$")).locator(
-        "xpath=ancestor::div[.//input[@type='text']][1]")
-    return row.first.locator("input[type=text]").input_value()
-
-
 def click(page, name: str) -> None:
-    page.get_by_role("button", name=name).click()
+    page.locator("button", has_text=name).first.click()
 
 
 def wait_for_message(page, pattern: str, timeout_s: float = 30.0) -> str:

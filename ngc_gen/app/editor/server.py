@@ -57,6 +57,8 @@ class EditorServer:
                                         verbose=False)
         self.server.initial_camera.position = tuple(float(x) for x in editor.camera)
         self.server.initial_camera.look_at = (0.0, 0.0, 0.0)
+        env = editor.get("environment")
+        self.server.scene.configure_environment_map(hdri=None if env is None else str(env))
         self._lock = threading.RLock()
         self._handles: list = []
         self._dragging = False
