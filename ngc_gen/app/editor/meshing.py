@@ -26,11 +26,14 @@ class Shown:
 
 class MeshLoop:
     """session: an EditorSession; show(version, resolution, result, seconds) puts a mesh into
-    the scene; on_error(message) reports a failed extraction."""
+    the scene; on_error(message) reports a failed extraction; preview_kw / refine_kw: extraction
+    settings of each pass (`EditorSession.mesh`)."""
 
     def __init__(self, session, preview: int, refine: int, delay: float,
-                 show: Callable, on_error: Callable[[str], None]):
+                 show: Callable, on_error: Callable[[str], None],
+                 preview_kw: dict | None = None, refine_kw: dict | None = None):
         self.session, self.preview, self.refine = session, int(preview), int(refine)
+        self._kw = {self.preview: dict(preview_kw or {}), self.refine: dict(refine_kw or {})}
         self.delay = float(delay)
         self._show, self._on_error = show, on_error
         self._cond = threading.Condition()
@@ -84,7 +87,8 @@ class MeshLoop:
             version, resolution, shape = job
             t0 = time.perf_counter()
             try:
-                result = self.session.mesh(resolution, shape=shape, version=version)
+                result = self.session.mesh(resolution, shape=shape, version=version,
+                                           **self._kw[resolution])
                 seconds = time.perf_counter() - t0
                 self._show(version, resolution, result, seconds)
             except Exception as e:  # the loop must outlive a bad extraction

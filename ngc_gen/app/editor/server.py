@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ngc_gen.viz.gc_mesh import gcs_surface
+from ngc_gen.viz.gc_mesh import gc_surface
 
 from .meshing import MeshLoop
 from .session import POSE_AXES, EditorSession, Outcome
@@ -43,6 +43,15 @@ def _guard(fn):
     return wrapped
 
 
+def _plain(node) -> dict:
+    """A config block (or dict, or None) as a plain dict of keyword arguments."""
+    from omegaconf import OmegaConf
+
+    if OmegaConf.is_config(node):
+        return dict(OmegaConf.to_container(node, resolve=True))
+    return dict(node or {})
+
+
 class EditorServer:
     """session: what is edited; editor: the `editor` config block (host, port, resolutions,
     refine delay, out_dir); latent: a LatentShapes for a generation run, or None."""
@@ -59,12 +68,17 @@ class EditorServer:
         self.server.initial_camera.look_at = (0.0, 0.0, 0.0)
         env = editor.get("environment")
         self.server.scene.configure_environment_map(hdri=None if env is None else str(env))
+        if env is None:  # no image-based light: an ambient light keeps the mesh readable
+            self.server.scene.add_light_ambient("/ambient", intensity=1.5)
         self._lock = threading.RLock()
         self._handles: list = []
+        self._drawn: dict = {}  # GC name -> (GC drawn, scene node)
         self._dragging = False
         self._build_gui()
         self.loop = MeshLoop(session, editor.preview_resolution, editor.refine_resolution,
-                             editor.refine_delay_s, self._show_mesh, self.say)
+                             editor.refine_delay_s, self._show_mesh, self.say,
+                             _plain(editor.get("preview_extract")),
+                             _plain(editor.get("refine_extract")))
         self._draw_gcs()
         self._sync_controls()
         self.say(session.message)
@@ -166,11 +180,20 @@ class EditorServer:
                                f"{len(mesh.faces)} faces, {seconds:.2f} s")
 
     def _draw_gcs(self) -> None:
+        """GC overlay: one translucent node per GC, redrawn only for GC objects that changed
+        (GCs no op touches stay the same objects), and all control points as dots."""
         shape = self.session.snapshot()[1]
-        surf = gcs_surface(shape.gcs, n_u=32, n_theta=16)
-        self.server.scene.add_mesh_simple("/gcs", surf.vertices, surf.faces, color=GC_COLOR,
-                                          opacity=0.2, side="double", cast_shadow=False,
-                                          receive_shadow=False)
+        drawn = self._drawn
+        for name in set(drawn) - set(shape.gc_names):
+            drawn.pop(name)[1].remove()
+        for g in shape.gcs:
+            if g.name in drawn and drawn[g.name][0] is g:
+                continue
+            surf = gc_surface(g, n_u=32, n_theta=16)
+            node = self.server.scene.add_mesh_simple(
+                f"/gcs/{g.name}", surf.vertices, surf.faces, color=GC_COLOR, opacity=0.2,
+                side="double", cast_shadow=False, receive_shadow=False)
+            drawn[g.name] = (g, node)
         pts = np.concatenate([g.curve.points for g in shape.gcs]).astype(np.float32)
         self.server.scene.add_point_cloud("/points", pts, colors=POINT_COLOR, point_size=0.012,
                                           point_shape="circle")
@@ -227,12 +250,18 @@ class EditorServer:
     def _key_index(self) -> int:
         return int(str(self.key_menu.value).split(":")[0])
 
-    def _done(self, out: Outcome, released: bool = False, sync: bool = True) -> Outcome:
-        """After an interaction: message, GC overlay, controls, and a new mesh if accepted."""
+    def select(self, gc: str) -> None:
+        """Select a GC (its keys in the sliders, its control points as handles)."""
+        self.gc_menu.value = gc
+        self._sync_controls()
+
+    def apply(self, out: Outcome, released: bool = False, sync: bool = True) -> Outcome:
+        """After a session interaction (what every callback does): message, GC overlay,
+        controls, and a new mesh if it was accepted (refined at once if `released`)."""
         self.say(out.message)
         if out.ok:
-            self._draw_gcs()
             self.loop.changed(released=released)
+            self._draw_gcs()
         if sync:
             self._sync_controls()
         return out
@@ -240,7 +269,7 @@ class EditorServer:
     # ---- callbacks --------------------------------------------------------------------------------
     @_guard
     def _on_shape(self, _):
-        self._done(self.session.open(self.shape_menu.value), released=True)
+        self.apply(self.session.open(self.shape_menu.value), released=True)
 
     @_guard
     def _on_gc(self, _):
@@ -252,17 +281,17 @@ class EditorServer:
 
     @_guard
     def _on_radius(self, _):
-        self._done(self.session.set_radius(self.gc_menu.value, self._key_index(),
+        self.apply(self.session.set_radius(self.gc_menu.value, self._key_index(),
                                            float(self.radius.value)))
 
     @_guard
     def _on_twist(self, _):
-        self._done(self.session.set_twist(self.gc_menu.value, self._key_index(),
+        self.apply(self.session.set_twist(self.gc_menu.value, self._key_index(),
                                           float(self.twist.value)))
 
     @_guard
     def _on_stretch(self, _):
-        self._done(self.session.stretch(self.gc_menu.value, float(self.stretch_t0.value),
+        self.apply(self.session.stretch(self.gc_menu.value, float(self.stretch_t0.value),
                                         float(self.stretch_t1.value),
                                         float(self.stretch_factor.value)))
 
@@ -272,7 +301,7 @@ class EditorServer:
 
     @_guard
     def _on_pose(self, _):
-        self._done(self.session.pose(self.gc_menu.value, str(self.pose_axis.value),
+        self.apply(self.session.pose(self.gc_menu.value, str(self.pose_axis.value),
                                      float(self.pose_degrees.value)))
 
     @_guard
@@ -286,7 +315,7 @@ class EditorServer:
         params = {"t0": float(self.mix_t0.value), "t1": float(self.mix_t1.value)} \
             if blend in ("truncated_linear", "smoothstep") else \
             ({"w": float(self.mix_w.value)} if blend == "constant" else {})
-        self._done(self.session.mix(self.gc_menu.value, str(self.mix_shape.value),
+        self.apply(self.session.mix(self.gc_menu.value, str(self.mix_shape.value),
                                     str(self.mix_gc.value), blend,
                                     str(self.mix_geometry.value), **params), released=True)
 
@@ -297,7 +326,7 @@ class EditorServer:
             self._dragging = event.phase != "end"
             out = self.session.move_point(self.gc_menu.value, index,
                                           np.asarray(event.target.position, dtype=np.float64))
-            self._done(out, released=event.phase == "end", sync=event.phase == "end")
+            self.apply(out, released=event.phase == "end", sync=event.phase == "end")
             if event.phase == "end" and not out.ok:
                 self._sync_controls()
         except Exception as e:
@@ -306,11 +335,11 @@ class EditorServer:
 
     @_guard
     def _on_undo(self, _):
-        self._done(self.session.undo(), released=True)
+        self.apply(self.session.undo(), released=True)
 
     @_guard
     def _on_redo(self, _):
-        self._done(self.session.redo(), released=True)
+        self.apply(self.session.redo(), released=True)
 
     @_guard
     def _on_save(self, _):
@@ -338,7 +367,7 @@ class EditorServer:
         self.shape_menu.options = names
         self.mix_shape.options = names
         self.shape_menu.value = name
-        self._done(self.session.open(name), released=released)
+        self.apply(self.session.open(name), released=released)
 
 
 def serve(cfg) -> dict:

@@ -303,15 +303,22 @@ class EditorSession:
         return self._guarded(build)
 
     # ---- outputs --------------------------------------------------------------------------------
-    def mesh(self, resolution: int, shape: Shape | None = None, version: int | None = None):
+    def mesh(self, resolution: int, shape: Shape | None = None, version: int | None = None,
+             **extract_kw):
         """ExtractionResult of the current shape (or a snapshot's) on a resolution^3 grid over
-        the limits' box; the last few results are kept per (version, resolution)."""
+        the limits' box; extract_kw go to `Shape.mesh` (the default is the exact path edit.py
+        takes, so an exported mesh is edit.py's). Network calls take at most `chunk` rows,
+        fewer on small grids (`auto_chunk`; values do not depend on it). The last few results
+        are kept per (version, resolution, extract_kw)."""
+        from ngc_gen.generate import auto_chunk
+
         if shape is None:
             version, shape = self.snapshot()
-        key = (version, int(resolution))
+        key = (version, int(resolution), repr(sorted(extract_kw.items())))
         if version is not None and key in self._meshes:
             return self._meshes[key]
-        result = shape.mesh(int(resolution), self.limits.bound, chunk=self.chunk)
+        extract_kw.setdefault("chunk", min(self.chunk, auto_chunk(resolution)))
+        result = shape.mesh(int(resolution), self.limits.bound, **extract_kw)
         if version is not None:
             with self._lock:
                 self._meshes[key] = result
