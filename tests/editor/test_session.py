@@ -11,6 +11,7 @@ import yaml
 
 from ngc_gen.app.editor.start import open_session
 from ngc_gen.data.errors import DataError
+from ngc_gen.edit import EditProgram
 from ngc_gen.edit.run import run_edit
 from ngc_gen.shape.mixing import start_frame
 
@@ -152,6 +153,10 @@ def test_mixing_a_gc_twice_is_refused(session):
     assert not out and "already mixed" in out.message
 
 
+def out_of(mixes):
+    return {j: (m.label, m.code.tolist(), repr(m.weight)) for j, m in mixes.items()}
+
+
 def replay(tmp_path, ckpt, program):
     out = tmp_path / "replay"
     cfg = compose_config("edit", [f"ckpt={ckpt}", f"program_file={program}", f"out_dir={out}",
@@ -168,6 +173,11 @@ def test_saved_program_replays_with_edit_py_to_the_same_mesh(session, checkpoint
     assert session.stretch("body", 0.2, 0.6, 1.3)
     assert session.pose("arm", "binormal", -25.0)
     assert session.mix("tail", "two", blend="smoothstep", t0=0.1, t1=0.9)
+    # interactions apply one op to the shape before it: the same as the whole program
+    whole = EditProgram.from_dict(session.program()).apply_to(
+        session.base, session.library.resolver(session.base))
+    assert dicts(whole) == dicts(session.shape)
+    assert out_of(whole.mixes) == out_of(session.shape.mixes)
     out = session.save(tmp_path / "program.yaml", RES)
     assert out and out.paths == (tmp_path / "program.yaml",)
     text = (tmp_path / "program.yaml").read_text()

@@ -123,8 +123,10 @@ class EditorSession:
         program = EditProgram.from_dict(self._program(ops, base), source="editor")
         return program.apply_to(base, self.library.resolver(base))
 
-    def _try(self, ops: list[dict], base: Shape) -> tuple[Shape | None, str]:
-        """(shape, warnings) if `ops` apply within the limits, else (None, why)."""
+    def _try(self, ops: list[dict], base: Shape, limits: bool = True
+             ) -> tuple[Shape | None, str]:
+        """(shape, warnings) if `ops` apply to `base` (and, with `limits`, the GCs they change
+        from the current shape stay within the limits), else (None, why)."""
         try:
             with warnings.catch_warnings(record=True) as caught:
                 warnings.simplefilter("always")
@@ -133,7 +135,7 @@ class EditorSession:
             return None, str(e)
         except Exception as e:  # a bug must not take the editor down: refuse and say so
             return None, f"internal error ({type(e).__name__}: {e})"
-        why = check(self.shape.gcs, shape.gcs, self.limits) if base is self.base else None
+        why = check(self.shape.gcs, shape.gcs, self.limits) if limits else None
         if why is not None:
             return None, why
         return shape, "; ".join(str(w.message) for w in caught)
@@ -155,11 +157,15 @@ class EditorSession:
 
     def interact(self, op: dict, key: tuple) -> Outcome:
         """Append `op`, or replace the last op when it belongs to the same interaction `key`;
-        accepted only if the new program applies within the limits."""
+        accepted only if the new program applies within the limits. The ops before it are
+        not re-run: `op` applies to the shape they made (the current shape, or the one before
+        the last op when updating it), which is what running the whole program gives, since
+        ops are deterministic functions of the shape before them (the replay tests check it);
+        so an interaction costs one op whatever the program's length."""
         with self._lock:
             merging = self._merge == key and bool(self._ops)
             ops = (self._ops[:-1] if merging else list(self._ops)) + [dict(op)]
-            shape, note = self._try(ops, self.base)
+            shape, note = self._try([dict(op)], self._pre if merging else self.shape)
             if shape is None:
                 return self._refuse(note)
             if not merging:
@@ -196,7 +202,7 @@ class EditorSession:
                 base = self.library[name]
             except EditError as e:
                 return self._refuse(str(e))
-            shape, note = self._try(self._ops, base)
+            shape, note = self._try(self._ops, base, limits=False)
             self.base, self._merge = base, None
             if shape is None:
                 kept = len(self._ops)
@@ -294,7 +300,11 @@ class EditorSession:
         """Part mixing (op `mix`): GC `gc` takes GC `source_gc` (default: the same name) of
         library shape `source` with a blend (t0, t1 or w as the blend needs)."""
         def build():
-            self._gc(self.shape, gc)
+            ref, j = self._reference(("mix", gc)), self.shape.index(gc)
+            if j in ref.mixes and ref.mixes[j] is not self.base.mixes.get(j):
+                raise EditError("this GC is already mixed by an earlier op", op="mix", gc=gc,
+                                fix="mix each GC once (one source and one blend per GC); "
+                                    "undo the earlier mix to change it")
             op = {"op": "mix", "gc": gc,
                   "source": {"shape": source, "gc": source_gc or gc},
                   "blend": blend, "geometry": geometry,
