@@ -66,8 +66,8 @@ def interactions(session, gc: str):
     p = g.curve.points[-1].copy()
     r = 0.5 * sum(g.keys[-1].radii)
     return {
-        "drag control point": lambda i: session.move_point(gc, len(g.curve.points) - 1,
-                                                           p + np.array([0.0, 0.0, 0.02 * (i + 1)])),
+        "drag control point": lambda i: session.move_point(
+            gc, len(g.curve.points) - 1, p + np.array([0.0, 0.0, 0.02 * (i + 1)])),
         "radius slider": lambda i: session.set_radius(gc, len(g.keys) - 1, r * (1.1 + 0.1 * i)),
         "twist slider": lambda i: session.set_twist(gc, 0, 20.0 * (i + 1)),
         "pose limb": lambda i: session.pose(gc, "normal", 10.0 * (i + 1)),
@@ -97,7 +97,7 @@ def time_case(server, act, repeats: int) -> dict:
     shape = session.snapshot()[1]
     for _ in range(repeats):
         t0 = time.perf_counter()
-        session.mesh(loop.preview, shape=shape, **loop._kw[loop.preview])
+        session.mesh(loop.preview, shape=shape, **loop.extract_kw[loop.preview])
         bare.append(time.perf_counter() - t0)
     return {"preview_s": statistics.median(prev), "refine_s": statistics.median(ref),
             "n_faces": faces, "extract_preview_s": statistics.median(bare),

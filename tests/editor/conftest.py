@@ -46,4 +46,5 @@ def session(opened):
 
 def mesh_chamfer(a: trimesh.Trimesh, b: trimesh.Trimesh) -> float:
     """Chamfer (squared distances, mean each way, summed) between two meshes' vertices."""
-    return chamfer(np.asarray(a.vertices, dtype=np.float64), np.asarray(b.vertices, dtype=np.float64))
+    return chamfer(np.asarray(a.vertices, dtype=np.float64),
+                   np.asarray(b.vertices, dtype=np.float64))

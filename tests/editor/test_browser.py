@@ -39,7 +39,7 @@ def test_edit_in_the_browser_then_replay(server, checkpoint, tmp_path):
         try:
             page = chrome.new_page(viewport=browser.VIEWPORT)
             browser.open_editor(page, server.url, RES)
-            before = server.session.mesh(RES).mesh
+            before = server.shown_mesh().mesh
 
             # a bad value through the page: refused, the shape stays at version 0
             browser.set_number(page, "radius", 0)
@@ -51,7 +51,7 @@ def test_edit_in_the_browser_then_replay(server, checkpoint, tmp_path):
             status = browser.wait_for_mesh(page, 1, RES)
             assert server.session.ops == [{"op": "twist", "gc": "body", "t": 0.0,
                                            "degrees": 90.0}]
-            after = server.session.mesh(RES).mesh
+            after = server.shown_mesh().mesh  # what the page shows
             assert f"{len(after.faces)} faces" in status
             assert mesh_chamfer(before, after) > 1e-6  # the mesh did change
 

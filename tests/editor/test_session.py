@@ -116,7 +116,8 @@ def far_point(session):
 
 @pytest.mark.parametrize("act, match", [
     (lambda s: s.set_radius("arm", 0, 0.0), r"factor = 0.*must be positive"),
-    (lambda s: s.set_radius("arm", 0, 1e-4), r"radius 8.75e-05 at key t = 0 is below the editor's minimum"),
+    (lambda s: s.set_radius("arm", 0, 1e-4),
+     r"radius 8.75e-05 at key t = 0 is below the editor's minimum"),
     (lambda s: s.move_point("arm", 2, far_point(s)), r"control points 1 and 2 .* closer than"),
     (lambda s: s.move_point("arm", 2, [3.0, 0.0, 0.0]), r"leaves the extraction box"),
     (lambda s: s.set_twist("body", 1, 10000.0), r"twist 10000.0 deg .* exceeds"),

@@ -33,7 +33,8 @@ class MeshLoop:
                  show: Callable, on_error: Callable[[str], None],
                  preview_kw: dict | None = None, refine_kw: dict | None = None):
         self.session, self.preview, self.refine = session, int(preview), int(refine)
-        self._kw = {self.preview: dict(preview_kw or {}), self.refine: dict(refine_kw or {})}
+        self.extract_kw = {self.preview: dict(preview_kw or {}),
+                           self.refine: dict(refine_kw or {})}
         self.delay = float(delay)
         self._show, self._on_error = show, on_error
         self._cond = threading.Condition()
@@ -88,7 +89,7 @@ class MeshLoop:
             t0 = time.perf_counter()
             try:
                 result = self.session.mesh(resolution, shape=shape, version=version,
-                                           **self._kw[resolution])
+                                           **self.extract_kw[resolution])
                 seconds = time.perf_counter() - t0
                 self._show(version, resolution, result, seconds)
             except Exception as e:  # the loop must outlive a bad extraction

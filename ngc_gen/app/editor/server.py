@@ -222,7 +222,7 @@ class EditorServer:
             for h, p in zip(self._handles, pts):
                 h.position = tuple(float(x) for x in p)
 
-    # ---- keeping controls in step with the session ------------------------------------------------
+    # ---- keeping controls in step with the session ----------------------------------------------
     def _sync_controls(self) -> None:
         """Set every control from the session's state (after any interaction, accepted or
         refused), without triggering interactions (programmatic updates are skipped)."""
@@ -255,6 +255,11 @@ class EditorServer:
         self.gc_menu.value = gc
         self._sync_controls()
 
+    def shown_mesh(self):
+        """The ExtractionResult of the current document as the scene shows it once refined
+        (the session's cached result, or extracted now)."""
+        return self.session.mesh(self.loop.refine, **self.loop.extract_kw[self.loop.refine])
+
     def apply(self, out: Outcome, released: bool = False, sync: bool = True) -> Outcome:
         """After a session interaction (what every callback does): message, GC overlay,
         controls, and a new mesh if it was accepted (refined at once if `released`)."""
@@ -266,7 +271,7 @@ class EditorServer:
             self._sync_controls()
         return out
 
-    # ---- callbacks --------------------------------------------------------------------------------
+    # ---- callbacks ------------------------------------------------------------------------------
     @_guard
     def _on_shape(self, _):
         self.apply(self.session.open(self.shape_menu.value), released=True)
