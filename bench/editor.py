@@ -11,9 +11,9 @@ take the same cores), and each interaction goes through the code path of its GUI
 - drag: a control point of a leg moved (op `move`), then the drag released;
 - radius / twist: a key slider moved (ops `scale`, `twist`), then released;
 - pose: a leg turned by handles about its start (op `handles`), then released.
-preview_s: interaction -> preview mesh (conf/editor preview_resolution, approximate extraction)
-in the scene; refine_s: release -> refined mesh (refine_resolution, the exact path that edit.py
-takes) in the scene. Each figure is the median of --repeats interactions with new values.
+preview_s: interaction -> preview mesh (conf/editor preview_resolution) in the scene;
+refine_s: release -> refined mesh (refine_resolution) in the scene; both with conf/editor's
+extraction settings. Each figure is the median of --repeats interactions with new values.
 The issue's target: preview_s <= 0.3 s.
 
 Then (unless --no-screenshot) bench/results/editor.png: the editor page in headless Chromium,
@@ -161,6 +161,8 @@ def main() -> None:
                                       f"editor.out_dir={RUN_DIR / 'editor'}"])
         settings = {k: cfg.editor[k] for k in ("preview_resolution", "refine_resolution",
                                                "refine_delay_s")}
+        preview_kw, refine_kw = (dict(cfg.editor[k]) for k in ("preview_extract",
+                                                                "refine_extract"))
         session, latent = open_session(cfg)
         server = EditorServer(session, cfg.editor, latent, out_dir=RUN_DIR / "editor")
         try:
@@ -178,8 +180,7 @@ def main() -> None:
     out = {"cases": cases,
            "settings": {**settings, "threads": args.threads, "repeats": args.repeats,
                         "checkpoint": os.path.relpath(ckpt, ROOT),
-                        "preview": "conf/editor preview_extract (fixed_batch false)",
-                        "refine": "exact extraction (edit.py's path)",
+                        "preview_extract": preview_kw, "refine_extract": refine_kw,
                         "convention": "preview_s: interaction -> preview mesh in the scene; "
                                       "refine_s: release -> refined mesh in the scene; "
                                       "extract_preview_s: the preview extraction alone "
