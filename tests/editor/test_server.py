@@ -85,3 +85,18 @@ def test_dragging_a_control_point(server):
 def test_edit_py_viewer_true_opens_the_editor():
     with pytest.raises(DataError, match="no checkpoint given.*editor.generator"):
         run_edit(compose_config("edit", ["viewer=true"]))
+
+
+def test_relative_sliders_restart_at_no_change(server):
+    s = server.session
+    server.select("body")
+    user_sets(server.stretch_factor, 1.2)
+    user_sets(server.stretch_factor, 1.1)  # the same stretch, updated
+    assert [o["op"] for o in s.ops] == ["stretch"] and s.ops[0]["factor"] == 1.1
+    user_sets(server.twist, 15.0)
+    assert server.stretch_factor.value == 1.0  # another op came between: a new stretch
+    user_sets(server.stretch_factor, 1.05)
+    assert [o["op"] for o in s.ops] == ["stretch", "twist", "stretch"]
+    user_sets(server.pose_degrees, 20.0)
+    user_sets(server.pose_axis, "binormal")
+    assert server.pose_degrees.value == 0.0 and len(s.ops) == 4

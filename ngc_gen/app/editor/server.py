@@ -152,13 +152,13 @@ class EditorServer:
             self.ops_view = gui.add_markdown("")
 
         self.shape_menu.on_update(self._on_shape)
-        self.gc_menu.on_update(self._on_gc)
+        self.gc_menu.on_update(self._on_selection)
         self.key_menu.on_update(self._on_key)
         self.radius.on_update(self._on_radius)
         self.twist.on_update(self._on_twist)
-        for c in (self.stretch_t0, self.stretch_t1, self.stretch_factor):
-            c.on_update(self._on_stretch)
-        self.pose_axis.on_update(self._on_pose_axis)
+        self.stretch_factor.on_update(self._on_stretch)  # t0, t1 only say where
+        for c in (self.stretch_t0, self.stretch_t1, self.pose_axis):
+            c.on_update(self._on_selection)  # a new range or axis: its controls start at no change
         self.pose_degrees.on_update(self._on_pose)
         self.mix_shape.on_update(self._on_mix_shape)
         self.mix_button.on_click(self._on_mix)
@@ -241,6 +241,13 @@ class EditorServer:
             self.twist.value = float(np.clip(round(k.twist), -360, 360))
             if not self._dragging:
                 self._place_handles()
+            # relative controls start at "no change" unless the next move updates the last op
+            name = self.gc_menu.value
+            if not self.session.continues(("stretch", name, float(self.stretch_t0.value),
+                                           float(self.stretch_t1.value))):
+                self.stretch_factor.value = 1.0
+            if not self.session.continues(("pose", name, str(self.pose_axis.value))):
+                self.pose_degrees.value = 0.0
             ops = self.session.ops
             self.ops_view.content = "**program**: " + (
                 ", ".join(f"{i}:{o['op']} {o.get('gc')}" for i, o in enumerate(ops)) or "empty")
@@ -277,7 +284,7 @@ class EditorServer:
         self.apply(self.session.open(self.shape_menu.value), released=True)
 
     @_guard
-    def _on_gc(self, _):
+    def _on_selection(self, _):
         self._sync_controls()
 
     @_guard
@@ -300,9 +307,6 @@ class EditorServer:
                                         float(self.stretch_t1.value),
                                         float(self.stretch_factor.value)))
 
-    @_guard
-    def _on_pose_axis(self, _):
-        self.pose_degrees.value = 0.0
 
     @_guard
     def _on_pose(self, _):

@@ -101,6 +101,12 @@ class EditorSession:
     def can_redo(self) -> bool:
         return bool(self._redo)
 
+    def continues(self, key: tuple) -> bool:
+        """True if an interaction with this key would update the last op (a relative control,
+        like a stretch factor or a pose angle, then starts from the last op's value)."""
+        with self._lock:
+            return self._merge == key and bool(self._ops)
+
     def snapshot(self) -> tuple[int, Shape]:
         """(version, shape) of the current document, consistent with each other."""
         with self._lock:
