@@ -5,7 +5,7 @@ VENV ?= .venv
 TORCH_SPEC ?= torch==2.13.0
 BIN := $(VENV)/bin
 
-.PHONY: setup test test-all bench bench-geometry bench-fit bench-deform bench-generate demo clean
+.PHONY: setup chromium test test-all bench bench-geometry bench-fit bench-deform bench-generate bench-editor demo clean
 
 $(BIN)/activate:
 	$(PY) -m venv $(VENV)
@@ -15,7 +15,16 @@ $(VENV)/.installed: $(BIN)/activate pyproject.toml
 	$(BIN)/pip install -q -e ".[dev]"
 	touch $@
 
-setup: $(VENV)/.installed
+setup: $(VENV)/.installed chromium
+
+# Debian's chromium for the editor's browser test (Playwright drives it; never `playwright
+# install`): installed when missing and we are root or have passwordless sudo.
+chromium:
+	@if [ ! -x /usr/bin/chromium ]; then \
+	  if [ "$$(id -u)" = 0 ]; then apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium; \
+	  elif sudo -n true 2>/dev/null; then sudo apt-get update -qq && sudo DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium; \
+	  else echo "note: no /usr/bin/chromium and no root/sudo to install it: the editor's browser test will skip"; fi; \
+	fi
 
 test: setup
 	$(BIN)/python -m pytest -m "not slow" -q
@@ -26,7 +35,7 @@ test-all: setup
 demo: setup  # the whole pipeline: fit, edit, shape latents, diffusion, sample (conf/experiment/demo.yaml)
 	$(BIN)/python train.py experiment=demo
 
-bench: bench-geometry bench-fit bench-deform bench-generate
+bench: bench-geometry bench-fit bench-deform bench-generate bench-editor
 
 bench-geometry: setup
 	$(BIN)/python bench/geometry.py
@@ -39,6 +48,9 @@ bench-deform: setup
 
 bench-generate: setup
 	$(BIN)/python bench/generate.py
+
+bench-editor: setup
+	$(BIN)/python bench/editor.py
 
 clean:
 	rm -rf $(VENV) outputs .pytest_cache

@@ -168,6 +168,10 @@ def _mesh_stats(mesh, prefix: str) -> dict:
 
 def run_edit(cfg) -> dict:
     """Validate and apply the program, extract both meshes, then write every output."""
+    if cfg.get("viewer"):  # the interactive editor (conf/editor)
+        from ngc_gen.app.editor.server import serve
+
+        return serve(cfg)
     t_start = time.perf_counter()
     program = program_from_config(cfg)
     ckpt = fit_checkpoint(cfg.get("run"))
