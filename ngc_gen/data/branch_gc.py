@@ -110,14 +110,15 @@ def branch_gc(branch: Branch, points: np.ndarray, name: str, n_keys: int = 5,
         thick = np.interp(key_t, resample(branch.points, 2)[1], branch.radius)
     else:
         thick = np.full(n_keys, float(branch.radius.max()))
-    radii = np.empty((n_keys, 2))
+    radii = np.full((n_keys, 2), np.nan)
     width = 1.0 / (n_keys - 1)
     for k, tk in enumerate(key_t):  # radii lerp between keys: hold both adjacent intervals
         sel = tube & (np.abs(t - tk) <= width * 1.0001)
         if sel.sum() >= 3:
             radii[k] = _ellipse_radii(rel[sel, 1], rel[sel, 2], floor)
-        else:
-            radii[k] = max(float(thick[k]), floor)
+    have = np.flatnonzero(~np.isnan(radii[:, 0]))
+    for k in np.flatnonzero(np.isnan(radii[:, 0])):  # no points there: the nearest key's radii
+        radii[k] = radii[have[np.argmin(np.abs(have - k))]] if len(have) else max(float(thick[k]), floor)
     radii *= 1.0 + margin
     # (a, b) with these radii: unit-radius offsets over the radii lerped at each point's t
     r_at = np.stack([np.interp(t, key_t, radii[:, j]) for j in range(2)], axis=1)

@@ -91,6 +91,17 @@ def _length(nodes: np.ndarray, path: np.ndarray) -> float:
     return float(np.linalg.norm(np.diff(nodes[path], axis=0), axis=1).sum())
 
 
+def _protrusion(nodes: np.ndarray, radius: np.ndarray, path: np.ndarray) -> float:
+    """How far a spur (path from its junction to its tip) sticks out of the junction's ball,
+    in units of its own thickness there: (length - r_junction) / median r beyond the ball."""
+    P = nodes[path]
+    arc = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(P, axis=0), axis=1))]
+    r_j = radius[path[0]]
+    beyond = np.linalg.norm(P - P[0], axis=1) > r_j
+    own = float(np.median(radius[path][beyond])) if beyond.any() else float(radius[path[-1]])
+    return (arc[-1] - r_j) / max(own, 1e-12)
+
+
 def prune(nodes: np.ndarray, radius: np.ndarray, edges: np.ndarray, min_length: float,
           max_branches: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[np.ndarray]]:
     """Spur pruning and junction merging (module docstring, steps 2-3).
@@ -110,7 +121,7 @@ def prune(nodes: np.ndarray, radius: np.ndarray, edges: np.ndarray, min_length: 
             d0, d1 = deg[p[0]], deg[p[-1]]
             if (d0 == 1) != (d1 == 1) and max(d0, d1) >= 3:
                 j = p[0] if d0 >= 3 else p[-1]
-                spurs.append((_length(nodes, p) / max(radius[j], 1e-12), i, j))
+                spurs.append((_protrusion(nodes, radius, p if d0 >= 3 else p[::-1]), i, j))
             elif d0 >= 3 and d1 >= 3:
                 r = max(radius[p[0]], radius[p[-1]])
                 inner.append((_length(nodes, p) / max(r, 1e-12), i))

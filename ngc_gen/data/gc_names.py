@@ -4,7 +4,7 @@ Directions are the mesh's own axes read as +x front, +y left, +z up (the procedu
 frame). The trunk is the branch of largest volume (length x squared thickness) of the largest
 piece; a limb is named by where it points from its root (the end nearer the trunk): ``leg`` if
 down, else ``limb_<front|back|left|right|up>``. Limbs that share a name get the side of their
-root relative to each other along the other two axes (``leg_front_left``), then a number.
+root from the trunk's centre along the other two axes (``leg_front_left``), then a number.
 Another piece's own trunk is ``piece_<position>``. The same mesh always gives the same names.
 """
 from __future__ import annotations
@@ -52,22 +52,21 @@ def gc_names(curves: list[np.ndarray], volumes: list[float], components: list[in
         root, tip = (c[0], c[-1]) if d_start <= d_end else (c[-1], c[0])
         a, s = _direction(tip - root)
         base.append("leg" if (a, s) == (2, 0) else f"limb_{WORDS[a][s]}")
-        roots[i] = root
+        roots[i] = c.mean(axis=0)
     names = list(base)
     for b in sorted(set(base)):
         group = [i for i in range(n) if base[i] == b]
         if len(group) < 2:
             continue
-        axis_of_name = {"leg": 2}.get(b.split("_")[0], None)
-        if b.startswith("limb_") or b.startswith("piece_"):
-            word = b.split("_")[1]
-            axis_of_name = next(a for a in range(3) if word in WORDS[a])
-        rel = roots[group] - roots[group].mean(axis=0)
-        for a in range(3):
-            if a == axis_of_name or np.ptp(rel[:, a]) < 0.05 * size:
+        word = b.split("_")[1] if "_" in b else "down"
+        named_axis = next(a for a in range(3) if word in WORDS[a])
+        for a in range(3):  # side of the root from the trunk's centre, where it is clear
+            off = roots[group, a] - center[a]
+            if a == named_axis or np.ptp(off) < 0.05 * size:
                 continue
-            for i, r in zip(group, rel[:, a]):
-                names[i] += f"_{WORDS[a][int(r > 0)]}"
+            for i, o in zip(group, off):
+                if abs(o) >= 0.02 * size:
+                    names[i] += f"_{WORDS[a][int(o > 0)]}"
     # still equal: number them by root position (x, then y, then z)
     for nm in sorted(set(names)):
         group = [i for i in range(n) if names[i] == nm]

@@ -55,7 +55,7 @@ def _graph_from_segments(a: np.ndarray, b: np.ndarray, tol: float) -> tuple[np.n
     return nodes, e
 
 
-def mcf_skeleton(vertices: np.ndarray, faces: np.ndarray, max_faces: int = 4000) -> Skeleton:
+def mcf_skeleton(vertices: np.ndarray, faces: np.ndarray, max_faces: int = 10000) -> Skeleton:
     """CGAL mean-curvature-flow skeleton of one closed manifold mesh (raises ImportError without
     compas-cgal, RuntimeError/ValueError when CGAL cannot contract the mesh)."""
     import trimesh
@@ -106,7 +106,7 @@ def _voxels_of(proxy: Proxy, mesh) -> np.ndarray:
     return labels == int(np.argmax(counts))
 
 
-def proxy_skeleton(proxy: Proxy, backend: str = "auto", max_faces: int = 4000) -> Skeleton:
+def proxy_skeleton(proxy: Proxy, backend: str = "auto", max_faces: int = 10000) -> Skeleton:
     """One skeleton graph over all components of the proxy (disconnected per component)."""
     if backend not in BACKENDS:
         raise DataError(f"unknown skeleton backend {backend!r}", field="annotate.skeleton",

@@ -23,32 +23,70 @@ from .skeleton import local_thickness, proxy_skeleton
 CURVE_TOLERANCE = 0.05  # split a branch when its cubic strays more than this x its length
 
 
-def _owners(branches: list[Branch], points: np.ndarray) -> np.ndarray:
-    """(N,) index of the branch each surface point belongs to: the branch with the nearest
-    polyline point, where a branch that is not the thickest at one of its junctions gives up
-    its nodes inside that junction's ball (a torso's surface near a leg root is the torso's)."""
-    samples, owner = [], []
-    ends = {}
+def _exit_index(radius: np.ndarray) -> int:
+    """Index along a branch (from its junction end) where it leaves the body it grows from:
+    the first node whose thickness is within 25% of the branch's own (the median over its
+    outer half)."""
+    own = float(np.median(radius[len(radius) // 2:]))
+    return int(np.argmax(radius <= 1.25 * own))
+
+
+def _rooted(branches: list[Branch]) -> tuple[list[Branch], np.ndarray, np.ndarray]:
+    """Branches with their roots trimmed, and the skeleton samples (M, 3) with their owner (M,).
+
+    At a junction, every branch but the thickest starts inside the thickest one's body; the
+    samples up to where it leaves that body belong to the thickest branch (a torso's surface
+    around a tail root is the torso's), and its GC starts halfway between the junction and
+    that exit, so it overlaps its parent a little instead of running through it."""
+    ends: dict = {}
     for i, b in enumerate(branches):
         for side in (0, -1):
             if b.junction[side]:
-                ends.setdefault(tuple(np.round(b.points[side], 9)), []).append((float(b.radius.mean()), i))
+                ends.setdefault(tuple(np.round(b.points[side], 9)), []).append((float(b.radius.mean()), -i))
+    samples, owner, out = [], [], []
     for i, b in enumerate(branches):
-        P = resample(b.points, max(8, int(np.ceil(b.length / max(b.radius.min(), 1e-3) * 4))))[0] \
-            if len(b.points) > 1 else b.points
-        keep = np.ones(len(P), dtype=bool)
+        P, R = b.points, b.radius
+        if len(P) > 1:
+            n = max(8, int(np.ceil(b.length / max(float(R.min()), 1e-3) * 4)))
+            P, s_nodes = resample(b.points, n)
+            R = np.interp(np.linspace(0.0, 1.0, n), s_nodes, b.radius)
+        lab = np.full(len(P), i)
+        lo, hi = 0, len(P)
         for side in (0, -1):
-            if not b.junction[side]:
+            if not b.junction[side] or len(P) < 4:
                 continue
             rivals = ends[tuple(np.round(b.points[side], 9))]
-            if max(rivals)[1] != i:
-                keep &= np.linalg.norm(P - b.points[side], axis=1) > b.radius[side]
-        if not keep.any():
-            keep[len(P) // 2] = True
-        samples.append(P[keep])
-        owner.append(np.full(int(keep.sum()), i))
-    tree = cKDTree(np.concatenate(samples))
-    return np.concatenate(owner)[tree.query(points, k=1)[1]]
+            thickest = -max(rivals)[1]
+            if thickest == i:
+                continue
+            k = _exit_index(R if side == 0 else R[::-1])
+            if side == 0:
+                lab[:k] = thickest
+                lo = max(lo, k // 2)
+            else:
+                lab[len(P) - k:] = thickest
+                hi = min(hi, len(P) - k // 2)
+        if hi - lo < 2:
+            lo, hi = 0, len(P)
+        samples.append(P)
+        owner.append(lab)
+        out.append(Branch(P[lo:hi], R[lo:hi], b.junction, b.component))
+    return out, np.concatenate(samples), np.concatenate(owner)
+
+
+def _split_owner(pieces: list[Branch], piece_of: list[np.ndarray], owner: np.ndarray,
+                 surface: np.ndarray) -> np.ndarray:
+    """Owner indices from branches to pieces: a split branch's points go to its nearest piece."""
+    out = np.empty_like(owner)
+    for i, idx in enumerate(piece_of):
+        mine = owner == i
+        if len(idx) == 1:
+            out[mine] = idx[0]
+            continue
+        pts = np.concatenate([pieces[j].points for j in idx])
+        lab = np.concatenate([np.full(len(pieces[j].points), j) for j in idx])
+        out[mine] = lab[cKDTree(pts).query(surface[mine], k=1)[1]]
+    return out
 
 
 def skeleton_gcs(mesh: trimesh.Trimesh, max_gcs: int = 24, min_branch_length: float = 2.0,
@@ -64,10 +102,14 @@ def skeleton_gcs(mesh: trimesh.Trimesh, max_gcs: int = 24, min_branch_length: fl
     sk = proxy_skeleton(proxy, backend=skeleton)
     radius = np.maximum(local_thickness(sk.nodes, surface), proxy.h)
     branches = branch_graph(sk.nodes, sk.edges, radius, min_branch_length, max_gcs)
-    pieces = [p for b in branches for p in split_curved(b, CURVE_TOLERANCE)]
-    if len(pieces) > max_gcs:  # splitting curved branches must not exceed the budget either
-        pieces = branches
-    owner = _owners(pieces, surface)
+    rooted, nodes, node_owner = _rooted(branches)
+    owner = node_owner[cKDTree(nodes).query(surface, k=1)[1]]
+    pieces, piece_of = [], []  # a branch too curved for one cubic is split, its points too
+    for i, b in enumerate(rooted):
+        parts = split_curved(b, CURVE_TOLERANCE) if len(rooted) + 1 <= max_gcs else [b]
+        piece_of.append(np.arange(len(pieces), len(pieces) + len(parts)))
+        pieces += parts
+    owner = _split_owner(pieces, piece_of, owner, surface)
     gcs = [branch_gc(b, surface[owner == i], f"gc_{i}", n_keys=n_keys, margin=margin)
            for i, b in enumerate(pieces)]
     gcs = grow_to_cover(gcs, surface)
