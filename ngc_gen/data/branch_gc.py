@@ -56,10 +56,13 @@ def fit_cubic(points: np.ndarray) -> tuple[np.ndarray, float]:
 
 def split_curved(branch: Branch, tolerance: float, max_depth: int = 3) -> list[Branch]:
     """The branch, or its halves (recursively), so each is fitted by one cubic within
-    ``tolerance`` x its length (or its mean local thickness, if larger)."""
+    ``tolerance`` x its length (or its mean local thickness, if larger) and turns by at most
+    about a half circle (chord >= 0.6 x length)."""
     _, dev = fit_cubic(branch.points) if len(branch.points) > 1 else (None, 0.0)
     allowed = max(tolerance * branch.length, float(branch.radius.mean()))
-    if dev <= allowed or max_depth == 0 or len(branch.points) < 5:
+    chord = float(np.linalg.norm(branch.points[-1] - branch.points[0]))
+    curled = chord < 0.6 * branch.length  # turns by more than a half circle (a loop cut open)
+    if (dev <= allowed and not curled) or max_depth == 0 or len(branch.points) < 5:
         return [branch]
     arc = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(branch.points, axis=0), axis=1))]
     m = int(np.clip(np.searchsorted(arc, arc[-1] / 2), 2, len(arc) - 3))

@@ -70,10 +70,11 @@ def _grown(gc: GeneralizedCylinder, rel: np.ndarray, rho: np.ndarray, slack: flo
 
 
 def grow_to_cover(gcs: list[GeneralizedCylinder], points: np.ndarray, slack: float = 1.02,
-                  max_rounds: int = 8) -> list[GeneralizedCylinder]:
+                  max_rounds: int = 8, owner: np.ndarray | None = None) -> list[GeneralizedCylinder]:
     """GCs grown locally until every point (N, 3) is inside one: each uncovered point is given
-    to the GC it is relatively nearest to (smallest rho) and that GC's keys or cap around it
-    grow. A last resort after ``max_rounds`` scales whole GCs."""
+    to its ``owner`` GC (N,) if given, else to the GC it is relatively nearest to (smallest
+    rho), and that GC's keys or cap around it grow. A last resort after ``max_rounds`` scales
+    whole GCs."""
     gcs = list(gcs)
     for round_ in range(max_rounds + 10):
         pp, _, _ = gc_membership(points, gcs)
@@ -82,9 +83,9 @@ def grow_to_cover(gcs: list[GeneralizedCylinder], points: np.ndarray, slack: flo
             return gcs
         q = points[missed]
         rho, _ = rho_matrix(gcs, q)
-        owner = rho.argmin(axis=0)
-        for g in np.unique(owner):
-            mine = owner == g
+        given = rho.argmin(axis=0) if owner is None else owner[missed]
+        for g in np.unique(given):
+            mine = given == g
             if round_ < max_rounds:
                 rel = np.asarray(gcs[g].to_relative(q[mine]))
                 gcs[g] = _grown(gcs[g], rel, rho[g, mine], slack)

@@ -3,8 +3,9 @@
 A curve skeleton needs a closed, manifold, single-component surface. Real meshes are open
 (pyvista's airplane), made of intersecting pieces (the ant) or both. The proxy is the level set
 ``field = delta`` of a signed distance on a voxel grid: the unsigned distance to the mesh, negative
-where the generalized winding number (libigl) says "inside". Offsetting by ``delta`` (one voxel)
-closes open sheets into thin slabs and keeps parts thinner than a voxel. Marching cubes
+where the generalized winding number (libigl) says "inside". Offsetting by ``delta``
+closes open sheets into thin slabs and keeps parts thinner than a voxel (1.25 voxels, so a
+flat mesh lying on a grid plane does not put the level set exactly on grid nodes). Marching cubes
 (scikit-image) gives a closed surface; each connected component is skeletonised on its own.
 
 Cost is kept near the surface: the exact distance (libigl) is computed in a band of a few voxels
@@ -45,7 +46,7 @@ class Proxy:
 
 
 def closed_proxy(vertices: np.ndarray, faces: np.ndarray, resolution: int = 96,
-                 offset: float = 1.0, seed: int = 0) -> Proxy:
+                 offset: float = 1.25, seed: int = 0) -> Proxy:
     """Closed proxy of the mesh (vertices (V, 3), faces (F, 3)).
 
     resolution: voxels along the longest side of the bounding box; offset: delta in voxels.
@@ -100,7 +101,7 @@ def closed_proxy(vertices: np.ndarray, faces: np.ndarray, resolution: int = 96,
     if not (field < 0).any():
         raise DataError("the mesh encloses no volume even after offsetting", field="mesh",
                         fix="give a surface mesh with faces of non-zero area")
-    verts, tris, _, _ = marching_cubes(field, 0.0, spacing=(h, h, h))
+    verts, tris, _, _ = marching_cubes(field, 0.0, spacing=(h, h, h), allow_degenerate=False)
     proxy = trimesh.Trimesh(verts + origin, tris, process=True)
     # marching cubes leaves a few degenerate slivers; a real component is closed with volume
     comps = [c for c in proxy.split(only_watertight=False)

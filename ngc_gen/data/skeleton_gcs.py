@@ -18,7 +18,8 @@ from .coverage import grow_to_cover
 from .gc_names import gc_names
 from .proxy import closed_proxy
 from .sampling import sample_surface
-from .skeleton import local_thickness, proxy_skeleton
+from .errors import DataError
+from .skeleton import BACKENDS, local_thickness, proxy_skeleton
 
 CURVE_TOLERANCE = 0.05  # split a branch when its cubic strays more than this x its length
 
@@ -95,6 +96,9 @@ def skeleton_gcs(mesh: trimesh.Trimesh, max_gcs: int = 24, min_branch_length: fl
                  ) -> tuple[list[GeneralizedCylinder], dict]:
     """GCs for a (normalised) mesh and what was found on the way: {backend, n_branches,
     n_components}. Arguments as in conf/annotate/default.yaml."""
+    if skeleton not in BACKENDS:
+        raise DataError(f"unknown skeleton backend {skeleton!r}", field="annotate.skeleton",
+                        fix=f"use one of {', '.join(BACKENDS)}")
     V, F = np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces, dtype=np.int64)
     rng = np.random.default_rng(seed)
     surface = np.concatenate([V, sample_surface(V, F, samples, rng)[0]])
@@ -112,7 +116,7 @@ def skeleton_gcs(mesh: trimesh.Trimesh, max_gcs: int = 24, min_branch_length: fl
     owner = _split_owner(pieces, piece_of, owner, surface)
     gcs = [branch_gc(b, surface[owner == i], f"gc_{i}", n_keys=n_keys, margin=margin)
            for i, b in enumerate(pieces)]
-    gcs = grow_to_cover(gcs, surface)
+    gcs = grow_to_cover(gcs, surface, owner=owner)
     curves = [np.asarray(g.to_world(np.stack([np.linspace(-1, 1, 17), np.zeros(17), np.zeros(17)], 1)))
               for g in gcs]
     volumes = [float(np.prod(np.mean([k.radii for k in g.keys], axis=0))) * g.length for g in gcs]
