@@ -5,14 +5,14 @@ VENV ?= .venv
 TORCH_SPEC ?= torch==2.13.0
 BIN := $(VENV)/bin
 
-.PHONY: setup test test-all bench bench-geometry bench-fit bench-deform bench-generate demo clean
+.PHONY: setup test test-all bench bench-geometry bench-fit bench-deform bench-generate bench-autogc demo clean
 
 $(BIN)/activate:
 	$(PY) -m venv $(VENV)
 
 $(VENV)/.installed: $(BIN)/activate pyproject.toml
 	$(BIN)/python -c "import torch" 2>/dev/null || $(BIN)/pip install -q "$(TORCH_SPEC)"
-	$(BIN)/pip install -q -e ".[dev]"
+	$(BIN)/pip install -q -e ".[dev,skeleton]"
 	touch $@
 
 setup: $(VENV)/.installed
@@ -26,7 +26,7 @@ test-all: setup
 demo: setup  # the whole pipeline: fit, edit, shape latents, diffusion, sample (conf/experiment/demo.yaml)
 	$(BIN)/python train.py experiment=demo
 
-bench: bench-geometry bench-fit bench-deform bench-generate
+bench: bench-geometry bench-fit bench-deform bench-generate bench-autogc
 
 bench-geometry: setup
 	$(BIN)/python bench/geometry.py
@@ -39,6 +39,9 @@ bench-deform: setup
 
 bench-generate: setup
 	$(BIN)/python bench/generate.py
+
+bench-autogc: setup
+	$(BIN)/python bench/autogc.py
 
 clean:
 	rm -rf $(VENV) outputs .pytest_cache
