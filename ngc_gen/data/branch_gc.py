@@ -19,6 +19,8 @@ from ngc_gen.geometry import BezierCurve, GeneralizedCylinder
 from .auto_gc import _ellipse_radii
 from .branches import Branch
 
+OUTLIER = 1.6  # a point farther out than this x the median of its key window is not held
+
 
 def bezier_basis(degree: int, s: np.ndarray) -> np.ndarray:
     """(N, degree+1) Bernstein basis at s (N,), from the one Bezier implementation: each column
@@ -87,7 +89,9 @@ def _gc(name, ctrl, up, keys, caps) -> GeneralizedCylinder:
 def branch_gc(branch: Branch, points: np.ndarray, name: str, n_keys: int = 5,
               margin: float = 0.05) -> GeneralizedCylinder:
     """The GC of one branch holding its own surface points (P, 3) (radii and caps grown by
-    ``margin``); where a key has no points its radius is the local thickness there."""
+    ``margin``), except points farther out than ``OUTLIER`` x the median of their key window
+    (where a limb meets its parent, the parent's surface: the parent's GC grows to hold them);
+    where a key has no points it takes the nearest key's radii."""
     floor = max(float(branch.radius.max()) * 0.05, 1e-3)
     if len(branch.points) < 2 or branch.length < 1e-6:  # a lone node: a short straight piece
         c = branch.points.mean(axis=0)
@@ -117,6 +121,9 @@ def branch_gc(branch: Branch, points: np.ndarray, name: str, n_keys: int = 5,
     width = 1.0 / (n_keys - 1)
     for k, tk in enumerate(key_t):  # radii lerp between keys: hold both adjacent intervals
         sel = tube & (np.abs(t - tk) <= width * 1.0001)
+        if sel.sum() >= 10:  # leave far outliers (another part's surface at a joint) to others
+            r = np.hypot(rel[:, 1], rel[:, 2])
+            sel &= r <= OUTLIER * np.median(r[sel])
         if sel.sum() >= 3:
             radii[k] = _ellipse_radii(rel[sel, 1], rel[sel, 2], floor)
     have = np.flatnonzero(~np.isnan(radii[:, 0]))

@@ -70,11 +70,13 @@ def _grown(gc: GeneralizedCylinder, rel: np.ndarray, rho: np.ndarray, slack: flo
 
 
 def grow_to_cover(gcs: list[GeneralizedCylinder], points: np.ndarray, slack: float = 1.02,
-                  max_rounds: int = 8, owner: np.ndarray | None = None) -> list[GeneralizedCylinder]:
+                  max_rounds: int = 8, owner: np.ndarray | None = None,
+                  groups: np.ndarray | None = None) -> list[GeneralizedCylinder]:
     """GCs grown locally until every point (N, 3) is inside one: each uncovered point is given
-    to its ``owner`` GC (N,) if given, else to the GC it is relatively nearest to (smallest
-    rho), and that GC's keys or cap around it grow. A last resort after ``max_rounds`` scales
-    whole GCs."""
+    to the GC it is relatively nearest to (smallest rho), among the GCs of its ``owner``'s
+    group if ``owner`` (N,) and ``groups`` (G,) are given (a piece of a mesh never grows to
+    hold another piece), and that GC's keys or cap around it grow. A last resort after
+    ``max_rounds`` scales whole GCs."""
     gcs = list(gcs)
     for round_ in range(max_rounds + 10):
         pp, _, _ = gc_membership(points, gcs)
@@ -83,7 +85,9 @@ def grow_to_cover(gcs: list[GeneralizedCylinder], points: np.ndarray, slack: flo
             return gcs
         q = points[missed]
         rho, _ = rho_matrix(gcs, q)
-        given = rho.argmin(axis=0) if owner is None else owner[missed]
+        if owner is not None and groups is not None:
+            rho = np.where(groups[:, None] == groups[owner[missed]][None, :], rho, np.inf)
+        given = rho.argmin(axis=0)
         for g in np.unique(given):
             mine = given == g
             if round_ < max_rounds:

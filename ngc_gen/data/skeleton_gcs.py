@@ -116,10 +116,10 @@ def skeleton_gcs(mesh: trimesh.Trimesh, max_gcs: int = 24, min_branch_length: fl
     owner = _split_owner(pieces, piece_of, owner, surface)
     gcs = [branch_gc(b, surface[owner == i], f"gc_{i}", n_keys=n_keys, margin=margin)
            for i, b in enumerate(pieces)]
-    gcs = grow_to_cover(gcs, surface, owner=owner)
+    gcs = grow_to_cover(gcs, surface, owner=owner, groups=np.array([b.component for b in pieces]))
     curves = [np.asarray(g.to_world(np.stack([np.linspace(-1, 1, 17), np.zeros(17), np.zeros(17)], 1)))
               for g in gcs]
-    volumes = [float(np.prod(np.mean([k.radii for k in g.keys], axis=0))) * g.length for g in gcs]
+    volumes = [b.length * float(np.mean(b.radius)) ** 2 for b in pieces]  # from the skeleton
     names = gc_names(curves, volumes, [b.component for b in pieces])
     named = sorted((GeneralizedCylinder.from_dict({**g.to_dict(), "name": nm}) for g, nm in zip(gcs, names)),
                    key=lambda g: (g.name != "trunk", g.name))

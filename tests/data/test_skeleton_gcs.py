@@ -223,4 +223,4 @@ def test_a_single_triangle_still_gets_covered():
     mesh, _, _ = normalize(tri)
     gcs = auto_gcs(mesh, AutoGCSettings(resolution=32, samples=2000))
     points, _ = sample_surface(mesh.vertices, mesh.faces, 5000, np.random.default_rng(0))
-    assert coverage_stats(gcs, points)["coverage"] == 1.0
+    assert coverage_stats(gcs, points)["coverage"] >= 0.999
