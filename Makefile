@@ -5,14 +5,14 @@ VENV ?= .venv
 TORCH_SPEC ?= torch==2.13.0
 BIN := $(VENV)/bin
 
-.PHONY: setup chromium test test-all bench bench-geometry bench-fit bench-deform bench-generate bench-editor demo clean
+.PHONY: setup chromium test test-all bench bench-geometry bench-fit bench-deform bench-generate bench-editor bench-autogc demo clean
 
 $(BIN)/activate:
 	$(PY) -m venv $(VENV)
 
 $(VENV)/.installed: $(BIN)/activate pyproject.toml
 	$(BIN)/python -c "import torch" 2>/dev/null || $(BIN)/pip install -q "$(TORCH_SPEC)"
-	$(BIN)/pip install -q -e ".[dev]"
+	$(BIN)/pip install -q -e ".[dev,skeleton]"
 	touch $@
 
 setup: $(VENV)/.installed chromium
@@ -35,7 +35,7 @@ test-all: setup
 demo: setup  # the whole pipeline: fit, edit, shape latents, diffusion, sample (conf/experiment/demo.yaml)
 	$(BIN)/python train.py experiment=demo
 
-bench: bench-geometry bench-fit bench-deform bench-generate bench-editor
+bench: bench-geometry bench-fit bench-deform bench-generate bench-editor bench-autogc
 
 bench-geometry: setup
 	$(BIN)/python bench/geometry.py
@@ -51,6 +51,9 @@ bench-generate: setup
 
 bench-editor: setup
 	$(BIN)/python bench/editor.py
+
+bench-autogc: setup
+	$(BIN)/python bench/autogc.py
 
 clean:
 	rm -rf $(VENV) outputs .pytest_cache

@@ -43,5 +43,7 @@ def prepare_dataset(cfg: DictConfig, verbose: bool = True) -> list[PreparedShape
         print(f"\n{'shape':24s} {'GCs':>4s} {'coverage':>9s} {'samples':>8s} {'pairs':>8s}  source")
         for name, g, cov, n, p, src in rows:
             print(f"{name:24s} {g:4d} {100 * cov:8.3f}% {n:8d} {p:8d}  {src}")
+        for shape in out:
+            print(f"{shape.name}: GCs {', '.join(shape.gc_names)}")
         print(f"cache: {cache_dir}")
     return out

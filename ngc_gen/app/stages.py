@@ -3,13 +3,16 @@ from __future__ import annotations
 
 from omegaconf import DictConfig
 
-STAGES = ("prepare", "fit", "shape_latent", "diffusion", "reconstruct", "pipeline")
+STAGES = ("prepare", "annotate", "fit", "shape_latent", "diffusion", "reconstruct", "pipeline")
 
 
 def run_stage(cfg: DictConfig):
     if cfg.stage == "prepare":
         from .prepare import prepare_dataset
         return prepare_dataset(cfg)
+    if cfg.stage == "annotate":
+        from .annotate import run_annotate
+        return run_annotate(cfg)
     if cfg.stage == "fit":
         from .fit import run_fit
         return run_fit(cfg)

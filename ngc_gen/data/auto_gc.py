@@ -1,15 +1,19 @@
-"""A default generalized cylinder for a mesh that has no annotation.
+"""Automatic GCs for a mesh that has no annotation: the two methods and their settings.
 
-One straight GC along the mesh's principal axis (PCA of the vertices) with an elliptic profile
-along the 2nd/3rd principal axes, and end caps sized so every vertex lies inside with a small
-margin. The paper reports that a single GC fits about as well as several, so this is a usable
-default, not only a fallback. The result is checked with ``contains`` and grown if needed.
+- ``skeleton`` (the default, DESIGN.md section 8): one GC per limb or part from a curve
+  skeleton (``skeleton_gcs``).
+- ``axis``: one straight GC along the mesh's principal axis (PCA of the vertices) with an
+  elliptic profile along the 2nd/3rd principal axes, and end caps sized so every vertex lies
+  inside with a small margin (``auto_gc``). The result is checked with ``contains`` and grown
+  if needed.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import os
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -120,12 +124,60 @@ def auto_gc(mesh: trimesh.Trimesh | np.ndarray, name: str = "body", margin: floa
                     gc=name, fix="annotate this mesh by hand")
 
 
-def auto_annotation(mesh: str | os.PathLike, name: str | None = None, bound: float = 0.8) -> Annotation:
-    """Annotation with one automatic GC for a mesh file (or resource) that has none.
+METHODS = ("skeleton", "axis")
 
-    The GC is fitted to the normalised mesh, as annotation coordinates are normalised ones."""
+
+@dataclass(frozen=True)
+class AutoGCSettings:
+    """How automatic GCs are made; the defaults are conf/annotate/default.yaml's (a test
+    checks they agree). See that file for what each field means."""
+
+    method: str = "skeleton"
+    max_gcs: int = 24
+    min_branch_length: float = 1.0
+    margin: float = 0.05
+    resolution: int = 96
+    skeleton: str = "auto"
+    n_keys: int = 5
+    samples: int = 20000
+    seed: int = 0
+
+    def __post_init__(self):
+        checks = {"method": self.method in METHODS, "max_gcs": self.max_gcs >= 1,
+                  "min_branch_length": self.min_branch_length >= 0.0, "margin": self.margin >= 0.0,
+                  "resolution": self.resolution >= 16, "n_keys": self.n_keys >= 2,
+                  "samples": self.samples >= 100}
+        for name, ok in checks.items():
+            if not ok:
+                raise DataError(f"invalid value {getattr(self, name)!r}", field=f"annotate.{name}",
+                                fix=f"method one of {', '.join(METHODS)}; max_gcs >= 1; resolution "
+                                    ">= 16; n_keys >= 2; samples >= 100; margin, min_branch_length >= 0")
+
+    @classmethod
+    def from_config(cls, d) -> "AutoGCSettings":
+        """From the `annotate` config group (keys that only the runner reads are ignored)."""
+        names = {f.name for f in dataclasses.fields(cls)}
+        return cls(**{k: v for k, v in dict(d).items() if k in names})
+
+
+def auto_gcs(mesh: trimesh.Trimesh, settings: AutoGCSettings | None = None) -> list[GeneralizedCylinder]:
+    """GCs for a normalised mesh by ``settings.method``."""
+    settings = settings or AutoGCSettings()
+    if settings.method == "axis":
+        return [auto_gc(mesh, margin=settings.margin)]
+    from .skeleton_gcs import skeleton_gcs  # imports this module's helpers
+
+    gcs, _ = skeleton_gcs(mesh, **{k: v for k, v in dataclasses.asdict(settings).items() if k != "method"})
+    return gcs
+
+
+def auto_annotation(mesh: str | os.PathLike, name: str | None = None, bound: float = 0.8,
+                    settings: AutoGCSettings | None = None) -> Annotation:
+    """Annotation with automatic GCs for a mesh file (or resource) that has none.
+
+    The GCs are fitted to the normalised mesh, as annotation coordinates are normalised ones."""
     normalized, _, _ = normalize(load_mesh(mesh), bound)
     spec = str(mesh) if is_resource(str(mesh)) else os.path.abspath(mesh)
     if name is None:
         name = Path(spec.split(":", 1)[-1] if is_resource(spec) else spec).stem
-    return Annotation(name=name, mesh=spec, gcs=[auto_gc(normalized)], bound=bound)
+    return Annotation(name=name, mesh=spec, gcs=auto_gcs(normalized, settings), bound=bound)

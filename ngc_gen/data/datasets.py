@@ -9,7 +9,7 @@ import json
 from pathlib import Path
 
 from .annotations import Annotation, load_annotation
-from .auto_gc import auto_annotation
+from .auto_gc import AutoGCSettings, auto_annotation
 from .errors import DataError
 
 MESH_SUFFIXES = {".obj", ".ply", ".stl", ".off", ".glb", ".gltf"}
@@ -34,7 +34,9 @@ class SingleGC:
         self.name, self.base = name, base
 
     def shapes(self) -> list[Annotation]:
-        return [auto_annotation(a.mesh, name=a.name, bound=a.bound) for a in self.base.shapes()]
+        axis = AutoGCSettings(method="axis")
+        return [auto_annotation(a.mesh, name=a.name, bound=a.bound, settings=axis)
+                for a in self.base.shapes()]
 
 
 class Combined:
@@ -54,14 +56,17 @@ class Combined:
 
 
 class MeshFolder:
-    """Any directory of meshes; `<name>.yaml` beside a mesh annotates it, else an auto GC."""
+    """Any directory of meshes; `<name>.yaml` beside a mesh annotates it, else automatic GCs
+    made with `annotate` (the `annotate` config group; default: one GC per limb or part)."""
 
-    def __init__(self, name: str, path: str, bound: float = 0.8):
+    def __init__(self, name: str, path: str, bound: float = 0.8, annotate=None):
         self.name = name
         self.path = Path(path)
         self.bound = bound
+        self.settings = AutoGCSettings.from_config(annotate) if annotate is not None else AutoGCSettings()
 
-    def shapes(self) -> list[Annotation]:
+    def mesh_files(self) -> list[Path]:
+        """The folder's mesh files, sorted by name."""
         if not self.path.is_dir():
             raise DataError(f"mesh folder {self.path} does not exist",
                             fix="pass data.path=/path/to/your/meshes")
@@ -69,11 +74,14 @@ class MeshFolder:
         if not meshes:
             raise DataError(f"no meshes ({', '.join(sorted(MESH_SUFFIXES))}) in {self.path}",
                             fix="put mesh files in the folder or point data.path elsewhere")
+        return meshes
+
+    def shapes(self) -> list[Annotation]:
         out = []
-        for mesh in meshes:
+        for mesh in self.mesh_files():
             yml = mesh.with_suffix(".yaml")
             out.append(load_annotation(yml) if yml.exists()
-                       else auto_annotation(mesh, bound=self.bound))
+                       else auto_annotation(mesh, bound=self.bound, settings=self.settings))
         return out
 
 

@@ -12,7 +12,7 @@ import yaml
 
 from ngc_gen.data import prepare as prepare_module
 from ngc_gen.data.annotations import load_annotation
-from ngc_gen.data.auto_gc import auto_annotation
+from ngc_gen.data.auto_gc import AutoGCSettings, auto_annotation
 from ngc_gen.data.errors import DataError
 from ngc_gen.data.prepare import PrepareSettings, cache_path, load_prepared, prepare_shape
 from ngc_gen.geometry import GeneralizedCylinder
@@ -215,7 +215,7 @@ def test_coverage_error_names_annotation_and_nearest_gc(sphere_file, write_yaml,
 
 def test_auto_annotation_of_real_meshes_prepares(tmp_path):
     for spec in ["pyvista:ant.ply", "pyvista:airplane.ply"]:
-        shape = prepare_shape(auto_annotation(spec), SMALL, tmp_path)
+        shape = prepare_shape(auto_annotation(spec, settings=AutoGCSettings(method="axis")), SMALL, tmp_path)
         assert shape.coverage == 1.0
         inside = shape.sdf < 0
         assert 0.01 < inside[shape.n_surface:].mean() < 0.9  # thin parts: some volume samples inside

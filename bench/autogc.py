@@ -1,0 +1,312 @@
+"""Automatic GCs (DESIGN.md section 8, issue 11): what a user gets on meshes no one annotated.
+
+    python bench/autogc.py [--creatures 16] [--fit-creatures 4] [--steps 1500] [--resolution 128]
+
+1. Annotate with the default settings (conf/annotate/default.yaml): pyvista's ant (15 pieces)
+   and airplane (open), and `--creatures` procedural creatures (true template: 10 parts). Per
+   mesh: GC count, coverage and overlap (share of 50k surface samples inside >= 1 and >= 2
+   GCs), seconds. Creatures: |count - 10| and, per true part, the share of its surface samples
+   (each sample labelled by the true GC it is relatively nearest to) inside one automatic GC.
+   The ant: the same share for each of its six legs; the airplane: whether fuselage, wings and
+   tail parts get different automatic GCs.
+2. NGC fits at equal steps (small preset, the fit stage) on the ant, the airplane and the first
+   `--fit-creatures` creatures with automatic GCs, hand annotations and the one-GC axis method:
+   Chamfer (DeepSDF convention) and normal consistency per shape.
+3. A handle edit (a leg raised, bench/deform.py's bend) on the automatically annotated creature
+   and ant: eps_V, eps_A of the deformed against the undeformed NGC mesh.
+Writes bench/results/autogc.json ({meshes: [{name, n_gcs, coverage, overlap, time_s, cd_auto,
+cd_annotated, cd_axis, nc_auto, ...}], creatures: {count_err_mean, count_err_max,
+part_single_gc_mean, part_single_gc_worst}, ant, airplane, edits, settings}) and
+bench/results/autogc.png (automatic GCs over the ant, the airplane and two creatures).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+RUNS = ROOT / "bench/runs/autogc"
+RESULTS = ROOT / "bench/results"
+CREATURES = ROOT / ".cache/datasets/creatures_n64_s0"
+HAND = {"ant": ROOT / "datasets/ant/ant.yaml", "airplane": ROOT / "datasets/airplane/airplane.yaml"}
+MESHES = {"ant": "pyvista:ant.ply", "airplane": "pyvista:airplane.ply"}
+COVERAGE_SAMPLES = 50_000
+
+
+def single_gc_shares(true_gcs, auto_gcs, points) -> np.ndarray:
+    """(T,) per true GC: the largest share of its surface samples inside one automatic GC. A
+    sample belongs to the true GC it is relatively nearest to (smallest rho)."""
+    from ngc_gen.data.coverage import rho_matrix
+    from ngc_gen.data.sampling import gc_membership
+
+    part = rho_matrix(true_gcs, points)[0].argmin(axis=0)
+    pp, pg, _ = gc_membership(points, auto_gcs)
+    inside = np.zeros((len(points), len(auto_gcs)), dtype=bool)
+    inside[pp, pg] = True
+    return np.array([inside[part == k].mean(axis=0).max() if (part == k).any() else 1.0
+                     for k in range(len(true_gcs))])
+
+
+def annotate_all(names: dict, hand: dict) -> tuple[list[dict], dict]:
+    """Automatic annotations of every mesh (written to RUNS/annotations) and their figures."""
+    from ngc_gen.data.annotations import load_annotation, save_annotation
+    from ngc_gen.data.auto_gc import AutoGCSettings, auto_annotation
+    from ngc_gen.data.coverage import coverage_stats
+    from ngc_gen.data.mesh_io import load_mesh, normalize
+    from ngc_gen.data.sampling import sample_surface
+    from ngc_gen.config import compose_config
+
+    cfg = compose_config(overrides=["run_dir=/tmp"])
+    settings = AutoGCSettings.from_config(cfg.annotate)
+    rows, anns = [], {}
+    for name, mesh in names.items():
+        t0 = time.perf_counter()
+        ann = auto_annotation(mesh, name=name, bound=0.8, settings=settings)
+        seconds = time.perf_counter() - t0
+        save_annotation(ann, RUNS / "annotations" / f"{name}.yaml")
+        normalized, _, _ = normalize(load_mesh(mesh), 0.8)
+        points, _ = sample_surface(normalized.vertices, normalized.faces, COVERAGE_SAMPLES,
+                                   np.random.default_rng(1))
+        st = coverage_stats(ann.gcs, points)
+        row = {"name": name, "n_gcs": len(ann.gcs), "coverage": st["coverage"],
+               "overlap": st["overlap"], "time_s": seconds, "gc_names": ann.gc_names}
+        if name in hand:
+            true = load_annotation(hand[name]).gcs
+            shares = single_gc_shares(true, ann.gcs, points)
+            row["part_single_gc"] = {g.name: float(s) for g, s in zip(true, shares)}
+            # which automatic GC holds most of each true part
+            best = []
+            for g in true:
+                share_per_auto = single_gc_best(true, ann.gcs, points, g.name)
+                best.append(share_per_auto)
+            row["best_auto_gc"] = {g.name: b for g, b in zip(true, best)}
+        rows.append(row)
+        anns[name] = ann
+        print(f"{name:16s} {len(ann.gcs):3d} GCs  coverage {100 * st['coverage']:7.3f}%  overlap "
+              f"{st['overlap']:.3f}  {seconds:6.2f} s  load {os.getloadavg()[0]:.1f}", flush=True)
+    return rows, anns
+
+
+def single_gc_best(true_gcs, auto_gcs, points, part_name: str) -> str:
+    """Name of the automatic GC holding the largest share of a true part's samples."""
+    from ngc_gen.data.coverage import rho_matrix
+    from ngc_gen.data.sampling import gc_membership
+
+    k = [g.name for g in true_gcs].index(part_name)
+    part = rho_matrix(true_gcs, points)[0].argmin(axis=0) == k
+    pp, pg, _ = gc_membership(points[part], auto_gcs)
+    counts = np.bincount(pg, minlength=len(auto_gcs))
+    return auto_gcs[int(np.argmax(counts))].name
+
+
+def fit(method: str, names: list[str], hand: dict, steps: int, resolution: int) -> dict:
+    """One NGC fit of the shapes with `method` GCs (auto | annotated | axis); per-shape metrics."""
+    import shutil
+
+    from omegaconf import OmegaConf, open_dict
+
+    from ngc_gen.config import compose_config
+    from ngc_gen.stages.fit import run_fit
+
+    import hashlib
+
+    run_dir = RUNS / f"fit_{method}"
+    files = [str(RUNS / "annotations" / f"{n}.yaml") if method == "auto" else str(hand[n])
+             for n in names]
+    h = hashlib.sha256(f"{method} {steps} {resolution} {names}".encode())
+    for f in files:
+        h.update(Path(f).read_bytes())
+    key = h.hexdigest()[:16]
+    done = run_dir / "metrics.json"
+    if done.exists() and (run_dir / "bench_key.txt").exists() and \
+            (run_dir / "bench_key.txt").read_text() == key:  # the same fit already ran
+        return json.loads(done.read_text())
+    shutil.rmtree(run_dir / "checkpoints", ignore_errors=True)  # else Lightning saves last-v1
+    data = {"_target_": "ngc_gen.data.datasets.AnnotatedShapes", "name": f"autogc_{method}",
+            "annotations": files}
+    if method == "axis":
+        data = {"_target_": "ngc_gen.data.datasets.SingleGC", "name": "autogc_axis",
+                "base": {**data, "name": "autogc_hand"}}
+    cfg = compose_config(overrides=[
+        "stage=fit", "model=small", f"trainer.max_steps={steps}", f"extract.resolution={resolution}",
+        f"run_dir={run_dir}", "trainer.enable_progress_bar=false", "logger=csv"])
+    with open_dict(cfg):
+        cfg.data = OmegaConf.create(data)
+    t0 = time.perf_counter()
+    metrics = run_fit(cfg)
+    metrics["wall_s"] = time.perf_counter() - t0
+    (run_dir / "bench_key.txt").write_text(key)
+    return metrics
+
+
+def edits(checkpoint: str, anns: dict, resolution: int) -> list[dict]:
+    """A leg raised on the automatically annotated creature and ant (bench/deform.py's bend)."""
+    import yaml
+
+    from bench.deform import Case, run_case
+    from ngc_gen.data.annotations import annotation_from_dict, load_annotation
+    from ngc_gen.data.mesh_io import load_mesh, normalize
+    from ngc_gen.lit.checkpoint import load_autodecoder
+
+    module = load_autodecoder(checkpoint)
+    metas = module.hparams.meta["shapes"]
+    index = {m["name"]: i for i, m in enumerate(metas)}
+    inputs = {}
+    for m in metas:
+        ann = annotation_from_dict(yaml.safe_load(m["annotation_yaml"]))
+        mesh, _, _ = normalize(load_mesh(ann.mesh_path), ann.bound)
+        inputs[m["name"]] = (np.asarray(mesh.vertices), np.asarray(mesh.faces, dtype=np.int64))
+    creature = next(n for n in index if n.startswith("creature"))
+    # the automatic GC that holds most of the true front-left leg
+    leg = single_gc_best(load_annotation(CREATURES / f"{creature}.yaml").gcs, anns[creature].gcs,
+                         inputs[creature][0], "leg_fl")
+    ant_leg = single_gc_best(load_annotation(HAND["ant"]).gcs, anns["ant"].gcs,
+                             inputs["ant"][0], "leg_l1")
+    cases = [Case(f"{creature}_{leg}_raise", creature, leg, "bend", 40.0, at=(0.85, 1.0), up=(1, 0, 0)),
+             Case(f"ant_{ant_leg}_raise", "ant", ant_leg, "bend", 45.0, at=(0.85, 1.0), up=(0, 1, 0))]
+    out, undeformed = [], {}
+    for case in cases:
+        r = run_case(case, module, index, inputs, resolution, 100, undeformed)
+        out.append({"name": case.name, "shape": case.shape, "gc": case.gc,
+                    "eps_v": r["ngc"]["eps_v"], "eps_a": r["ngc"]["eps_a"],
+                    "handle_err": r["ngc"]["handle_err"], "arap_eps_v": r["arap"]["eps_v"]})
+        print(f"edit {case.name}: eps_V {100 * r['ngc']['eps_v']:.2f}% eps_A "
+              f"{100 * r['ngc']['eps_a']:.2f}% (ARAP eps_V {100 * r['arap']['eps_v']:.2f}%)", flush=True)
+    return out
+
+
+def picture(anns: dict, names: list[str], path: Path) -> None:
+    import trimesh
+
+    from ngc_gen.data.mesh_io import load_mesh, normalize
+    from ngc_gen.viz import gcs_surface, render_grid
+
+    rows, labels = [], []
+    for n in names:
+        ann = anns[n]
+        mesh, _, _ = normalize(load_mesh(ann.mesh_path), ann.bound)
+        shell = gcs_surface(ann.gcs)
+        rows.append([(mesh, shell), trimesh.Trimesh(shell.vertices, shell.faces)])
+        labels.append(f"{n}: {len(ann.gcs)} GCs")
+    render_grid(rows, path, labels=labels, col_titles=["automatic GCs over the mesh", "the GCs"],
+                cell=(360, 270))
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--creatures", type=int, default=16)
+    ap.add_argument("--fit-creatures", type=int, default=4)
+    ap.add_argument("--steps", type=int, default=1500)
+    ap.add_argument("--resolution", type=int, default=128)
+    ap.add_argument("--edit-resolution", type=int, default=192)
+    ap.add_argument("--skip-fits", action="store_true")
+    args = ap.parse_args()
+    load_at_start = os.getloadavg()
+    t_start = time.perf_counter()
+
+    import torch
+
+    from ngc_gen.data.atomic import atomic_write_text
+    from ngc_gen.data.creatures import build_creatures
+
+    torch.set_num_threads(1)  # a shared 2-core machine: one thread is faster
+    build_creatures(CREATURES, 64, seed=0)
+    creatures = [f"creature_{i:04d}" for i in range(args.creatures)]
+    hand = {**HAND, **{c: CREATURES / f"{c}.yaml" for c in creatures}}
+    meshes = {**MESHES, **{c: str(CREATURES / f"{c}.ply") for c in creatures}}
+    rows, anns = annotate_all(meshes, hand)
+    by_name = {r["name"]: r for r in rows}
+
+    cr = [by_name[c] for c in creatures]
+    err = np.array([abs(r["n_gcs"] - 10) for r in cr])
+    shares = np.array([s for r in cr for s in r["part_single_gc"].values()])
+    worst_per_shape = [min(r["part_single_gc"].values()) for r in cr]
+    creature_stats = {"n_shapes": len(cr), "count_err_mean": float(err.mean()),
+                      "count_err_max": int(err.max()), "part_single_gc_mean": float(shares.mean()),
+                      "part_single_gc_worst": float(shares.min()),
+                      "part_single_gc_worst_per_shape_mean": float(np.mean(worst_per_shape)),
+                      "parts_below_0.8": int((shares < 0.8).sum()), "parts_total": int(len(shares)),
+                      "per_part_mean": {p: float(np.mean([r["part_single_gc"][p] for r in cr]))
+                                        for p in cr[0]["part_single_gc"]}}
+    ant = by_name["ant"]
+    legs = {k: v for k, v in ant["part_single_gc"].items() if k.startswith("leg")}
+    leg_gcs = [ant["best_auto_gc"][k] for k in legs]
+    ant_stats = {"legs_single_gc": legs, "legs_own_gc": len(set(leg_gcs)) == len(leg_gcs),
+                 "leg_gcs": dict(zip(legs, leg_gcs))}
+    air = by_name["airplane"]
+    groups = {"fuselage": ["fuselage"], "wings": ["wing_l", "wing_r"],
+              "tail": ["stabilizer_l", "stabilizer_r", "fin_l", "fin_r"]}
+    air_best = {g: sorted({air["best_auto_gc"][p] for p in ps}) for g, ps in groups.items()}
+    flat = [x for v in air_best.values() for x in v]
+    air_stats = {"best_auto_gc": air_best, "separate": len(flat) == len(set(flat)),
+                 "part_single_gc": air["part_single_gc"]}
+
+    fit_names = ["ant", "airplane"] + creatures[: args.fit_creatures]
+    fits = {}
+    if not args.skip_fits:
+        for method in ("auto", "annotated", "axis"):
+            fits[method] = fit(method, fit_names, hand, args.steps, args.resolution)
+            print(f"fit {method}: " + ", ".join(f"{n} cd {m['cd']:.2e}" for n, m in
+                                                 fits[method]["shapes"].items()), flush=True)
+    for r in rows:
+        for method, key in (("auto", "cd_auto"), ("annotated", "cd_annotated"), ("axis", "cd_axis")):
+            m = fits.get(method, {}).get("shapes", {}).get(r["name"])
+            r[key] = None if m is None else float(m["cd"])
+        m = fits.get("auto", {}).get("shapes", {}).get(r["name"])
+        r["nc_auto"] = None if m is None else float(m["normal_consistency"])
+        m = fits.get("annotated", {}).get("shapes", {}).get(r["name"])
+        r["nc_annotated"] = None if m is None else float(m["normal_consistency"])
+    edit_rows = edits(fits["auto"]["checkpoint"], anns, args.edit_resolution) if fits else []
+
+    fitted = [r for r in rows if r["cd_auto"] is not None]
+    targets = {
+        "time_s_max": max(r["time_s"] for r in rows),
+        "coverage_min": min(r["coverage"] for r in rows),
+        "cd_auto_over_annotated": {r["name"]: r["cd_auto"] / r["cd_annotated"] for r in fitted},
+        "cd_auto_over_axis": {r["name"]: r["cd_auto"] / r["cd_axis"] for r in fitted},
+    }
+    res = {"meshes": rows, "creatures": creature_stats, "ant": ant_stats, "airplane": air_stats,
+           "edits": edit_rows, "targets": targets,
+           "settings": {"steps": args.steps, "resolution": args.resolution,
+                        "fit_shapes": fit_names, "edit_resolution": args.edit_resolution,
+                        "load_avg_at_start": load_at_start, "load_avg_at_end": os.getloadavg(),
+                        "total_s": time.perf_counter() - t_start,
+                        "conventions": "coverage/overlap: share of 50k surface samples inside >= 1 / "
+                                       ">= 2 GCs; cd: DeepSDF Chamfer (30k points each way, squared, "
+                                       "means summed); nc: normal consistency; eps_V = |V'-V|/V"}}
+    RESULTS.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(RESULTS / "autogc.json", json.dumps(res, indent=2))
+    picture(anns, ["ant", "airplane", creatures[0], creatures[1]], RESULTS / "autogc.png")
+    print_summary(res)
+
+
+def print_summary(res: dict) -> None:
+    print(f"\n{'mesh':16s} {'GCs':>4s} {'coverage':>9s} {'overlap':>8s} {'s':>6s} {'cd_auto':>9s} "
+          f"{'cd_annot':>9s} {'cd_axis':>9s} {'nc_auto':>8s}")
+    f = lambda x, w, p: f"{x:{w}.{p}}" if x is not None else f"{'-':>{w}s}"  # noqa: E731
+    for r in res["meshes"]:
+        print(f"{r['name']:16s} {r['n_gcs']:4d} {100 * r['coverage']:8.3f}% {r['overlap']:8.3f} "
+              f"{r['time_s']:6.2f} {f(r['cd_auto'], 9, '2e')} {f(r['cd_annotated'], 9, '2e')} "
+              f"{f(r['cd_axis'], 9, '2e')} {f(r['nc_auto'], 8, '3f')}")
+    c = res["creatures"]
+    print(f"creatures ({c['n_shapes']}): |GCs - 10| mean {c['count_err_mean']:.2f} max "
+          f"{c['count_err_max']}; true part inside one automatic GC: mean "
+          f"{c['part_single_gc_mean']:.3f}, worst {c['part_single_gc_worst']:.3f} "
+          f"({c['parts_below_0.8']} of {c['parts_total']} parts below 0.8)")
+    print(f"ant: every leg its own GC: {res['ant']['legs_own_gc']} {res['ant']['leg_gcs']}")
+    print(f"airplane: fuselage / wings / tail separate: {res['airplane']['separate']} "
+          f"{res['airplane']['best_auto_gc']}")
+    print(f"load average at start {res['settings']['load_avg_at_start'][0]:.1f}, total "
+          f"{res['settings']['total_s']:.0f} s")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,127 @@
+"""Automatic GCs, one per limb or part, from any mesh (DESIGN.md section 8).
+
+closed proxy (``proxy``) -> curve skeleton (``skeleton``) -> branch graph (``branches``) -> one
+cubic Bezier GC per branch (``branch_gc``) -> names (``gc_names``) -> local growth until the GCs
+cover the surface (``coverage``). Deterministic: every random draw uses ``settings.seed``.
+"""
+from __future__ import annotations
+
+import numpy as np
+import trimesh
+from scipy.spatial import cKDTree
+
+from ngc_gen.geometry import GeneralizedCylinder
+
+from .branch_gc import branch_gc, resample, split_curved
+from .branches import Branch, branch_graph
+from .coverage import grow_to_cover
+from .gc_names import gc_names
+from .proxy import closed_proxy
+from .sampling import sample_surface
+from .errors import DataError
+from .skeleton import BACKENDS, local_thickness, proxy_skeleton
+
+CURVE_TOLERANCE = 0.05  # split a branch when its cubic strays more than this x its length
+
+
+def _exit_index(radius: np.ndarray) -> int:
+    """Index along a branch (from its junction end) where it leaves the body it grows from:
+    the first node whose thickness is within 25% of the branch's own (the median over its
+    outer half)."""
+    own = float(np.median(radius[len(radius) // 2:]))
+    return int(np.argmax(radius <= 1.25 * own))
+
+
+def _rooted(branches: list[Branch]) -> tuple[list[Branch], np.ndarray, np.ndarray]:
+    """Branches with their roots trimmed, and the skeleton samples (M, 3) with their owner (M,).
+
+    At a junction, every branch but the thickest starts inside the thickest one's body; the
+    samples up to where it leaves that body belong to the thickest branch (a torso's surface
+    around a tail root is the torso's), and its GC starts halfway between the junction and
+    that exit, so it overlaps its parent a little instead of running through it."""
+    ends: dict = {}
+    for i, b in enumerate(branches):
+        for side in (0, -1):
+            if b.junction[side]:
+                ends.setdefault(tuple(np.round(b.points[side], 9)), []).append((float(b.radius.mean()), -i))
+    samples, owner, out = [], [], []
+    for i, b in enumerate(branches):
+        P, R = b.points, b.radius
+        if len(P) > 1:
+            n = max(8, int(np.ceil(b.length / max(float(R.min()), 1e-3) * 4)))
+            P, s_nodes = resample(b.points, n)
+            R = np.interp(np.linspace(0.0, 1.0, n), s_nodes, b.radius)
+        lab = np.full(len(P), i)
+        lo, hi = 0, len(P)
+        for side in (0, -1):
+            if not b.junction[side] or len(P) < 4:
+                continue
+            rivals = ends[tuple(np.round(b.points[side], 9))]
+            thickest = -max(rivals)[1]
+            if thickest == i:
+                continue
+            k = _exit_index(R if side == 0 else R[::-1])
+            if side == 0:
+                lab[:k] = thickest
+                lo = max(lo, k // 2)
+            else:
+                lab[len(P) - k:] = thickest
+                hi = min(hi, len(P) - k // 2)
+        if hi - lo < 2:
+            lo, hi = 0, len(P)
+        samples.append(P)
+        owner.append(lab)
+        out.append(Branch(P[lo:hi], R[lo:hi], b.junction, b.component))
+    return out, np.concatenate(samples), np.concatenate(owner)
+
+
+def _split_owner(pieces: list[Branch], piece_of: list[np.ndarray], owner: np.ndarray,
+                 surface: np.ndarray) -> np.ndarray:
+    """Owner indices from branches to pieces: a split branch's points go to its nearest piece."""
+    out = np.empty_like(owner)
+    for i, idx in enumerate(piece_of):
+        mine = owner == i
+        if len(idx) == 1:
+            out[mine] = idx[0]
+            continue
+        pts = np.concatenate([pieces[j].points for j in idx])
+        lab = np.concatenate([np.full(len(pieces[j].points), j) for j in idx])
+        out[mine] = lab[cKDTree(pts).query(surface[mine], k=1)[1]]
+    return out
+
+
+def skeleton_gcs(mesh: trimesh.Trimesh, max_gcs: int = 24, min_branch_length: float = 2.0,
+                 margin: float = 0.05, resolution: int = 96, skeleton: str = "auto",
+                 n_keys: int = 5, samples: int = 20000, seed: int = 0
+                 ) -> tuple[list[GeneralizedCylinder], dict]:
+    """GCs for a (normalised) mesh and what was found on the way: {backend, n_branches,
+    n_components}. Arguments as in conf/annotate/default.yaml."""
+    if skeleton not in BACKENDS:
+        raise DataError(f"unknown skeleton backend {skeleton!r}", field="annotate.skeleton",
+                        fix=f"use one of {', '.join(BACKENDS)}")
+    V, F = np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces, dtype=np.int64)
+    rng = np.random.default_rng(seed)
+    surface = np.concatenate([V, sample_surface(V, F, samples, rng)[0]])
+    proxy = closed_proxy(V, F, resolution=resolution, seed=seed)
+    sk = proxy_skeleton(proxy, backend=skeleton)
+    radius = np.maximum(local_thickness(sk.nodes, surface), proxy.h)
+    branches = branch_graph(sk.nodes, sk.edges, radius, min_branch_length, max_gcs)
+    rooted, nodes, node_owner = _rooted(branches)
+    owner = node_owner[cKDTree(nodes).query(surface, k=1)[1]]
+    pieces, piece_of = [], []  # a branch too curved for one cubic is split, its points too
+    for i, b in enumerate(rooted):
+        parts = split_curved(b, CURVE_TOLERANCE) if len(rooted) + 1 <= max_gcs else [b]
+        piece_of.append(np.arange(len(pieces), len(pieces) + len(parts)))
+        pieces += parts
+    owner = _split_owner(pieces, piece_of, owner, surface)
+    gcs = [branch_gc(b, surface[owner == i], f"gc_{i}", n_keys=n_keys, margin=margin)
+           for i, b in enumerate(pieces)]
+    gcs = grow_to_cover(gcs, surface, owner=owner, groups=np.array([b.component for b in pieces]))
+    curves = [np.asarray(g.to_world(np.stack([np.linspace(-1, 1, 17), np.zeros(17), np.zeros(17)], 1)))
+              for g in gcs]
+    volumes = [b.length * float(np.mean(b.radius)) ** 2 for b in pieces]  # from the skeleton
+    names = gc_names(curves, volumes, [b.component for b in pieces])
+    named = sorted((GeneralizedCylinder.from_dict({**g.to_dict(), "name": nm}) for g, nm in zip(gcs, names)),
+                   key=lambda g: (g.name != "trunk", g.name))
+    info = {"backend": sk.backend, "n_branches": len(branches), "n_components": len(proxy.components)}
+    return named, info

@@ -1,0 +1,226 @@
+"""Automatic GCs from curve skeletons: coverage on awkward meshes, limbs found and named,
+determinism, the voxel fallback, branch-graph rules, local growth and bad input."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+import yaml
+
+from ngc_gen.data import skeleton as skeleton_mod
+from ngc_gen.data.auto_gc import AutoGCSettings, auto_annotation, auto_gcs
+from ngc_gen.data.branches import branch_graph
+from ngc_gen.data.coverage import coverage_stats, grow_to_cover
+from ngc_gen.data.errors import DataError
+from ngc_gen.data.gc_names import gc_names
+from ngc_gen.data.mesh_io import normalize
+from ngc_gen.data.sampling import sample_surface
+from ngc_gen.data.skeleton_gcs import skeleton_gcs
+from ngc_gen.geometry import GeneralizedCylinder
+
+from ..helpers import ROOT
+
+pytestmark = pytest.mark.usefixtures("single_thread")
+FAST = dict(resolution=64, samples=8000)  # coarser than the defaults: keeps each mesh ~1-2 s
+
+
+def tube_union(segments, radius=0.08, h=0.02) -> trimesh.Trimesh:
+    """A watertight union of round tubes around segments ((a, b) pairs): marching cubes of the
+    distance to the segments."""
+    from skimage.measure import marching_cubes
+
+    seg = np.asarray(segments, dtype=float)
+    lo, hi = seg.reshape(-1, 3).min(0) - radius - 3 * h, seg.reshape(-1, 3).max(0) + radius + 3 * h
+    axes = [np.arange(a, b + h, h) for a, b in zip(lo, hi)]
+    P = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
+    d = np.full(len(P), np.inf)
+    for a, b in seg:
+        t = np.clip((P - a) @ (b - a) / ((b - a) @ (b - a)), 0, 1)
+        d = np.minimum(d, np.linalg.norm(P - (a + t[:, None] * (b - a)), axis=1))
+    v, f, _, _ = marching_cubes(d.reshape([len(x) for x in axes]) - radius, 0.0, spacing=(h, h, h))
+    return trimesh.Trimesh(v + lo, f, process=True)
+
+
+def open_cylinder() -> trimesh.Trimesh:
+    """A cylinder without its end caps: an open surface with two boundary loops."""
+    c = trimesh.creation.cylinder(radius=0.3, height=1.2, sections=48)
+    keep = np.abs(c.face_normals[:, 2]) < 0.5
+    return trimesh.Trimesh(c.vertices, c.faces[keep], process=True)
+
+
+def two_pieces() -> trimesh.Trimesh:
+    a = trimesh.creation.capsule(height=0.8, radius=0.15)
+    b = trimesh.creation.icosphere(radius=0.3).apply_translation([1.0, 0.0, 0.0])
+    return trimesh.util.concatenate([a, b])
+
+
+MESHES = {
+    "torus": lambda: trimesh.creation.torus(major_radius=0.6, minor_radius=0.2),
+    "tripod": lambda: tube_union([((0, 0, 0), (0.8, 0, 0)), ((0, 0, 0), (-0.4, 0.6, 0)),
+                                  ((0, 0, 0), (-0.4, -0.6, 0))]),
+    "box": lambda: trimesh.creation.box(extents=[1.0, 0.6, 0.3]),
+    "open_cylinder": open_cylinder,
+    "two_pieces": two_pieces,
+}
+
+
+@pytest.fixture(scope="module")
+def annotated():
+    """mesh name -> (normalised mesh, GCs, info), computed once for the module."""
+    out = {}
+    for name, make in MESHES.items():
+        mesh, _, _ = normalize(make())
+        gcs, info = skeleton_gcs(mesh, **FAST)
+        out[name] = (mesh, gcs, info)
+    return out
+
+
+@pytest.mark.parametrize("name", list(MESHES))
+def test_gcs_cover_the_surface(annotated, name):
+    mesh, gcs, _ = annotated[name]
+    points, _ = sample_surface(mesh.vertices, mesh.faces, 30_000, np.random.default_rng(7))
+    assert coverage_stats(gcs, points)["coverage"] >= 0.999
+    names = [g.name for g in gcs]
+    assert len(set(names)) == len(names) and names[0] == "trunk"
+
+
+def test_tripod_gets_one_gc_per_arm_named_by_direction(annotated):
+    _, gcs, _ = annotated["tripod"]
+    assert len(gcs) == 3
+    names = sorted(g.name for g in gcs)
+    # the +x arm is one of them; the two others point back-left and back-right
+    assert any(n.endswith("left") for n in names) and any(n.endswith("right") for n in names)
+
+
+def test_a_loop_is_cut_into_gcs_a_cubic_can_follow(annotated):
+    _, gcs, _ = annotated["torus"]
+    assert 2 <= len(gcs) <= 4
+    for g in gcs:  # each piece turns by at most about a half circle
+        p = g.curve.points
+        assert np.linalg.norm(p[-1] - p[0]) > 0.5 * g.length
+
+
+def test_several_pieces_each_get_their_own_gc(annotated):
+    mesh, gcs, info = annotated["two_pieces"]
+    assert info["n_components"] == 2
+    sphere = mesh.vertices[:, 0] > 0.0  # the sphere sits at +x after normalisation, the capsule at -x
+    inside = np.stack([g.contains(mesh.vertices) for g in gcs])
+    assert any(inside[k, sphere].all() and not inside[k, ~sphere].any() for k in range(len(gcs)))
+
+
+def test_same_mesh_same_gcs(annotated):
+    mesh, _, _ = normalize(MESHES["tripod"]())
+    again, _ = skeleton_gcs(mesh, **FAST)
+    assert [g.to_dict() for g in again] == [g.to_dict() for g in annotated["tripod"][1]]
+
+
+def test_voxel_fallback_when_cgal_is_missing(monkeypatch):
+    mesh, _, _ = normalize(MESHES["tripod"]())
+    monkeypatch.setattr(skeleton_mod, "cgal_available", lambda: False)
+    gcs, info = skeleton_gcs(mesh, skeleton="auto", **FAST)
+    assert info["backend"] == "voxel" and len(gcs) == 3
+    points, _ = sample_surface(mesh.vertices, mesh.faces, 20_000, np.random.default_rng(3))
+    assert coverage_stats(gcs, points)["coverage"] >= 0.999
+    with pytest.raises(DataError, match="compas-cgal"):
+        skeleton_gcs(mesh, skeleton="cgal", **FAST)
+
+
+def test_creature_limbs_are_found():
+    """A procedural creature (10 true parts): the automatic count is within +-2 and every leg
+    lies inside one automatic GC."""
+    from ngc_gen.data.coverage import rho_matrix
+    from ngc_gen.data.creatures import make_creature
+    from ngc_gen.data.sampling import gc_membership
+
+    mesh, ann = make_creature(3, resolution=64, check_samples=0)
+    gcs, _ = skeleton_gcs(mesh, samples=8000)
+    assert abs(len(gcs) - 10) <= 2
+    true = [GeneralizedCylinder.from_dict(g) for g in ann["gcs"]]
+    points, _ = sample_surface(mesh.vertices, mesh.faces, 20_000, np.random.default_rng(0))
+    part = rho_matrix(true, points)[0].argmin(axis=0)
+    pp, pg, _ = gc_membership(points, gcs)
+    inside = np.zeros((len(points), len(gcs)), dtype=bool)
+    inside[pp, pg] = True
+    for k, g in enumerate(true):
+        if g.name.startswith("leg"):
+            assert inside[part == k].mean(axis=0).max() >= 0.9, g.name
+    assert sum(g.name.startswith("leg_") for g in gcs) == 4
+
+
+# ---- the pieces -------------------------------------------------------------------------------
+def test_branch_graph_prunes_spurs_merges_chains_and_cuts_cycles():
+    line = np.stack([np.linspace(0, 1, 11), np.zeros(11), np.zeros(11)], 1)
+    spur = np.array([[0.5, 0.02, 0.0]])  # a one-node bump at the middle
+    nodes = np.concatenate([line, spur])
+    edges = np.array([[i, i + 1] for i in range(10)] + [[5, 11]])
+    radius = np.full(len(nodes), 0.05)
+    branches = branch_graph(nodes, edges, radius, min_length=1.0, max_branches=10)
+    assert len(branches) == 1 and len(branches[0].points) == 11  # spur pruned, chain merged
+    # a long limb at the same place survives
+    limb = np.stack([np.full(5, 0.5), np.linspace(0.1, 0.5, 5), np.zeros(5)], 1)
+    nodes = np.concatenate([line, limb])
+    edges = np.array([[i, i + 1] for i in range(10)] + [[5, 11]] + [[11 + i, 12 + i] for i in range(4)])
+    branches = branch_graph(nodes, edges, np.full(len(nodes), 0.05), 1.0, 10)
+    assert len(branches) == 3 and sum(b.junction.count(True) for b in branches) == 3
+    # a cycle is cut into one path
+    th = np.linspace(0, 2 * np.pi, 24, endpoint=False)
+    ring = np.stack([np.cos(th), np.sin(th), 0 * th], 1)
+    edges = np.array([[i, (i + 1) % 24] for i in range(24)])
+    branches = branch_graph(ring, edges, np.full(24, 0.1), 1.0, 10)
+    assert len(branches) == 1 and len(branches[0].points) == 24
+    # max_branches prunes the weakest limbs even when they are long enough
+    branches = branch_graph(nodes, np.array([[i, i + 1] for i in range(10)] + [[5, 11]]
+                                            + [[11 + i, 12 + i] for i in range(4)]),
+                            np.full(len(nodes), 0.05), 1.0, 1)
+    assert len(branches) == 1
+
+
+def test_names_trunk_legs_and_sides():
+    trunk = np.stack([np.linspace(-0.5, 0.5, 9), np.zeros(9), np.zeros(9)], 1)
+    leg = lambda x, y: np.stack([np.full(9, x), np.full(9, y), np.linspace(-0.05, -0.6, 9)], 1)  # noqa: E731
+    tail = np.stack([np.linspace(-0.5, -0.9, 9), np.zeros(9), np.linspace(0, 0.2, 9)], 1)
+    curves = [leg(0.4, 0.1), trunk, leg(0.4, -0.1), leg(-0.4, 0.1), leg(-0.4, -0.1), tail]
+    names = gc_names(curves, [0.1, 1.0, 0.1, 0.1, 0.1, 0.05], [0] * 6)
+    assert names == ["leg_front_left", "trunk", "leg_front_right", "leg_back_left",
+                     "leg_back_right", "limb_back"]
+
+
+def test_growth_is_local_and_covers():
+    gc = GeneralizedCylinder.from_dict({
+        "name": "g", "curve": {"type": "bezier", "points": [[-0.5, 0, 0], [0.5, 0, 0]]},
+        "up": [0, 0, 1], "keys": [{"t": t, "radii": [0.1, 0.1]} for t in (0, 0.25, 0.5, 0.75, 1)],
+        "caps": [0.1, 0.1]})
+    bump = np.array([[0.45, 0.2, 0.0], [0.6, 0.0, 0.05], [-0.7, 0.0, 0.0]])  # side, past end, past start
+    grown = grow_to_cover([gc], bump)[0]
+    assert grown.contains(bump).all()
+    radii = np.array([k.radii for k in grown.keys])
+    assert np.allclose(radii[:3], 0.1) and radii[3:].max() > 0.19  # only keys near x = 0.45
+    assert grown.caps[0] > 0.19 and grown.caps[1] > 0.1
+
+
+def test_settings_defaults_are_the_config_defaults():
+    conf = yaml.safe_load((ROOT / "conf/annotate/default.yaml").read_text())
+    conf.pop("write_beside")
+    assert AutoGCSettings.from_config(conf) == AutoGCSettings()
+
+
+def test_bad_input_is_refused(tmp_path):
+    empty = tmp_path / "empty.ply"
+    empty.write_text("")
+    with pytest.raises(DataError, match="empty.ply"):
+        auto_annotation(empty)
+    with pytest.raises(DataError, match="method"):
+        AutoGCSettings(method="magic")
+    with pytest.raises(DataError, match="max_gcs"):
+        AutoGCSettings(max_gcs=0)
+    flat = trimesh.Trimesh([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]])
+    with pytest.raises(DataError, match="backend"):
+        skeleton_gcs(flat, skeleton="magic")
+
+
+def test_a_single_triangle_still_gets_covered():
+    tri = trimesh.Trimesh([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]])
+    mesh, _, _ = normalize(tri)
+    gcs = auto_gcs(mesh, AutoGCSettings(resolution=32, samples=2000))
+    points, _ = sample_surface(mesh.vertices, mesh.faces, 5000, np.random.default_rng(0))
+    assert coverage_stats(gcs, points)["coverage"] >= 0.999
