@@ -58,9 +58,9 @@ def make_bar(out_dir: Path = BAR_DIR, spacing: float = 0.016) -> Path:
     written once. Returns the annotation path."""
     import trimesh
     import yaml
-    from skimage.measure import marching_cubes
 
     from ngc_gen.data.atomic import atomic_write, atomic_write_text
+    from ngc_gen.extract import marching_cubes_grid
 
     ann = out_dir / "bar.yaml"
     if ann.exists():
@@ -70,10 +70,7 @@ def make_bar(out_dir: Path = BAR_DIR, spacing: float = 0.016) -> Path:
     P = np.stack(np.meshgrid(*axes, indexing="ij"), -1)
     q = np.abs(P) - (h - BAR_ROUND)
     sdf = np.linalg.norm(np.maximum(q, 0), axis=-1) + np.minimum(q.max(-1), 0) - BAR_ROUND
-    v, f, _, _ = marching_cubes(sdf, 0.0, spacing=(spacing,) * 3, gradient_direction="descent",
-                                allow_degenerate=False)
-    v += np.array([a[0] for a in axes])
-    mesh = trimesh.Trimesh(v, f, process=True)
+    mesh = marching_cubes_grid(sdf, [a[0] for a in axes], spacing, float32_spacing=True)
     assert mesh.is_watertight, "bar mesh must be watertight"
     atomic_write(out_dir / "bar.ply", lambda fh: fh.write(mesh.export(file_type="ply")))
     gc = {"name": "bar", "curve": {"type": "bezier", "points": [[-0.7, 0, 0], [0.7, 0, 0]]},

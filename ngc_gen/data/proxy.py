@@ -20,7 +20,8 @@ import igl
 import numpy as np
 import trimesh
 from scipy import ndimage
-from skimage.measure import marching_cubes
+
+from ngc_gen.extract.marching import marching_cubes_grid
 
 from .errors import DataError
 from .sampling import sample_surface
@@ -101,8 +102,7 @@ def closed_proxy(vertices: np.ndarray, faces: np.ndarray, resolution: int = 96,
     if not (field < 0).any():
         raise DataError("the mesh encloses no volume even after offsetting", field="mesh",
                         fix="give a surface mesh with faces of non-zero area")
-    verts, tris, _, _ = marching_cubes(field, 0.0, spacing=(h, h, h), allow_degenerate=False)
-    proxy = trimesh.Trimesh(verts + origin, tris, process=True)
+    proxy = marching_cubes_grid(field, origin, h, float32_spacing=True)
     # marching cubes leaves a few degenerate slivers; a real component is closed with volume
     comps = [c for c in proxy.split(only_watertight=False)
              if c.is_watertight and abs(c.volume) > (2.0 * h) ** 3]
