@@ -58,11 +58,7 @@ def run_fit(cfg: DictConfig) -> dict:
     if trainer.global_rank != 0:
         return {}
     module = module.cpu().eval()
-    gt = {s.name: (s.mesh_vertices, s.mesh_faces) for s in prepared}
-    with torch.no_grad():
-        metrics = reconstruct(module, run_dir / "meshes", gt, resolution=cfg.extract.resolution,
-                              bound=cfg.extract.bound, chunk=cfg.extract.chunk,
-                              seed=cfg.metrics_seed)
+    metrics, gt = score_fit(cfg, module, prepared, run_dir)
     metrics.update(steps=int(trainer.global_step), start_step=start_step, train_s=train_s,
                    kind=kind,
                    checkpoint=str(run_dir / "checkpoints" / "last.ckpt"))
@@ -71,6 +67,18 @@ def run_fit(cfg: DictConfig) -> dict:
     print_metrics(metrics)
     print(f"run directory: {run_dir}")
     return metrics
+
+
+def score_fit(cfg: DictConfig, module, prepared: list[PreparedShape], run_dir: Path):
+    """(metrics, ground truth): every shape of a trained AutoDecoder meshed into
+    run_dir/meshes and scored against its prepared mesh (`reconstruct`), settings from the
+    `extract` group and `metrics_seed`."""
+    gt = {s.name: (s.mesh_vertices, s.mesh_faces) for s in prepared}
+    with torch.no_grad():
+        metrics = reconstruct(module, run_dir / "meshes", gt, resolution=cfg.extract.resolution,
+                              bound=cfg.extract.bound, chunk=cfg.extract.chunk,
+                              seed=cfg.metrics_seed)
+    return metrics, gt
 
 
 def render_comparison(gt: dict, run_dir: Path) -> None:

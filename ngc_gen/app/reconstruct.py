@@ -56,7 +56,7 @@ def _codes(cfg: DictConfig, path: Path) -> dict:
     from ngc_gen.lit.checkpoint import load_autodecoder
     from ngc_gen.lit.reconstruct import codes_only_autodecoder
 
-    from .fit import print_metrics, reconstruct, render_comparison, shapes_meta
+    from .fit import print_metrics, render_comparison, score_fit, shapes_meta
     from .prepare import prepare_dataset
     from .training import start_run, train
 
@@ -71,12 +71,7 @@ def _codes(cfg: DictConfig, path: Path) -> dict:
     trained = train(cfg, run_dir, module, datamodule=dm)
     if trained.trainer.global_rank != 0:
         return {}
-    module = module.cpu().eval()
-    gt = {s.name: (s.mesh_vertices, s.mesh_faces) for s in prepared}
-    with torch.no_grad():
-        metrics = reconstruct(module, run_dir / "meshes", gt, resolution=cfg.extract.resolution,
-                              bound=cfg.extract.bound, chunk=cfg.extract.chunk,
-                              seed=cfg.metrics_seed)
+    metrics, gt = score_fit(cfg, module.cpu().eval(), prepared, run_dir)
     metrics.update(into=str(path), kind=kind, steps=int(trained.trainer.global_step),
                    train_s=trained.seconds,
                    checkpoint=str(run_dir / "checkpoints" / "last.ckpt"))
