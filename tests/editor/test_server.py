@@ -83,7 +83,7 @@ def test_dragging_a_control_point(server):
 
 
 def test_edit_py_viewer_true_opens_the_editor():
-    with pytest.raises(DataError, match="no checkpoint given.*editor.generator"):
+    with pytest.raises(DataError, match="no run given.*editor.generator"):
         run_edit(compose_config("edit", ["viewer=true"]))
 
 

@@ -214,7 +214,7 @@ def test_save_without_ops_and_open_errors(session, checkpoint, tmp_path):
     assert not out and "no ops" in out.message and not (tmp_path / "p.yaml").exists()
     with pytest.raises(DataError, match="no shape named 'three'"):
         open_session(editor_config(checkpoint, "shape=three"))
-    with pytest.raises(DataError, match="no checkpoint given"):
+    with pytest.raises(DataError, match="no run given"):
         open_session(compose_config("edit", ["viewer=true"]))
 
 
