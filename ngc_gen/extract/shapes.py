@@ -12,6 +12,7 @@ from tqdm import tqdm
 from ngc_gen.geometry import GeneralizedCylinder
 
 from .extractor import ExtractionResult, extract_mesh
+from .rows import RowsFn
 from .world import extract_world_mesh
 
 
@@ -22,9 +23,21 @@ def shape_gcs(shape_meta: dict) -> list[GeneralizedCylinder]:
 
 
 def ngc_sdf_fn(decoder, codes: torch.Tensor):
-    """sdf_fn(gc_index, rel) for `extract_mesh`: the decoder with GC `gc_index`'s code."""
+    """sdf_fn(gc_index, rel): the decoder with GC `gc_index`'s code (per-GC callers; wrap
+    with `per_gc_rows` for `extract_mesh`)."""
     def fn(j: int, rel: torch.Tensor) -> torch.Tensor:
         return decoder(codes[j].expand(len(rel), -1), rel)
+    return fn
+
+
+def ngc_rows_fn(decoder, codes: torch.Tensor) -> RowsFn:
+    """rows_fn(gc_index, rel) for `extract_mesh`: one batched decoder call across GCs
+    (`NGCDecoder.sdf_rows`, end features once per GC), in inference mode."""
+    codes = codes.detach()
+
+    @torch.inference_mode()
+    def fn(gc_index: torch.Tensor, rel: torch.Tensor) -> torch.Tensor:
+        return decoder.sdf_rows(codes.to(rel.device), gc_index, rel)
     return fn
 
 
@@ -34,15 +47,15 @@ def extract_shape(module, index: int, resolution: int = 256, bound: float = 1.0,
     """Mesh of shape `index` of a trained AutoDecoder; `gcs` overrides the recorded GCs (edits)."""
     meta = module.hparams.meta["shapes"][index]
     codes = module.codes.weight[meta["code_offset"]:meta["code_offset"] + meta["n_codes"]]
-    with torch.no_grad():
+    with torch.inference_mode():
         if module.hparams.kind == "deepsdf":
             code = codes[0]
             return extract_world_mesh(
                 lambda x: module.decoder(code.expand(len(x), -1), x), resolution, bound,
                 chunk=chunk)
-        return extract_mesh(gcs if gcs is not None else shape_gcs(meta),
-                            ngc_sdf_fn(module.decoder, codes), resolution, bound, chunk=chunk,
-                            **kwargs)
+    return extract_mesh(gcs if gcs is not None else shape_gcs(meta),
+                        ngc_rows_fn(module.decoder, codes), resolution, bound, chunk=chunk,
+                        **kwargs)
 
 
 def reconstruct(module, out_dir: Path, gt: dict, resolution: int = 256, bound: float = 1.0,

@@ -19,8 +19,8 @@ import yaml
 
 from ngc_gen.data.atomic import atomic_write, atomic_write_text
 from ngc_gen.edit.blend import blend_features
-from ngc_gen.extract import extract_mesh
-from ngc_gen.extract.shapes import ngc_sdf_fn
+from ngc_gen.extract import extract_mesh, per_gc_rows
+from ngc_gen.extract.shapes import ngc_rows_fn, ngc_sdf_fn
 from ngc_gen.geometry import GeneralizedCylinder
 
 BOUND = 0.8
@@ -79,7 +79,8 @@ def extract_decoded(ngc, shape: DecodedShape, resolution: int = 128, bound: floa
     """(mesh, stats) of a decoded shape at `resolution`^3 over [-bound, bound]^3, in the
     decoder's frame (not normalised). chunk None: `auto_chunk(resolution)`."""
     gcs = gc_objects(shape.gcs)
-    res = extract_mesh(gcs, sdf_fn or ngc_sdf_fn(ngc, shape.codes), int(resolution), bound,
+    rows_fn = per_gc_rows(sdf_fn) if sdf_fn is not None else ngc_rows_fn(ngc, shape.codes)
+    res = extract_mesh(gcs, rows_fn, int(resolution), bound,
                        chunk=chunk or auto_chunk(resolution), progress=progress)
     return res.mesh, res.stats
 

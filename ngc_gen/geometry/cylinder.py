@@ -302,14 +302,14 @@ class GeneralizedCylinder:
         check_points(q)
         return back(relative_coordinates(self.tables, q)[0])
 
-    def relative_inside(self, points):
+    def relative_inside(self, points, cull: bool = True):
         """points (N, 3) -> (rel (N, 3), measure (N,) float64) with measure =
-        max(|u|-1, 0)^2 + a^2 + b^2 (inside iff <= 1). Points the cover balls rule out skip the
-        closest-point solve: rel NaN, measure inf. rel comes back in the caller's type/dtype,
-        measure as a numpy array."""
+        max(|u|-1, 0)^2 + a^2 + b^2 (inside iff <= 1). With `cull`, points the cover balls rule
+        out skip the closest-point solve: rel NaN, measure inf (the others are computed exactly
+        as without). rel comes back in the caller's type/dtype, measure as a numpy array."""
         q, back = as_numpy(points)
         check_points(q)
-        rel, measure = relative_coordinates(self.tables, q, cull=True)
+        rel, measure = relative_coordinates(self.tables, q, cull=cull)
         return back(rel), measure
 
     def near(self, points, pad: float) -> np.ndarray:
