@@ -35,7 +35,7 @@ from ngc_gen.geometry import GeneralizedCylinder
 from ngc_gen.geometry.smooth import smooth_min
 
 from .grid import Grid
-from .marching import CORNERS, cells_mesh
+from .marching import CORNERS, cells_mesh, crossing
 from .rows import RowQueue
 from .store import PointStore, sorted_unique
 
@@ -286,15 +286,42 @@ def extract_sparse(gcs: list[GeneralizedCylinder], grid: Grid, stores: list[Poin
     evals0 = stats["n_network_evals"]
     cells = sorted_unique(np.concatenate([st.blocks for st in states]
                                          + [np.zeros(0, dtype=np.int64)]))
-    runs = keys.corner_runs(cells, 1)
-    points = sorted_unique(np.concatenate(runs))
+    points = sorted_unique(np.concatenate(keys.corner_runs(cells, 1)))
+    F = field_values(field_, states, points, smooth, background)
+    stats.update(completion_network_evals=stats["n_network_evals"] - evals0,
+                 seconds_completion=time.perf_counter() - t0)
+    t0 = time.perf_counter()
+    evals0 = stats["n_network_evals"]
+    cells, points, F, rounds = close_surface(field_, states, cells, points, F, smooth,
+                                             background)
+    stats.update(repair_rounds=rounds, repair_network_evals=stats["n_network_evals"] - evals0,
+                 seconds_repair=time.perf_counter() - t0)
+    corner_vals = F[positions(points, keys.corner_runs(cells, 1))]
+    stats.update(n_active_cells=len(cells), n_corner_points=len(points),
+                 n_covered=int((F != np.float32(background)).sum()))
+    t0 = time.perf_counter()
+    mesh = cells_mesh(keys.decode(cells), corner_vals, grid)
+    stats["seconds_marching"] = time.perf_counter() - t0
+    values = None
+    if keep_values:
+        R = grid.resolution
+        pidx = keys.decode(points)
+        values = np.full((R, R, R), np.nan, dtype=np.float32)
+        values[pidx[:, 0], pidx[:, 1], pidx[:, 2]] = F
+    return mesh, values
+
+
+def field_values(field_: SparseField, states: list[GCState], points: np.ndarray, smooth: float,
+                 background: float) -> np.ndarray:
+    """F at sorted unique point keys: every GC whose box holds a point, folded in GC order;
+    the background where no GC holds it."""
+    grid, keys = field_.grid, field_.keys
     pidx = keys.decode(points)
     want = []
     for st in states:
         box = grid.index_box(*st.gc.bounds())
-        sel = (np.zeros(len(points), dtype=bool) if box is None
-               else np.all((pidx >= box[0]) & (pidx <= box[1]), 1))
-        want.append(sel)
+        want.append(np.zeros(len(points), dtype=bool) if box is None
+                    else np.all((pidx >= box[0]) & (pidx <= box[1]), 1))
     got = field_.ensure(states, [points[sel] for sel in want])
     vals, ins = [], []
     for sel, (f, m) in zip(want, got):
@@ -305,19 +332,49 @@ def extract_sparse(gcs: list[GeneralizedCylinder], grid: Grid, stores: list[Poin
         vals.append(v)
         ins.append(i)
     F = fold(vals, ins, smooth) if states else np.full(len(points), np.inf, np.float32)
-    covered = np.isfinite(F)
-    F = np.where(covered, F, np.float32(background)).astype(np.float32)
-    corner_vals = F[positions(points, runs)]
-    stats.update(n_active_cells=len(cells), n_corner_points=len(points),
-                 n_covered=int(covered.sum()),
-                 completion_network_evals=stats["n_network_evals"] - evals0,
-                 seconds_completion=time.perf_counter() - t0)
-    t0 = time.perf_counter()
-    mesh = cells_mesh(keys.decode(cells), corner_vals, grid)
-    stats["seconds_marching"] = time.perf_counter() - t0
-    values = None
-    if keep_values:
-        R = grid.resolution
-        values = np.full((R, R, R), np.nan, dtype=np.float32)
-        values[pidx[:, 0], pidx[:, 1], pidx[:, 2]] = F
-    return mesh, values
+    return np.where(np.isfinite(F), F, np.float32(background)).astype(np.float32)
+
+
+# faces of a cell: (axis, side) -> the 4 corners (CORNERS indices) on that face
+FACES = [(a, side, np.flatnonzero(CORNERS[:, a] == side)) for a in range(3) for side in (0, 1)]
+
+
+def close_surface(field_: SparseField, states: list[GCState], cells: np.ndarray,
+                  points: np.ndarray, F: np.ndarray, smooth: float, background: float):
+    """Grow the active cells until the surface is closed: a crossing cell whose face has
+    corners of both signs shares that face's crossing edges with the cell across it, which
+    therefore holds surface too. A learned SDF is not exactly Lipschitz, so refinement can drop
+    such a cell; this puts it back (one ring per round), so every surface component refinement
+    touched comes out whole. -> (cells, points, F, rounds)."""
+    grid, keys = field_.grid, field_.keys
+    frontier = cells
+    rounds = 0
+    step_key = [keys.encode(np.eye(3, dtype=np.int64)[a]) for a in range(3)]
+    while len(frontier):
+        v = F[positions(points, keys.corner_runs(frontier, 1))]
+        cross = crossing(v)
+        frontier, v = frontier[cross], v[cross]
+        idx = keys.decode(frontier)
+        new = []
+        for a, side, corners in FACES:
+            below = (v[:, corners] < 0).sum(1)
+            mixed = (below > 0) & (below < 4)
+            nb_idx = idx[:, a] + (1 if side else -1)
+            ok = mixed & (nb_idx >= 0) & (nb_idx <= grid.resolution - 2)
+            new.append(frontier[ok] + (step_key[a] if side else -step_key[a]))
+        cand = sorted_unique(np.concatenate(new))
+        pos = np.minimum(np.searchsorted(cells, cand), max(len(cells) - 1, 0))
+        frontier = cand[cells[pos] != cand] if len(cells) else cand
+        if len(frontier) == 0:
+            break
+        rounds += 1
+        cells = np.sort(np.concatenate([cells, frontier]), kind="stable")
+        corner_pts = sorted_unique(np.concatenate(keys.corner_runs(frontier, 1)))
+        pos = np.minimum(np.searchsorted(points, corner_pts), len(points) - 1)
+        fresh = corner_pts[points[pos] != corner_pts]
+        if len(fresh):
+            Fn = field_values(field_, states, fresh, smooth, background)
+            order = np.argsort(np.concatenate([points, fresh]), kind="stable")
+            points = np.concatenate([points, fresh])[order]
+            F = np.concatenate([F, Fn])[order]
+    return cells, points, F, rounds
