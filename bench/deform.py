@@ -246,7 +246,7 @@ def run_case(case: Case, module, shape_index: dict, inputs: dict, resolution: in
     from ngc_gen.edit.ops import curve_points_at
     from ngc_gen.eval import volume_area_change
     from ngc_gen.extract import extract_mesh
-    from ngc_gen.extract.shapes import ngc_sdf_fn, shape_gcs
+    from ngc_gen.extract.shapes import ngc_rows_fn, shape_gcs
 
     meta = module.hparams.meta["shapes"][shape_index[case.shape]]
     gcs = shape_gcs(meta)
@@ -257,7 +257,7 @@ def run_case(case: Case, module, shape_index: dict, inputs: dict, resolution: in
     R, t = case.motion(gc)
     targets = V[handle] @ R.T + t
 
-    fn = ngc_sdf_fn(module.decoder, codes)
+    fn = ngc_rows_fn(module.decoder, codes)
     with torch.no_grad():
         if case.shape not in undeformed:
             undeformed[case.shape] = extract_mesh(gcs, fn, resolution, BOUND).mesh

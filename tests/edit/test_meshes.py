@@ -8,7 +8,7 @@ from scipy.spatial.transform import Rotation
 from ngc_gen.edit import move_points, rigid, scale_radii, stretch, twist
 from ngc_gen.edit.mixing import mixed_sdf_fn
 from ngc_gen.eval import chamfer
-from ngc_gen.extract import Grid, extract_mesh
+from ngc_gen.extract import Grid, extract_mesh, per_gc_rows
 
 from .conftest import surface_points
 
@@ -17,7 +17,7 @@ RES = 72
 
 def mesh_of(module, gcs, res=RES, mixes=None):
     codes = module.codes.weight[:len(gcs)].detach()
-    return extract_mesh(gcs, mixed_sdf_fn(module.decoder, codes, mixes), res).mesh
+    return extract_mesh(gcs, per_gc_rows(mixed_sdf_fn(module.decoder, codes, mixes)), res).mesh
 
 
 @pytest.fixture(scope="module")

@@ -5,7 +5,7 @@ import torch
 
 from ngc_gen.edit import EditError, constant, linear, smoothstep, truncated_linear
 from ngc_gen.edit.mixing import PartMix, extract_smooth_union, mixed_sdf_fn
-from ngc_gen.extract import extract_mesh
+from ngc_gen.extract import extract_mesh, per_gc_rows
 
 
 @pytest.fixture
@@ -75,14 +75,14 @@ def test_mix_checks_its_inputs(module):
 
 def test_smooth_union_zero_width_is_the_hard_min(module, gcs):
     fn = mixed_sdf_fn(module.decoder, codes_of(module, 0))
-    hard = extract_mesh(gcs, fn, 48).mesh
+    hard = extract_mesh(gcs, per_gc_rows(fn), 48).mesh
     same = extract_smooth_union(gcs, fn, 48, k=0.0).mesh
     assert np.array_equal(hard.vertices, same.vertices) and np.array_equal(hard.faces, same.faces)
 
 
 def test_smooth_union_fills_the_seam_and_only_there(module, gcs):
     fn = mixed_sdf_fn(module.decoder, codes_of(module, 0))
-    hard = extract_mesh(gcs, fn, 64)
+    hard = extract_mesh(gcs, per_gc_rows(fn), 64)
     k = 0.1
     soft = extract_smooth_union(gcs, fn, 64, k=k).mesh
     assert soft.is_watertight
