@@ -21,7 +21,7 @@ def same_mesh(a, b) -> bool:
 def chamfer(a, b, n=30000, seed=0) -> float:
     """DeepSDF convention: surface samples each way, squared distances, means summed."""
     pa, _ = a.sample(n, return_index=True, seed=seed)
-    pb, _ = b.sample(n, return_index=True, seed=seed + 1)
+    pb, _ = b.sample(n, return_index=True, seed=seed)
     return float((cKDTree(pb).query(pa)[0] ** 2).mean() + (cKDTree(pa).query(pb)[0] ** 2).mean())
 
 
