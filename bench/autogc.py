@@ -62,7 +62,7 @@ def annotate_all(names: dict, hand: dict) -> tuple[list[dict], dict]:
     from ngc_gen.data.coverage import coverage_stats
     from ngc_gen.data.mesh_io import load_mesh, normalize
     from ngc_gen.data.sampling import sample_surface
-    from ngc_gen.config import compose_config
+    from ngc_gen.app.config import compose_config
 
     cfg = compose_config(overrides=["run_dir=/tmp"])
     settings = AutoGCSettings.from_config(cfg.annotate)
@@ -113,8 +113,8 @@ def fit(method: str, names: list[str], hand: dict, steps: int, resolution: int) 
 
     from omegaconf import OmegaConf, open_dict
 
-    from ngc_gen.config import compose_config
-    from ngc_gen.stages.fit import run_fit
+    from ngc_gen.app.config import compose_config
+    from ngc_gen.app.fit import run_fit
 
     import hashlib
 

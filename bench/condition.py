@@ -44,7 +44,7 @@ LEGS = ("leg_fl", "leg_fr", "leg_bl", "leg_br")
 
 def defaults() -> dict:
     """The condition settings sample.py uses (conf/sample.yaml), the bench's defaults."""
-    from ngc_gen.config import compose_config
+    from ngc_gen.app.config import compose_config
 
     return dict(compose_config("sample").condition)
 

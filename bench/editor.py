@@ -50,8 +50,8 @@ def fitted(steps: int) -> Path:
     ckpt = RUN_DIR / "checkpoints/last.ckpt"
     if ckpt.exists():
         return ckpt
-    from ngc_gen.config import compose_config
-    from ngc_gen.stages.fit import run_fit
+    from ngc_gen.app.config import compose_config
+    from ngc_gen.app.fit import run_fit
 
     run_fit(compose_config(overrides=[
         "stage=fit", "data=demo", "model=small", f"trainer.max_steps={steps}",
@@ -150,7 +150,7 @@ def main() -> None:
     from ngc_gen.app.editor import browser
     from ngc_gen.app.editor.server import EditorServer
     from ngc_gen.app.editor.start import open_session
-    from ngc_gen.config import compose_config
+    from ngc_gen.app.config import compose_config
 
     ckpt = Path(args.ckpt) if args.ckpt else fitted(args.steps)
     cases = []

@@ -1,13 +1,15 @@
-"""Mesh extraction: grid, GC prefilter, optional coarse-to-fine refinement, marching cubes.
+"""Mesh extraction: sparse multi-level (default) or reference grids, batched network rows, a
+per-GC value cache for incremental edits, bricked marching cubes.
 
-Takes the network as a callable `sdf_fn(gc_index, rel) -> sdf`; imports only ngc_gen.geometry
-(DESIGN.md sections 1 and 3)."""
-from .evaluate import MinField, SdfFn
-from .extractor import ExtractionResult, extract_mesh
+Takes the network as `rows_fn(gc_index (M,), rel (M, 3)) -> (M,)`; imports only
+ngc_gen.geometry (DESIGN.md sections 1, 3 and 7)."""
+from .extractor import METHODS, ExtractionResult, extract_mesh
 from .grid import Grid
 from .marching import empty_mesh, marching_cubes_grid, marching_cubes_mesh
-from .refine import Refinement
-from .smooth_union import extract_smooth_union
+from .rows import RowsFn, SdfFn, per_gc_rows
+from .sparse import SparseSettings
+from .store import FieldCache
 
-__all__ = ["ExtractionResult", "Grid", "MinField", "Refinement", "SdfFn", "empty_mesh",
-           "extract_mesh", "extract_smooth_union", "marching_cubes_grid", "marching_cubes_mesh"]
+__all__ = ["METHODS", "ExtractionResult", "FieldCache", "Grid", "RowsFn", "SdfFn",
+           "SparseSettings", "empty_mesh", "extract_mesh", "marching_cubes_grid",
+           "marching_cubes_mesh", "per_gc_rows"]

@@ -43,6 +43,15 @@ class Grid:
         """(R,) float64 world coordinate of each index along any axis."""
         return np.linspace(-self.bound, self.bound, self.resolution)
 
+    def coords(self, index: np.ndarray) -> np.ndarray:
+        """World coordinate (float64) of integer indices along an axis; indices past R - 1
+        (the sparse path's padded lattice) continue the spacing. Equal to `axis()` where both
+        are defined, so every path sees the same points."""
+        index = np.asarray(index, dtype=np.int64)
+        R = self.resolution
+        return np.where(index < R, self.axis()[np.minimum(index, R - 1)],
+                        -self.bound + index * self.spacing)
+
     def full(self) -> Lattice:
         r = np.arange(self.resolution)
         return r, r, r

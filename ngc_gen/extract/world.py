@@ -1,4 +1,5 @@
-"""Dense extraction of a world-space SDF (the DeepSDF baseline has no GCs to prefilter by)."""
+"""Dense extraction of a world-space SDF (the DeepSDF baseline has no GCs to prefilter by):
+the same grid, slabs and bricked marching cubes as the NGC paths."""
 from __future__ import annotations
 
 import time

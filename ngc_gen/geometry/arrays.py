@@ -30,6 +30,29 @@ def as_tensor(x, device=None) -> tuple[torch.Tensor, Callable]:
     return torch.as_tensor(np.ascontiguousarray(arr), dtype=torch.float64, device=device), back_np
 
 
+def as_numpy(x) -> tuple[np.ndarray, Callable]:
+    """Convert `x` (numpy/torch/list) to a C-contiguous float32 or float64 CPU array (other
+    dtypes become float64); return it and a function that casts a (numpy) result back to the
+    caller's array type, device and float dtype."""
+    if isinstance(x, torch.Tensor):
+        dtype = x.dtype if x.dtype.is_floating_point else torch.float32
+        dev = x.device
+        arr = x.detach().cpu().numpy()
+
+        def back(y: np.ndarray) -> torch.Tensor:
+            y = torch.from_numpy(y)
+            return y.to(device=dev, dtype=dtype if y.dtype.is_floating_point else y.dtype)
+    else:
+        arr = np.asarray(x)
+        dtype = arr.dtype if np.issubdtype(arr.dtype, np.floating) else np.float32
+
+        def back(y: np.ndarray) -> np.ndarray:
+            return y.astype(dtype, copy=False) if np.issubdtype(y.dtype, np.floating) else y
+    if arr.dtype not in (np.float32, np.float64):
+        arr = arr.astype(np.float64)
+    return np.ascontiguousarray(arr), back
+
+
 def check_points(x: torch.Tensor, what: str = "points") -> None:
     if x.ndim != 2 or x.shape[1] != 3:
         raise GeometryShapeError(f"{what} must have shape (N, 3), got {tuple(x.shape)}")

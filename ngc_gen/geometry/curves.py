@@ -50,6 +50,11 @@ class Curve(ABC):
     def evaluate(self, s: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """s: (N,) float64 in [0, 1] -> (C, C', C'') each (N, 3)."""
 
+    @abstractmethod
+    def pieces(self) -> tuple[np.ndarray, np.ndarray]:
+        """The curve as polynomial pieces: breaks (P+1,) on s and coef (P, D+1, 3), coef[i, k]
+        the coefficient of (s - breaks[i])^k (what the fused relative-coordinate kernel reads)."""
+
     def to_dict(self) -> dict:
         return {"type": self.kind, "points": self.points.tolist()}
 
@@ -84,7 +89,11 @@ class BezierCurve(Curve):
         d1[:-1] = a[1:] * k[1:]
         d2 = np.zeros_like(a)
         d2[:-2] = a[2:] * (k[2:] * (k[2:] - 1))
+        self._a = a
         self._M = torch.as_tensor(np.concatenate([a, d1, d2], 1))  # (n+1, 9)
+
+    def pieces(self):
+        return np.array([0.0, 1.0]), self._a[None].copy()
 
     def evaluate(self, s):
         M = self._M.to(device=s.device, dtype=s.dtype)
@@ -112,6 +121,9 @@ class SplineCurve(Curve):
         cs = CubicSpline(x, self.points, axis=0, bc_type=bc)
         self._x = torch.as_tensor(x)
         self._c = torch.as_tensor(np.ascontiguousarray(cs.c))  # (4, m-1, 3), highest power first
+
+    def pieces(self):
+        return self._x.numpy().copy(), np.ascontiguousarray(self._c.numpy()[::-1].transpose(1, 0, 2))
 
     def evaluate(self, s):
         x = self._x.to(device=s.device, dtype=s.dtype)

@@ -18,15 +18,26 @@ import numpy as np
 import torch
 
 from .arclength import ArcLength
-from .arrays import DEFAULT_CHUNK, as_tensor, check_points, chunked, dot
-from .closest import Polyline, closest_parameter
+from .arrays import DEFAULT_CHUNK, as_numpy, as_tensor, check_points, chunked, dot
 from .curves import Curve, curve_from_dict
 from .errors import GeometryError
 from .frames import FrameField
 from .interp import interp
+from .relative import (RelativeTables, coarse_cover, coarse_indices, near_cover,
+                       relative_coordinates)
 
 GC_KEYS = {"name", "curve", "up", "keys", "caps", "reparam"}
+COVER_SAMPLES = 16   # radius samples per polyline segment when sizing the cover balls
 KEY_KEYS = {"t", "radii", "twist"}
+
+
+@dataclass(frozen=True)
+class Polyline:
+    """Dense polyline x_k = C(s_k) (K+1, 3) at uniform normalised arc length k / K: the seed
+    of the closest-point search."""
+
+    x: torch.Tensor
+    s: torch.Tensor
 
 
 @dataclass(frozen=True)
@@ -100,8 +111,9 @@ class GeneralizedCylinder:
     """A GC around a smooth curve; all queries are batched and vectorised.
 
     Points may be numpy arrays or torch tensors of shape (N, 3), float32 or float64; results
-    come back in the same type and float dtype. Work is done in float64 in chunks of
-    `chunk` points so memory stays bounded for millions of points.
+    come back in the same type and float dtype. Relative coordinates run in one fused float64
+    pass over all CPU cores (`ngc_gen.geometry.relative`); `to_world` works in float64 torch
+    in chunks of `chunk` points so memory stays bounded for millions of points.
     """
 
     def __init__(self, curve: Curve, keys: list[Key], caps=(0.1, 0.1), up=None,
@@ -141,6 +153,7 @@ class GeneralizedCylinder:
         poly_s = self.arc.s_of_t(t)
         self.polyline = Polyline(curve.evaluate(poly_s)[0], poly_s)
         self._twisted = any(k.twist != 0.0 for k in keys)
+        self._tables: RelativeTables | None = None
 
     # ---- construction / serialisation -------------------------------------------------------
     @classmethod
@@ -230,21 +243,46 @@ class GeneralizedCylinder:
         return C, T, N, B
 
     # ---- relative coordinates --------------------------------------------------------------
-    def _to_relative(self, q: torch.Tensor) -> torch.Tensor:
-        s = closest_parameter(self.curve, q, self.polyline)
-        t = self.t_of_arc(self.arc.t_of_s(s))
-        C, T, N, B = self.frame(s, t)
-        d = q - C
-        along = dot(d, T)
-        start, end = s <= 0.0, s >= 1.0
-        # past an end: distance along the end tangent, offset perpendicular to it
-        cap = torch.where(start, -along, torch.where(end, along, torch.zeros_like(along)))
-        off = d - torch.where(start | end, along, torch.zeros_like(along))[:, None] * T
-        u = 2.0 * t - 1.0
-        u = torch.where(start, -1.0 - cap / self.caps[0], u)
-        u = torch.where(end, 1.0 + cap / self.caps[1], u)
-        r = self.radii_at(t)
-        return torch.stack([u, dot(off, N) / r[:, 0], dot(off, B) / r[:, 1]], 1)
+    @property
+    def tables(self) -> RelativeTables:
+        """What the fused relative-coordinate kernel reads (built once per GC)."""
+        if self._tables is None:
+            breaks, coef = self.curve.pieces()
+            x = self.polyline.x.numpy()
+            coarse = coarse_indices(len(x), max(2, round(math.sqrt(self.segments))))
+            rep = (np.zeros(0), np.zeros(0)) if self.reparam is None else self.reparam
+            self._tables = RelativeTables(
+                breaks=breaks, coef=np.ascontiguousarray(coef), poly_x=np.ascontiguousarray(x),
+                poly_s=self.polyline.s.numpy().copy(), coarse=coarse,
+                cover=coarse_cover(x, self.cover_radii(), coarse),
+                arc_t=self.arc.t_table.numpy().copy(), rep_arc=np.ascontiguousarray(rep[1]),
+                rep_t=np.ascontiguousarray(rep[0]),
+                frame_r=np.ascontiguousarray(self.frame_field.r_table.numpy()),
+                key_t=self._key_t.numpy().copy(), key_r=self._key_r.numpy().copy(),
+                key_w=self._key_w.numpy().copy(), twisted=self._twisted,
+                caps=np.asarray(self.caps, dtype=np.float64))
+        return self._tables
+
+    def cover_radii(self) -> np.ndarray:
+        """(K+1,) radii of balls around the polyline vertices whose union holds the GC.
+
+        A point inside has its foot point C(t) within max(r_y, r_z)(t) (tube; Newton makes the
+        offset perpendicular to the tangent) or within max(l, r_y, r_z) of an end (caps).
+        Vertex k sits at arc length t_k = k / K and answers for t within half a segment of
+        it: C(t) is within L / 2K of it, and the largest radius over that window is bounded by
+        the largest of COVER_SAMPLES samples per segment plus the largest change between
+        neighbouring samples (radii are piecewise linear)."""
+        K, n = self.segments, COVER_SAMPLES
+        ta = torch.linspace(0.0, 1.0, K * n + 1, dtype=torch.float64)
+        r = self.radii_at(self.t_of_arc(ta)).max(1).values.numpy()
+        slack = np.abs(np.diff(r)).max() if len(r) > 1 else 0.0
+        h = n // 2
+        padded = np.concatenate([np.full(h, r[0]), r, np.full(h, r[-1])])
+        window = np.lib.stride_tricks.sliding_window_view(padded, 2 * h + 1)[::n].max(1)
+        out = window + slack + self.length / (2 * K) * (1 + 1e-6)
+        out[0] = max(out[0], max(self.caps[0], r[0]))
+        out[-1] = max(out[-1], max(self.caps[1], r[-1]))
+        return out * (1 + 1e-9) + 1e-12
 
     def _to_world(self, rel: torch.Tensor) -> torch.Tensor:
         u, a, b = rel.unbind(1)
@@ -260,9 +298,26 @@ class GeneralizedCylinder:
 
     def to_relative(self, points):
         """points (N, 3) -> (N, 3) [u, a, b]; u in [-2, 2] for points inside."""
-        q, back = as_tensor(points)
+        q, back = as_numpy(points)
         check_points(q)
-        return back(chunked(self._to_relative, q, self.chunk))
+        return back(relative_coordinates(self.tables, q)[0])
+
+    def relative_inside(self, points, cull: bool = True):
+        """points (N, 3) -> (rel (N, 3), measure (N,) float64) with measure =
+        max(|u|-1, 0)^2 + a^2 + b^2 (inside iff <= 1). With `cull`, points the cover balls rule
+        out skip the closest-point solve: rel NaN, measure inf (the others are computed exactly
+        as without). rel comes back in the caller's type/dtype, measure as a numpy array."""
+        q, back = as_numpy(points)
+        check_points(q)
+        rel, measure = relative_coordinates(self.tables, q, cull=cull)
+        return back(rel), measure
+
+    def near(self, points, pad: float) -> np.ndarray:
+        """points (N, 3) -> (N,) bool, False where the point is farther than `pad` from the GC
+        (conservative: True may still be outside)."""
+        q, _ = as_numpy(points)
+        check_points(q)
+        return near_cover(self.tables, q, pad)
 
     def to_world(self, rel):
         """[u, a, b] (N, 3) -> world points (N, 3); inverse of to_relative inside the GC."""
@@ -281,15 +336,11 @@ class GeneralizedCylinder:
 
     def contains(self, points):
         """points (N, 3) -> (N,) bool inside the GC (tube plus half-ellipsoid caps)."""
-        q, _ = as_tensor(points)
-        check_points(q)
-        lo, hi = (torch.as_tensor(b, device=q.device) for b in self.bounds())
-        inside = torch.zeros(len(q), dtype=torch.bool, device=q.device)
-        cand = torch.nonzero(((q >= lo) & (q <= hi)).all(1)).squeeze(1)
-        if len(cand):
-            rel = chunked(self._to_relative, q[cand], self.chunk)
-            inside[cand] = self.inside_relative(rel)
-        return inside if isinstance(points, torch.Tensor) else inside.cpu().numpy()
+        _, measure = self.relative_inside(points)
+        inside = measure <= 1.0
+        if isinstance(points, torch.Tensor):
+            return torch.from_numpy(inside).to(points.device)
+        return inside
 
     def bounds(self, samples: int = 256) -> tuple[np.ndarray, np.ndarray]:
         """Conservative axis-aligned box (lo, hi) of the GC including caps."""

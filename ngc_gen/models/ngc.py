@@ -6,10 +6,12 @@ paper: the reference code's code 256, g 3x256, h 4x256, PE 6), nowhere else.
     sdf    = h([PE(u, a, b), g(f(t))])
 
 g(f(t)) is the per-point feature that part mixing blends (`features` / `sdf_from_features`).
+`sdf_rows` evaluates many GCs in one call (extraction): a code per GC, a GC index per row.
 """
 from __future__ import annotations
 
 import torch
+import torch.nn.functional as F
 from torch import nn
 
 from .encoding import PositionalEncoding
@@ -47,3 +49,29 @@ class NGCDecoder(nn.Module):
     def forward(self, codes: torch.Tensor, rel: torch.Tensor) -> torch.Tensor:
         """codes (P, code_dim) per sample, rel (P, 3) -> sdf (P,)."""
         return self.sdf_from_features(rel, self.features(codes, rel[:, 0]))
+
+    def sdf_rows(self, codes: torch.Tensor, gc_index: torch.Tensor,
+                 rel: torch.Tensor) -> torch.Tensor:
+        """codes (K, code_dim) one per GC, gc_index (M,) int64 in [0, K), rel (M, 3) -> sdf (M,):
+        `forward(codes[gc_index], rel)` up to float rounding, without a code per row.
+
+        The end features and g's first (linear) layer are computed once per GC: W f(t) + b =
+        (W f0 + b) + t (W f1 - W f0), so a row only gathers two vectors and lerps them."""
+        f0, f1 = self.ends(codes).chunk(2, dim=-1)
+        first = self.g[0]
+        a0 = first(f0)
+        da = first(f1) - a0
+        t = ((rel[:, 0] + 1.0) * 0.5).clamp(0.0, 1.0)[:, None]
+        pre = torch.addcmul(a0[gc_index], t, da[gc_index])
+        feats = _run(self.g[1:], pre)
+        return _run(self.h, torch.cat([self.pe(rel), feats], -1))[:, 0]
+
+
+def _run(layers: nn.Sequential, x: torch.Tensor) -> torch.Tensor:
+    """`layers(x)`, with SiLU in place when no gradient is recorded: a fresh activation tensor
+    per layer costs more (allocation, first touch of its pages) than the activation itself."""
+    if torch.is_grad_enabled():
+        return layers(x)
+    for layer in layers:
+        x = F.silu(x, inplace=True) if isinstance(layer, nn.SiLU) else layer(x)
+    return x

@@ -13,7 +13,7 @@ from typing import Callable, Iterable
 import numpy as np
 import torch
 
-from ngc_gen.extract import extract_mesh, extract_smooth_union
+from ngc_gen.extract import FieldCache, extract_mesh
 from ngc_gen.geometry import GeneralizedCylinder, smooth_min
 
 from .features import PartFeatures, blend_features
@@ -28,7 +28,8 @@ class Shape:
 
     def __init__(self, gcs: Iterable[GeneralizedCylinder], codes: torch.Tensor, decoder, *,
                  name: str = "shape", mixes: dict[int, PartFeatures] | None = None,
-                 smooth: float = 0.0, info: dict | None = None):
+                 smooth: float = 0.0, info: dict | None = None,
+                 cache: FieldCache | None = None):
         self.gcs = list(gcs)
         self.codes = torch.as_tensor(codes).detach().float()
         self.decoder = decoder
@@ -36,6 +37,9 @@ class Shape:
         self.mixes = dict(mixes or {})
         self.smooth = float(smooth)
         self.info = dict(info or {})
+        # per-GC field values of this shape and every shape edited from it (`replaced` passes
+        # it on): after an edit only GCs with a new `key` are evaluated again
+        self.cache = cache if cache is not None else FieldCache()
         if self.codes.ndim != 2 or len(self.codes) != len(self.gcs):
             raise ValueError(f"a shape needs one code per GC: {len(self.gcs)} GCs, codes of "
                              f"shape {tuple(self.codes.shape)}")
@@ -87,9 +91,25 @@ class Shape:
                 feats = blend_features(fa, fb, ((u + 1.0) * 0.5).clamp(0.0, 1.0), mix.weight)
             return dec.sdf_from_features(rel, feats)
 
-    def sdf_fn(self) -> Callable[[int, torch.Tensor], torch.Tensor]:
-        """sdf_fn(gc_index, rel) for `ngc_gen.extract.extract_mesh`."""
-        return self.gc_sdf
+    def rows(self, gc_index: torch.Tensor, rel: torch.Tensor) -> torch.Tensor:
+        """rows_fn for `ngc_gen.extract.extract_mesh`: SDF at rows of relative coordinates rel
+        (M, 3) of GCs gc_index (M,), one batched decoder call for the unmixed GCs
+        (`NGCDecoder.sdf_rows`: end features once per GC), `gc_sdf` for each mixed GC."""
+        with torch.inference_mode():
+            codes = self.codes.to(rel.device)
+            if not self.mixes:
+                return self.decoder.sdf_rows(codes, gc_index, rel)
+            out = torch.empty(len(rel), dtype=rel.dtype, device=rel.device)
+            mixed = torch.zeros(len(rel), dtype=torch.bool, device=rel.device)
+            for j in self.mixes:  # a loop over the mixed GCs (a few), never over points
+                m = gc_index == j
+                if bool(m.any()):
+                    out[m] = self.gc_sdf(j, rel[m]).to(out.dtype)
+                mixed |= m
+            plain = ~mixed
+            if bool(plain.any()):
+                out[plain] = self.decoder.sdf_rows(codes, gc_index[plain], rel[plain])
+            return out
 
     def sdf(self, points) -> torch.Tensor:
         """World points (N, 3) -> (N,) float32: min (or smooth min) over the GCs containing each
@@ -109,28 +129,32 @@ class Shape:
 
     # ---- meshes ---------------------------------------------------------------------------------
     def key(self, j: int) -> str:
-        """Identity of GC j's field (its parameters, code and mix): equal keys give equal
-        values, so a per-GC value cache can skip GCs an edit did not change."""
-        h = hashlib.sha1(repr(sorted(self.gcs[j].to_dict().items())).encode())
+        """Identity of GC j's field (its parameters, code, mix and the decoder object): equal
+        keys give equal values, so a per-GC value cache can skip GCs an edit did not change."""
+        h = hashlib.sha1(f"{id(self.decoder)}:{sorted(self.gcs[j].to_dict().items())!r}".encode())
         h.update(self.codes[j].numpy().tobytes())
         if j in self.mixes:
             for part in self.mixes[j].key():
                 h.update(part if isinstance(part, bytes) else part.encode())
         return h.hexdigest()
 
-    def mesh(self, resolution: int = 256, bound: float = 1.0, **kwargs):
+    def mesh(self, resolution: int = 256, bound: float = 1.0, method: str = "sparse",
+             incremental: bool = True, **kwargs):
         """ExtractionResult (mesh, stats) of the shape's zero level set on a resolution^3 grid
-        over [-bound, bound]^3; kwargs go to `ngc_gen.extract.extract_mesh`."""
-        if self.smooth > 0.0:
-            return extract_smooth_union(self.gcs, self.sdf_fn(), int(resolution), float(bound),
-                                        k=self.smooth, **kwargs)
-        return extract_mesh(self.gcs, self.sdf_fn(), int(resolution), float(bound), **kwargs)
+        over [-bound, bound]^3 (`ngc_gen.extract.extract_mesh`, min or smooth min of width
+        `smooth` over the GCs). method "sparse" (default) keeps per-GC values in `self.cache`
+        unless incremental=False; "prefiltered" / "dense" are the exact references; kwargs go
+        to extract_mesh (chunk, fixed_batch, keep_values, progress, ...)."""
+        if method == "sparse" and incremental:
+            kwargs.update(cache=self.cache, gc_keys=[self.key(j) for j in range(len(self.gcs))])
+        return extract_mesh(self.gcs, self.rows, int(resolution), float(bound), method=method,
+                            smooth=self.smooth, **kwargs)
 
     # ---- edits (new shapes) ---------------------------------------------------------------------
     def replaced(self, **changes) -> "Shape":
         """A copy with some of gcs, codes, decoder, name, mixes, smooth, info replaced."""
         kw = dict(gcs=self.gcs, codes=self.codes, decoder=self.decoder, name=self.name,
-                  mixes=self.mixes, smooth=self.smooth, info=self.info)
+                  mixes=self.mixes, smooth=self.smooth, info=self.info, cache=self.cache)
         kw.update(changes)
         return Shape(kw.pop("gcs"), kw.pop("codes"), kw.pop("decoder"), **kw)
 

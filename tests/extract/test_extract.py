@@ -4,9 +4,14 @@ import pytest
 import torch
 from scipy.spatial import cKDTree
 
-from ngc_gen.extract import ExtractionResult, Refinement, extract_mesh
+from ngc_gen.extract import ExtractionResult, extract_mesh as _extract_mesh, per_gc_rows
 
 from .conftest import curved_gc, grid_points, sphere_sdf, straight_gc, through_gcs
+
+
+def extract_mesh(gcs, sdf_fn, *args, **kwargs):
+    """These tests build per-GC fields sdf_fn(j, rel); the extractor takes batched rows."""
+    return _extract_mesh(gcs, per_gc_rows(sdf_fn), *args, **kwargs)
 
 
 def spacing(resolution, bound=1.0):
@@ -77,9 +82,10 @@ def test_prefilter_is_exact_and_evaluates_far_less():
            curved_gc([[0.0, -0.7, 0.2], [0.1, 0.0, -0.3], [-0.1, 0.7, 0.2]], radii=(0.2, 0.3),
                      twist=-60.0, name="crossing")]
     sdf_fn, R = mlp_sdf(gcs), 40
-    fast = extract_mesh(gcs, sdf_fn, R, chunk=8192, keep_values=True, progress=False)
-    dense = extract_mesh(gcs, sdf_fn, R, chunk=8192, keep_values=True, prefilter=False,
-                         progress=False)
+    fast = extract_mesh(gcs, sdf_fn, R, method="prefiltered", chunk=8192, keep_values=True,
+                        fixed_batch=True, progress=False)
+    dense = extract_mesh(gcs, sdf_fn, R, method="dense", chunk=8192, keep_values=True,
+                         fixed_batch=True, progress=False)
     assert np.array_equal(fast.values, dense.values)
     assert len(fast.mesh.faces) > 500
     assert np.array_equal(fast.mesh.vertices, dense.mesh.vertices)
@@ -99,8 +105,8 @@ def test_union_of_overlapping_gcs_takes_the_minimum():
     gb = straight_gc((0, -0.5, 0), (0, 0.5, 0), 0.5, caps=(0.2, 0.2), name="y")
     sa, sb = sphere_sdf((0.15, 0.0, 0.0), 0.3), sphere_sdf((0.0, 0.15, 0.0), 0.3)
     R = 64
-    res = extract_mesh([ga, gb], through_gcs([ga, gb], [sa, sb]), R, keep_values=True,
-                       progress=False)
+    res = extract_mesh([ga, gb], through_gcs([ga, gb], [sa, sb]), R, method="prefiltered",
+                       keep_values=True, progress=False)
     m, h = res.mesh, spacing(R)
     v = torch.from_numpy(m.vertices)
     union = torch.minimum(sa(v), sb(v)).numpy()
@@ -141,61 +147,60 @@ def test_surface_cut_by_the_grid_stays_inside_the_bound(sphere_gc):
     assert np.all(np.abs(res.mesh.vertices) <= 0.4)
 
 
-def test_chunking_and_slabs_do_not_change_the_result(sphere_gc):
+@pytest.mark.parametrize("method", ["prefiltered", "sparse"])
+def test_chunking_and_slabs_do_not_change_the_result(sphere_gc, method):
     gc, _, _, sdf_fn = sphere_gc
     sizes = []
 
     def recording(g, rel):
         sizes.append(len(rel))
         return sdf_fn(g, rel)
-    ref = extract_mesh([gc], sdf_fn, 36, keep_values=True, progress=False)
-    small = extract_mesh([gc], recording, 36, chunk=1000, slab_points=777, keep_values=True,
-                         progress=False)
-    assert np.array_equal(ref.values, small.values)
-    assert set(sizes) == {1000}                     # fixed batches: never more, tail padded
-    assert small.stats["n_network_evals"] == ref.stats["n_network_evals"]
-    assert small.stats["n_network_rows"] == 1000 * len(sizes)
+    ref = extract_mesh([gc], sdf_fn, 36, method=method, keep_values=True, progress=False)
+    small = extract_mesh([gc], recording, 36, method=method, chunk=1000, slab_points=777,
+                         keep_values=True, progress=False)
+    assert np.array_equal(ref.values, small.values, equal_nan=True)
+    assert max(sizes) == 1000 and min(sizes) < 1000   # no padding: the tail call is short
+    assert small.stats["n_network_evals"] == ref.stats["n_network_evals"] == sum(sizes)
+    assert small.stats["n_network_rows"] == sum(sizes)
     sizes.clear()
-    loose = extract_mesh([gc], recording, 36, chunk=1000, fixed_batch=False, progress=True,
-                         device="cpu", keep_values=True)
-    assert max(sizes) == 1000 and min(sizes) < 1000
-    assert np.array_equal(ref.values, loose.values)
+    fixed = extract_mesh([gc], recording, 36, method=method, chunk=1000, fixed_batch=True,
+                         progress=True, device="cpu", keep_values=True)
+    assert set(sizes) == {1000}                     # exactness mode: fixed batches, tail padded
+    assert fixed.stats["n_network_rows"] == 1000 * len(sizes) > fixed.stats["n_network_evals"]
+    assert np.array_equal(ref.values, fixed.values, equal_nan=True)
 
 
 def chamfer(a, b):
     return cKDTree(b).query(a)[0].mean() + cKDTree(a).query(b)[0].mean()
 
 
-def test_refinement_is_exact_for_a_true_sdf_and_close_otherwise(sphere_gc):
+def test_sparse_equals_prefiltered_on_two_bodies_and_a_steep_field(sphere_gc):
     gc, center, radius, _ = sphere_gc
     R = 64
     # a big sphere and a small one that fits between coarse points (no corner sign change)
     big, small = sphere_sdf(center, radius), sphere_sdf((-0.45, 0.3, 0.2), 0.05)
     sdf_fn = through_gcs([gc], [lambda x: torch.minimum(big(x), small(x))])
-    full = extract_mesh([gc], sdf_fn, R, progress=False)
-    fine = extract_mesh([gc], sdf_fn, R, refine=True, progress=False)
-    # 1-Lipschitz SDF, margin 1: the same cells cross zero with the same values -> same mesh
+    full = extract_mesh([gc], sdf_fn, R, method="prefiltered", progress=False)
+    fast = extract_mesh([gc], sdf_fn, R, progress=False)
     assert full.mesh.body_count == 2
-    assert np.array_equal(full.mesh.vertices, fine.mesh.vertices)
-    assert np.array_equal(full.mesh.faces, fine.mesh.faces)
-    assert fine.stats["n_network_evals"] < 0.6 * full.stats["n_network_evals"]
-    assert fine.stats["n_coarse_evals"] + fine.stats["n_fine_evals"] == \
-        fine.stats["n_network_evals"]
+    assert np.array_equal(full.mesh.vertices, fast.mesh.vertices)
+    assert np.array_equal(full.mesh.faces, fast.mesh.faces)
+    assert fast.stats["n_network_evals"] < 0.6 * full.stats["n_network_evals"]
+    assert sum(lv["network_evals"] for lv in fast.stats["levels"]) \
+        + fast.stats["completion_network_evals"] == fast.stats["n_network_evals"]
 
-    # a wavy, steeper (not 1-Lipschitz) field: approximate, but close in Chamfer distance
+    # a wavy field twice as steep as an SDF: still the same mesh within the Lipschitz margin
     c = torch.tensor(center, dtype=torch.float64)
 
     def wavy(g, rel):
         x = gc.to_world(rel.double())
         d = torch.linalg.norm(x - c, dim=1) - radius
         return (2.0 * d + 0.05 * torch.sin(14 * x[:, 0]) * torch.sin(11 * x[:, 1])).float()
-    full = extract_mesh([gc], wavy, R, progress=False)
-    approx = extract_mesh([gc], wavy, R, refine=Refinement(factor=4, margin=0.5),
-                          progress=False)
-    h = spacing(R)
-    assert chamfer(full.mesh.vertices, approx.mesh.vertices) < 0.05 * h
-    assert approx.stats["n_network_evals"] < 0.5 * full.stats["n_network_evals"]
-    assert approx.mesh.is_watertight
+    full = extract_mesh([gc], wavy, R, method="prefiltered", progress=False)
+    fast = extract_mesh([gc], wavy, R, progress=False)
+    assert np.array_equal(full.mesh.vertices, fast.mesh.vertices)
+    assert np.array_equal(full.mesh.faces, fast.mesh.faces)
+    assert fast.mesh.is_watertight
 
 
 def test_bad_sdf_outputs_and_arguments_raise_clear_errors(sphere_gc):
@@ -209,22 +214,27 @@ def test_bad_sdf_outputs_and_arguments_raise_clear_errors(sphere_gc):
         extract_mesh([gc], lambda g, rel: torch.ones(len(rel)), 16, background=-1.0)
     with pytest.raises(TypeError, match="GeneralizedCylinder"):
         extract_mesh([{"curve": 1}], lambda g, rel: torch.ones(len(rel)), 16)
-    with pytest.raises(ValueError, match="factor"):
-        Refinement(factor=1)
+    with pytest.raises(ValueError, match="method"):
+        extract_mesh([gc], lambda g, rel: torch.ones(len(rel)), 16, method="refined")
+    with pytest.raises(ValueError, match="smooth"):
+        extract_mesh([gc], lambda g, rel: torch.ones(len(rel)), 16, smooth=-0.1)
 
 
-def test_refinement_finds_a_gc_thinner_than_a_coarse_block():
-    """A thin GC between coarse grid lines contains no coarse point; it must still be refined."""
-    R = 64
+def test_sparse_finds_a_gc_thinner_than_a_coarse_block():
+    """A thin GC between coarse lattice lines contains no coarse point; the sparse path must
+    still find its surface, and give the prefiltered mesh."""
+    R = 129
     h = spacing(R)
-    off = -1 + 30 * h          # midway between coarse lines (every 4th grid index)
+    off = -1 + 30 * h          # midway between coarse lines (step 4 at this resolution)
     gc = straight_gc((-0.4, off, off), (0.4, off, off), 1.5 * h, caps=(0.05, 0.05))
     pts = grid_points(R).reshape(R, R, R, 3)[::4, ::4, ::4].reshape(-1, 3)
     assert not gc.contains(pts).any()
 
     def tube(g, rel):
         return (torch.sqrt(rel[:, 1] ** 2 + rel[:, 2] ** 2) - 0.8) * 1.5 * h
-    full = extract_mesh([gc], tube, R, progress=False)
-    fine = extract_mesh([gc], tube, R, refine=True, progress=False)
+    full = extract_mesh([gc], tube, R, method="prefiltered", progress=False)
+    fast = extract_mesh([gc], tube, R, progress=False)
+    assert fast.stats["coarse_step"] == 4
     assert len(full.mesh.faces) > 100
-    assert np.array_equal(full.mesh.vertices, fine.mesh.vertices)
+    assert np.array_equal(full.mesh.vertices, fast.mesh.vertices)
+    assert np.array_equal(full.mesh.faces, fast.mesh.faces)

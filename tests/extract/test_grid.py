@@ -2,7 +2,6 @@ import numpy as np
 import pytest
 
 from ngc_gen.extract.grid import Grid, lattice_points, restrict, slabs
-from ngc_gen.extract.refine import coarse_indices, fine_mask
 
 
 def test_index_box_covers_every_grid_point_in_the_world_box():
@@ -43,15 +42,3 @@ def test_grid_rejects_bad_arguments():
         Grid(1)
     with pytest.raises(ValueError, match="bound"):
         Grid(8, -1.0)
-
-
-def test_fine_mask_is_the_union_of_closed_blocks():
-    R, f = 11, 4
-    c = coarse_indices(R, f)
-    assert list(c) == [0, 4, 8, 10]
-    marks = np.zeros((3, 3, 3), dtype=bool)
-    marks[1, 0, 2] = True
-    m = fine_mask(marks, c, R)
-    expect = np.zeros((R, R, R), dtype=bool)
-    expect[4:9, 0:5, 8:11] = True
-    assert np.array_equal(m, expect)

@@ -4,7 +4,7 @@ import pytest
 import torch
 
 from ngc_gen.edit import constant, linear, smoothstep, truncated_linear
-from ngc_gen.extract import extract_mesh, extract_smooth_union
+from ngc_gen.extract import extract_mesh, per_gc_rows
 from ngc_gen.shape import PartFeatures as PartMix
 from ngc_gen.shape import Shape
 
@@ -16,6 +16,11 @@ def mixed_sdf_fn(decoder, codes, mixes=None):
 
     gc = GeneralizedCylinder.from_dict(GC_DICTS[0])
     return Shape([gc] * len(codes), codes, decoder, mixes=mixes).gc_sdf
+
+
+def extract_smooth_union(gcs, fn, resolution, k):
+    """The extractor's smooth union of a per-GC field (what `Shape.mesh` runs for smooth > 0)."""
+    return extract_mesh(gcs, per_gc_rows(fn), resolution, smooth=k)
 
 
 @pytest.fixture
@@ -85,14 +90,14 @@ def test_mix_checks_its_inputs(module):
 
 def test_smooth_union_zero_width_is_the_hard_min(module, gcs):
     fn = mixed_sdf_fn(module.decoder, codes_of(module, 0))
-    hard = extract_mesh(gcs, fn, 48).mesh
+    hard = extract_mesh(gcs, per_gc_rows(fn), 48).mesh
     same = extract_smooth_union(gcs, fn, 48, k=0.0).mesh
     assert np.array_equal(hard.vertices, same.vertices) and np.array_equal(hard.faces, same.faces)
 
 
 def test_smooth_union_fills_the_seam_and_only_there(module, gcs):
     fn = mixed_sdf_fn(module.decoder, codes_of(module, 0))
-    hard = extract_mesh(gcs, fn, 64)
+    hard = extract_mesh(gcs, per_gc_rows(fn), 64)
     k = 0.1
     soft = extract_smooth_union(gcs, fn, 64, k=k).mesh
     assert soft.is_watertight
@@ -107,5 +112,5 @@ def test_smooth_union_fills_the_seam_and_only_there(module, gcs):
 
 
 def test_smooth_union_rejects_negative_width(module, gcs):
-    with pytest.raises(ValueError, match="smooth union"):
+    with pytest.raises(ValueError, match="smooth must be >= 0"):
         extract_smooth_union(gcs, mixed_sdf_fn(module.decoder, codes_of(module, 0)), 32, k=-1)

@@ -8,11 +8,11 @@ import trimesh
 import yaml
 
 from ngc_gen.data.annotations import load_annotation
-from ngc_gen.stages import run_stage
-from ngc_gen.stages.annotate import HEADER
+from ngc_gen.app.stages import run_stage
+from ngc_gen.app.annotate import HEADER
 
-from .helpers import compose_config
-from .data.test_skeleton_gcs import tube_union
+from ..helpers import compose_config
+from ..data.test_skeleton_gcs import tube_union
 
 pytestmark = pytest.mark.usefixtures("single_thread")
 SMALL = ["annotate.resolution=48", "annotate.samples=3000"]

@@ -1,0 +1,75 @@
+"""The reference paths: every grid point of each GC's bounding box ("prefiltered": relative
+coordinates there, the network only at points inside the GC) or of the whole box ("dense": the
+network at every grid point for every GC, masked by the same inside test afterwards).
+
+Both fold each GC's values into one flat (R^3,) float32 grid in GC order (min or smooth-min),
++inf where no GC holds a point; walking slabs keeps the coordinates' memory bounded. They are
+what the sparse path must reproduce, and the world-space extractor's grid.
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from tqdm.auto import tqdm
+
+from ngc_gen.geometry import GeneralizedCylinder
+from ngc_gen.geometry.smooth import smooth_min
+
+from .grid import Grid, lattice_points, n_slabs, restrict, slabs
+from .rows import RowQueue
+
+
+def fold_into(acc: np.ndarray, flat: np.ndarray, v: np.ndarray, smooth: float) -> None:
+    """acc[flat] <- fold(acc[flat], v) in place (flat unique): min, or smooth-min where both
+    are finite (the first GC holding a point just sets it)."""
+    a = acc[flat]
+    if smooth == 0.0:
+        acc[flat] = np.minimum(a, v)
+        return
+    with np.errstate(invalid="ignore"):
+        both = np.isfinite(a)
+        acc[flat] = np.where(both, smooth_min(a, v, smooth), v).astype(np.float32)
+
+
+def evaluate_grid(gcs: list[GeneralizedCylinder], grid: Grid, queue_args: dict, stats: dict,
+                  smooth: float, prefilter: bool, slab_points: int = 1 << 18,
+                  progress: bool | None = None) -> np.ndarray:
+    """-> (R^3,) float32 values, C order, +inf outside every GC."""
+    acc = np.full(grid.n_points, np.inf, dtype=np.float32)
+
+    def sink(gc_index, flat, v):
+        keep = flat >= 0                       # dense path: rows outside their GC
+        gc_index, flat, v = gc_index[keep], flat[keep], v[keep]
+        # rows come in push order: runs of one GC, folded one after another
+        cut = np.flatnonzero(np.diff(gc_index)) + 1
+        for lo, hi in zip(np.r_[0, cut], np.r_[cut, len(gc_index)]):
+            fold_into(acc, flat[lo:hi], v[lo:hi], smooth)
+
+    queue = RowQueue(sink=sink, stats=stats, **queue_args)
+    regions = [restrict(grid.full(), grid.index_box(*gc.bounds())) if prefilter else grid.full()
+               for gc in gcs]
+    total = sum(n_slabs(r, slab_points) for r in regions)
+    with tqdm(total=total, desc="extract", unit="slab", leave=False, delay=1.0,
+              disable=None if progress is None else not progress) as bar:
+        for j, (gc, region) in enumerate(zip(gcs, regions)):
+            if region is None:
+                continue
+            for slab in slabs(region, slab_points):
+                t0 = time.perf_counter()
+                pts, flat = lattice_points(grid, slab)
+                pts, flat = pts.numpy(), flat.numpy()
+                if prefilter:
+                    rel, m = gc.relative_inside(pts)
+                    inside = m <= 1.0
+                    rel, flat = rel[inside], flat[inside]
+                else:  # every point to the network; points outside the GC dropped afterwards
+                    rel, m = gc.relative_inside(pts, cull=False)
+                    flat = np.where(m <= 1.0, flat, -1)
+                stats["n_relative"] += len(pts)
+                stats["seconds_geometry"] += time.perf_counter() - t0
+                queue.push(j, rel, flat)
+                bar.update(1)
+        queue.flush()
+    return acc
+

@@ -1,0 +1,380 @@
+"""Sparse multi-level extraction: work that follows the surface, not the volume (DESIGN.md 7).
+
+The field is F(x) = min (or smooth-min) of f_i(x) over the GCs i that contain x, a positive
+background elsewhere; marching cubes only needs F at the corners of cells whose corners change
+sign. Such a cell always has a corner in N_i = {x in GC i : f_i(x) < tau_i} and one outside
+N_i's interior for some GC i (tau_i = 0 for the hard minimum; for a smooth minimum of width k,
+tau_i = (n_i - 1) k / 4 with n_i the GCs that can overlap GC i, since folding n fields lowers
+the minimum by at most (n - 1) k / 4). So each GC is refined on its own, from a coarse lattice
+of blocks to single cells, keeping a block while it may hold a boundary point of N_i:
+
+* the block comes within its half-diagonal of GC i's cover balls (exact test), and
+* no corner lies inside GC i (a thin part may pass between the corners), or the corner
+  values of f_i reach the band [-cD, tau_i + cD] (D the block diagonal, c the Lipschitz margin:
+  a learned SDF is only roughly 1-Lipschitz), or some corner has f_i <= tau_i + cD while the
+  GC's own boundary may cross the block (a corner outside it, or a corner within cD of it by
+  the estimate (1 - sqrt(measure)) r_min);
+* at single cells the test is exact: a corner in N_i and a corner outside it.
+
+The cells kept by any GC are the active cells; F is completed at their corners with every GC
+that contains them (values a GC's own refinement did not visit) and folded in GC order, so the
+values equal those of the dense path, and `cells_mesh` gives the same triangles.
+
+Point keys: index (i, j, k) on a lattice padded past R - 1 (coarse blocks may reach beyond the
+grid; their outer corners are ordinary points past the bound) -> (i Q + j) Q + k, Q = 2R.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ngc_gen.geometry import GeneralizedCylinder
+from ngc_gen.geometry.smooth import smooth_min
+
+from .grid import Grid
+from .marching import CORNERS, cells_mesh, crossing
+from .rows import RowQueue
+from .store import PointStore, sorted_unique
+
+
+@dataclass(frozen=True)
+class SparseSettings:
+    """coarse_cells: blocks of the first level across the grid (its step is the power of two
+    nearest (R - 1) / coarse_cells); lipschitz: c in |f| <= c D (>= 1, with margin)."""
+
+    coarse_cells: int = 32
+    lipschitz: float = 1.5
+
+    def __post_init__(self):
+        if int(self.coarse_cells) != self.coarse_cells or self.coarse_cells < 1:
+            raise ValueError(f"coarse_cells must be a positive integer, got {self.coarse_cells!r}")
+        if not self.lipschitz >= 1.0:
+            raise ValueError(f"lipschitz margin must be >= 1 (1-Lipschitz SDF plus a margin), "
+                             f"got {self.lipschitz!r}")
+
+    def step(self, resolution: int) -> int:
+        cells = max(resolution - 1, 1)
+        return 2 ** max(0, round(math.log2(max(cells / self.coarse_cells, 1.0))))
+
+
+class Keys:
+    """Flat int64 keys of lattice indices (i, j, k), padded lattice of side Q = 2R. The map is
+    linear, so a sorted array of keys shifted by an index offset stays sorted."""
+
+    def __init__(self, resolution: int):
+        self.Q = 2 * int(resolution)
+        self.corner = self.encode(CORNERS)          # key offsets of the 8 corners at step 1
+
+    def encode(self, idx: np.ndarray) -> np.ndarray:
+        idx = np.asarray(idx, dtype=np.int64)
+        return (idx[..., 0] * self.Q + idx[..., 1]) * self.Q + idx[..., 2]
+
+    def decode(self, key: np.ndarray) -> np.ndarray:
+        return np.stack([key // (self.Q * self.Q), (key // self.Q) % self.Q, key % self.Q], -1)
+
+    def corner_runs(self, blocks: np.ndarray, step: int) -> list[np.ndarray]:
+        """Sorted block keys -> 8 sorted arrays: the keys of each block's corner o."""
+        return [blocks + step * off for off in self.corner]
+
+
+@dataclass
+class GCState:
+    """One GC's refinement: its store of values, band top tau, smallest radius, block keys."""
+
+    index: int
+    gc: GeneralizedCylinder
+    store: PointStore
+    tau: float
+    r_min: float
+    blocks: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+
+
+def overlap_counts(gcs: list[GeneralizedCylinder]) -> np.ndarray:
+    """(K,) 1 + the number of other GCs whose bounding box meets this GC's box."""
+    if not gcs:
+        return np.zeros(0, dtype=np.int64)
+    lo = np.stack([g.bounds()[0] for g in gcs])
+    hi = np.stack([g.bounds()[1] for g in gcs])
+    meet = np.all((lo[:, None] <= hi[None]) & (lo[None] <= hi[:, None]), -1)
+    return meet.sum(1)
+
+
+def r_min(gc: GeneralizedCylinder) -> float:
+    return float(min(min(min(k.radii) for k in gc.keys), *gc.caps))
+
+
+class SparseField:
+    """Evaluates GCs at lattice points into their stores, one batched network pass per call."""
+
+    def __init__(self, grid: Grid, keys: Keys, queue_args: dict, stats: dict):
+        self.grid, self.keys, self.queue_args, self.stats = grid, keys, queue_args, stats
+
+    def ensure(self, states: list[GCState], keys_per_gc: list[np.ndarray]
+               ) -> list[tuple[np.ndarray, np.ndarray]]:
+        """Sorted unique keys per GC -> (f, m) at them, from the stores; the missing ones get
+        geometry, then the inside points of all GCs go through the network together."""
+        t0 = time.perf_counter()
+        out, todo = [], []
+        for st, keys in zip(states, keys_per_gc):
+            found, f, m = st.store.lookup(keys)
+            out.append((f, m))
+            miss = np.flatnonzero(~found)
+            if len(miss) == 0:
+                continue
+            idx = self.keys.decode(keys[miss])
+            pts = np.stack([self.grid.coords(idx[:, a]) for a in range(3)], 1)
+            rel, mm = st.gc.relative_inside(pts)
+            inside = mm <= 1.0
+            todo.append((st, keys, miss, rel[inside], inside, mm, f, m))
+            self.stats["n_relative"] += len(miss)
+        self.stats["seconds_geometry"] += time.perf_counter() - t0
+        values = np.empty(sum(len(t[3]) for t in todo), dtype=np.float32)
+
+        def sink(gc_index, where, v):
+            values[where] = v
+
+        queue = RowQueue(sink=sink, stats=self.stats, **self.queue_args)
+        offset = 0
+        for st, _, _, rel, _, _, _, _ in todo:
+            queue.push(st.index, rel, np.arange(offset, offset + len(rel)))
+            offset += len(rel)
+        queue.flush()
+        offset = 0
+        for st, keys, miss, rel, inside, mm, f, m in todo:
+            fm = np.full(len(miss), np.inf, dtype=np.float32)
+            fm[inside] = values[offset:offset + len(rel)]
+            offset += len(rel)
+            f[miss], m[miss] = fm, mm
+            st.store.add(keys[miss], fm, mm.astype(np.float32))
+        return out
+
+
+def positions(U: np.ndarray, runs: list[np.ndarray]) -> np.ndarray:
+    """Sorted unique keys U, 8 sorted corner runs -> (n, 8) index of each corner in U (sorted
+    needles: one sequential pass each)."""
+    return np.stack([np.searchsorted(U, r) for r in runs], 1)
+
+
+def initial_blocks(st: GCState, grid: Grid, keys: Keys, step: int) -> np.ndarray:
+    """Sorted keys of the blocks of side `step` over the GC's bounding box that come near its
+    cover balls."""
+    box = grid.index_box(*st.gc.bounds())
+    if box is None:
+        return np.zeros(0, dtype=np.int64)
+    first, last = box
+    last = np.minimum(last, grid.resolution - 2)         # first corner of a real cell
+    if np.any(first > last):
+        return np.zeros(0, dtype=np.int64)
+    axes = [np.arange(first[a] // step, last[a] // step + 1) * step for a in range(3)]
+    blocks = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
+    blocks = blocks[near(st, grid, blocks, step)]
+    return keys.encode(blocks)                           # C order of the meshgrid: sorted
+
+
+def near(st: GCState, grid: Grid, blocks: np.ndarray, step: int) -> np.ndarray:
+    """Blocks (first corner indices (n, 3)) of side `step` that may meet the GC (centre within
+    the half-diagonal of a cover ball)."""
+    centre = -grid.bound + (blocks + 0.5 * step) * grid.spacing
+    pad = 0.5 * step * grid.spacing * math.sqrt(3.0) * (1 + 1e-6) + 1e-9
+    return st.gc.near(centre, pad)
+
+
+def far(f: np.ndarray, m: np.ndarray, st: GCState, cD: float) -> np.ndarray:
+    """Corner values that rule a block of diagonal D = cD / c out for GC i: the corner lies in
+    the GC and f_i there is more than cD above the band (f_i > tau on the whole block), or more
+    than cD below 0 while the corner is deeper than cD inside the GC (f_i < 0 on the block and
+    the GC's boundary does not reach it)."""
+    inside = m <= 1.0
+    depth = (1.0 - np.sqrt(np.minimum(m, 1.0))) * st.r_min
+    return inside & ((f > st.tau + cD) | ((f < -cD) & (depth > cD)))
+
+
+def keep_blocks(f: np.ndarray, m: np.ndarray, st: GCState, step: int, spacing: float,
+                lipschitz: float) -> np.ndarray:
+    """The refinement test of the module docstring for (n, 8) corner values -> (n,) bool."""
+    inside = m <= 1.0
+    if step == 1:
+        neg = inside & (f < st.tau)
+        pos = ~inside | (f >= 0.0)
+        return neg.any(1) & pos.any(1)
+    cD = lipschitz * step * spacing * math.sqrt(3.0)
+    n_in = inside.sum(1)
+    fmin = np.where(inside, f, np.inf).min(1)
+    fmax = np.where(inside, f, -np.inf).max(1)
+    crossing = (fmin <= st.tau) & (fmax >= 0.0)      # kept even where f is not Lipschitz
+    return (n_in == 0) | crossing | ~far(f, m, st, cD).any(1)
+
+
+def children(blocks: np.ndarray, f: np.ndarray, m: np.ndarray, st: GCState, step: int,
+             grid: Grid, keys: Keys, lipschitz: float) -> np.ndarray:
+    """Sorted keys of the half-size blocks of kept blocks (sorted keys, (n, 8) corner values)
+    that hold a real cell, that their one known corner (child o shares corner o with its
+    parent) does not rule out (`far`), and that come near the GC."""
+    half = step // 2
+    cD = lipschitz * half * grid.spacing * math.sqrt(3.0)
+    ruled_out = far(f, m, st, cD)
+    runs = []
+    for o, run in enumerate(keys.corner_runs(blocks, half)):
+        runs.append(run[~ruled_out[:, o]])
+    kids = np.sort(np.concatenate(runs), kind="stable")
+    idx = keys.decode(kids)
+    ok = np.all(idx <= grid.resolution - 2, 1)
+    kids, idx = kids[ok], idx[ok]
+    return kids[near(st, grid, idx, half)]
+
+
+def fold(values: list[np.ndarray], inside: list[np.ndarray], smooth: float) -> np.ndarray:
+    """Min (smooth = 0) or smooth-min of width `smooth` over the GCs holding each point, in GC
+    order (the same fold as the dense path); +inf where no GC holds the point."""
+    acc = None
+    for v, ins in zip(values, inside):
+        v = np.where(ins, v, np.float32(np.inf)).astype(np.float32)
+        if acc is None:
+            acc = v
+        elif smooth == 0.0:
+            acc = np.minimum(acc, v)
+        else:
+            with np.errstate(invalid="ignore"):
+                both = np.isfinite(acc) & np.isfinite(v)
+                acc = np.where(both, smooth_min(acc, v, smooth), np.minimum(acc, v))
+            acc = acc.astype(np.float32)
+    return acc
+
+
+def extract_sparse(gcs: list[GeneralizedCylinder], grid: Grid, stores: list[PointStore],
+                   queue_args: dict, stats: dict, smooth: float, background: float,
+                   settings: SparseSettings, keep_values: bool = False):
+    """-> (mesh, values or None). stats gain per-level counts."""
+    keys = Keys(grid.resolution)
+    field_ = SparseField(grid, keys, queue_args, stats)
+    counts = overlap_counts(gcs)
+    states = [GCState(i, gc, stores[i], (counts[i] - 1) * smooth / 4.0, r_min(gc))
+              for i, gc in enumerate(gcs)]
+    step = settings.step(grid.resolution)
+    stats.update(coarse_step=step, levels=[])
+    for st in states:
+        st.blocks = initial_blocks(st, grid, keys, step)
+    while True:
+        t0 = time.perf_counter()
+        evals0 = stats["n_network_evals"]
+        runs = [keys.corner_runs(st.blocks, step) for st in states]
+        U = [sorted_unique(np.concatenate(r)) for r in runs]
+        got = field_.ensure(states, U)
+        n_blocks, n_kept = 0, 0
+        for st, r, u, (fU, mU) in zip(states, runs, U, got):
+            pos = positions(u, r)
+            f, m = fU[pos], mU[pos]
+            keep = keep_blocks(f, m, st, step, grid.spacing, settings.lipschitz)
+            n_blocks += len(st.blocks)
+            n_kept += int(keep.sum())
+            st.blocks = st.blocks[keep]
+            if step > 1:
+                st.blocks = children(st.blocks, f[keep], m[keep], st, step, grid, keys,
+                                     settings.lipschitz)
+        stats["levels"].append({"step": step, "blocks": n_blocks, "kept": n_kept,
+                                "network_evals": stats["n_network_evals"] - evals0,
+                                "seconds": time.perf_counter() - t0})
+        if step == 1:
+            break
+        step //= 2
+
+    # active cells of all GCs; F at their corners from every GC holding them
+    t0 = time.perf_counter()
+    evals0 = stats["n_network_evals"]
+    cells = sorted_unique(np.concatenate([st.blocks for st in states]
+                                         + [np.zeros(0, dtype=np.int64)]))
+    points = sorted_unique(np.concatenate(keys.corner_runs(cells, 1)))
+    F = field_values(field_, states, points, smooth, background)
+    stats.update(completion_network_evals=stats["n_network_evals"] - evals0,
+                 seconds_completion=time.perf_counter() - t0)
+    t0 = time.perf_counter()
+    evals0 = stats["n_network_evals"]
+    cells, points, F, rounds = close_surface(field_, states, cells, points, F, smooth,
+                                             background)
+    stats.update(repair_rounds=rounds, repair_network_evals=stats["n_network_evals"] - evals0,
+                 seconds_repair=time.perf_counter() - t0)
+    corner_vals = F[positions(points, keys.corner_runs(cells, 1))]
+    stats.update(n_active_cells=len(cells), n_corner_points=len(points),
+                 n_covered=int((F != np.float32(background)).sum()))
+    t0 = time.perf_counter()
+    mesh = cells_mesh(keys.decode(cells), corner_vals, grid)
+    stats["seconds_marching"] = time.perf_counter() - t0
+    values = None
+    if keep_values:
+        R = grid.resolution
+        pidx = keys.decode(points)
+        values = np.full((R, R, R), np.nan, dtype=np.float32)
+        values[pidx[:, 0], pidx[:, 1], pidx[:, 2]] = F
+    return mesh, values
+
+
+def field_values(field_: SparseField, states: list[GCState], points: np.ndarray, smooth: float,
+                 background: float) -> np.ndarray:
+    """F at sorted unique point keys: every GC whose box holds a point, folded in GC order;
+    the background where no GC holds it."""
+    grid, keys = field_.grid, field_.keys
+    pidx = keys.decode(points)
+    want = []
+    for st in states:
+        box = grid.index_box(*st.gc.bounds())
+        want.append(np.zeros(len(points), dtype=bool) if box is None
+                    else np.all((pidx >= box[0]) & (pidx <= box[1]), 1))
+    got = field_.ensure(states, [points[sel] for sel in want])
+    vals, ins = [], []
+    for sel, (f, m) in zip(want, got):
+        v = np.full(len(points), np.inf, dtype=np.float32)
+        v[sel] = f
+        i = np.zeros(len(points), dtype=bool)
+        i[sel] = m <= 1.0
+        vals.append(v)
+        ins.append(i)
+    F = fold(vals, ins, smooth) if states else np.full(len(points), np.inf, np.float32)
+    return np.where(np.isfinite(F), F, np.float32(background)).astype(np.float32)
+
+
+# faces of a cell: (axis, side) -> the 4 corners (CORNERS indices) on that face
+FACES = [(a, side, np.flatnonzero(CORNERS[:, a] == side)) for a in range(3) for side in (0, 1)]
+
+
+def close_surface(field_: SparseField, states: list[GCState], cells: np.ndarray,
+                  points: np.ndarray, F: np.ndarray, smooth: float, background: float):
+    """Grow the active cells until the surface is closed: a crossing cell whose face has
+    corners of both signs shares that face's crossing edges with the cell across it, which
+    therefore holds surface too. A learned SDF is not exactly Lipschitz, so refinement can drop
+    such a cell; this puts it back (one ring per round), so every surface component refinement
+    touched comes out whole. -> (cells, points, F, rounds)."""
+    grid, keys = field_.grid, field_.keys
+    frontier = cells
+    rounds = 0
+    step_key = [keys.encode(np.eye(3, dtype=np.int64)[a]) for a in range(3)]
+    while len(frontier):
+        v = F[positions(points, keys.corner_runs(frontier, 1))]
+        cross = crossing(v)
+        frontier, v = frontier[cross], v[cross]
+        idx = keys.decode(frontier)
+        new = []
+        for a, side, corners in FACES:
+            below = (v[:, corners] < 0).sum(1)
+            mixed = (below > 0) & (below < 4)
+            nb_idx = idx[:, a] + (1 if side else -1)
+            ok = mixed & (nb_idx >= 0) & (nb_idx <= grid.resolution - 2)
+            new.append(frontier[ok] + (step_key[a] if side else -step_key[a]))
+        cand = sorted_unique(np.concatenate(new))
+        pos = np.minimum(np.searchsorted(cells, cand), max(len(cells) - 1, 0))
+        frontier = cand[cells[pos] != cand] if len(cells) else cand
+        if len(frontier) == 0:
+            break
+        rounds += 1
+        cells = np.sort(np.concatenate([cells, frontier]), kind="stable")
+        corner_pts = sorted_unique(np.concatenate(keys.corner_runs(frontier, 1)))
+        pos = np.minimum(np.searchsorted(points, corner_pts), len(points) - 1)
+        fresh = corner_pts[points[pos] != corner_pts]
+        if len(fresh):
+            Fn = field_values(field_, states, fresh, smooth, background)
+            order = np.argsort(np.concatenate([points, fresh]), kind="stable")
+            points = np.concatenate([points, fresh])[order]
+            F = np.concatenate([F, Fn])[order]
+    return cells, points, F, rounds

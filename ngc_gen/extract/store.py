@@ -1,0 +1,105 @@
+"""Per-GC values at grid points, kept sparse, and the cache that carries them across edits.
+
+A `PointStore` holds, for one GC at one grid (resolution, bound), the points where the GC was
+looked at: sorted int64 keys (see `ngc_gen.extract.sparse.Keys`), the SDF value f (float32,
++inf outside the GC) and the inside measure m (float32, <= 1 inside, inf where the cover balls
+ruled the point out). Queries and insertions come sorted, so both are sequential passes
+(`np.searchsorted` with sorted needles; a stable sort of two sorted runs is a merge).
+
+`FieldCache` keeps stores keyed by the caller's GC key (the GC's parameters and code: whatever
+changes the GC's field must change its key) at a (resolution, bound). After an edit only GCs with
+new keys are evaluated; everything else is read back, and since a point's value does not depend
+on which other points were evaluated with it (for a row-independent network), the result equals
+a full re-extraction.
+"""
+from __future__ import annotations
+
+from collections import OrderedDict
+from typing import Hashable
+
+import numpy as np
+
+
+def sorted_unique(a: np.ndarray) -> np.ndarray:
+    """Sorted unique values of an int64 array (a stable sort: fast on concatenated sorted
+    runs; numpy's hash-based unique is far slower on millions of keys)."""
+    s = np.sort(a, kind="stable")
+    if len(s) == 0:
+        return s
+    return s[np.concatenate([[True], s[1:] != s[:-1]])]
+
+
+class PointStore:
+    """Sorted keys (int64) with f (float32) and m (float32) per key."""
+
+    def __init__(self):
+        self.keys = np.zeros(0, dtype=np.int64)
+        self.f = np.zeros(0, dtype=np.float32)
+        self.m = np.zeros(0, dtype=np.float32)
+
+    def __len__(self) -> int:
+        return len(self.keys)
+
+    def lookup(self, keys: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """sorted keys (n,) -> found (n,) bool, f (n,), m (n,) (NaN where not found)."""
+        f = np.full(len(keys), np.nan, dtype=np.float32)
+        m = np.full(len(keys), np.nan, dtype=np.float32)
+        if len(self.keys) == 0:
+            return np.zeros(len(keys), dtype=bool), f, m
+        pos = np.minimum(np.searchsorted(self.keys, keys), len(self.keys) - 1)
+        found = self.keys[pos] == keys
+        f[found], m[found] = self.f[pos[found]], self.m[pos[found]]
+        return found, f, m
+
+    def add(self, keys: np.ndarray, f: np.ndarray, m: np.ndarray) -> None:
+        """Add sorted keys not yet in the store."""
+        if len(keys) == 0:
+            return
+        k = np.concatenate([self.keys, keys])
+        order = np.argsort(k, kind="stable")
+        self.keys = k[order]
+        self.f = np.concatenate([self.f, f.astype(np.float32)])[order]
+        self.m = np.concatenate([self.m, m.astype(np.float32)])[order]
+
+    @property
+    def nbytes(self) -> int:
+        return self.keys.nbytes + self.f.nbytes + self.m.nbytes
+
+
+class FieldCache:
+    """Per-GC `PointStore`s keyed by (gc_key, resolution, bound), least recently used first
+    out once more than `max_entries` are held. Pass the same cache to successive
+    `extract_mesh(..., cache=cache, gc_keys=keys)` calls; stats report hits and misses."""
+
+    def __init__(self, max_entries: int = 256):
+        if int(max_entries) < 1:
+            raise ValueError(f"max_entries must be >= 1, got {max_entries}")
+        self.max_entries = int(max_entries)
+        self._stores: OrderedDict[tuple, PointStore] = OrderedDict()
+
+    def __len__(self) -> int:
+        return len(self._stores)
+
+    def get(self, gc_key: Hashable, resolution: int, bound: float) -> tuple[PointStore, bool]:
+        """The store for this GC at this grid (a new empty one on a miss) and whether it hit."""
+        key = (gc_key, int(resolution), float(bound))
+        try:
+            hash(key)
+        except TypeError:
+            raise TypeError(f"gc_keys must be hashable (e.g. a tuple of the GC's parameters and "
+                            f"code bytes), got {type(gc_key).__name__}") from None
+        store = self._stores.get(key)
+        hit = store is not None
+        if not hit:
+            store = self._stores[key] = PointStore()
+        self._stores.move_to_end(key)
+        while len(self._stores) > self.max_entries:
+            self._stores.popitem(last=False)
+        return store, hit
+
+    def clear(self) -> None:
+        self._stores.clear()
+
+    @property
+    def nbytes(self) -> int:
+        return sum(s.nbytes for s in self._stores.values())
