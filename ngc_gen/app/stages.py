@@ -3,6 +3,8 @@ from __future__ import annotations
 
 from omegaconf import DictConfig
 
+from .errors import ConfigError
+
 STAGES = ("prepare", "fit", "shape_latent", "diffusion", "pipeline")
 
 
@@ -22,4 +24,5 @@ def run_stage(cfg: DictConfig):
     if cfg.stage == "pipeline":
         from .pipeline import run_pipeline
         return run_pipeline(cfg)
-    raise ValueError(f"unknown stage {cfg.stage!r}; choose one of {', '.join(STAGES)}")
+    raise ConfigError("unknown stage", key="stage", value=cfg.stage,
+                      fix=f"choose one of {', '.join(STAGES)} (e.g. stage=fit)")
