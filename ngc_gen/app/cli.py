@@ -10,13 +10,15 @@ from __future__ import annotations
 
 import errno
 import os
+import re
 import shutil
 import sys
 from contextlib import contextmanager
 from pathlib import Path
 
 # (module, class) of the project's bad-input errors; FileNotFoundError and the OSErrors below too
-USER_ERROR_CLASSES = (("ngc_gen.app.errors", "ConfigError"), ("ngc_gen.data.errors", "DataError"), ("ngc_gen.edit.errors", "EditError"),
+USER_ERROR_CLASSES = (("ngc_gen.app.errors", "ConfigError"), ("ngc_gen.data.errors", "DataError"),
+                      ("ngc_gen.edit.errors", "EditError"),
                       ("ngc_gen.geometry.errors", "GeometryError"))
 # OS errors that are the machine's state, not a bug: a full disk, a read-only or missing folder
 ENVIRONMENT_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM,
@@ -55,22 +57,34 @@ def one_line_message(e: BaseException) -> str | None:
 def hydra_message(e: BaseException) -> str | None:
     """One line for a config Hydra could not compose (unknown key, group option or syntax)."""
     from hydra.errors import HydraException
-    from omegaconf.errors import ConfigKeyError, OmegaConfBaseException
+    from omegaconf.errors import OmegaConfBaseException
 
     if not isinstance(e, (HydraException, OmegaConfBaseException)):
         return None
+    from hydra.errors import MissingConfigException, OverrideParseException
+
+    text = str(e)
+    if isinstance(e, OverrideParseException):
+        return (f"cannot parse the override {e.override!r} ({text.splitlines()[0]}). Fix: write "
+                f"key=value, a list as key=[a,b]; quote a value with brackets or commas")
+    if isinstance(e, MissingConfigException) and "Available options in" in text:
+        head, _, rest = text.partition("Available options in")
+        group, _, options = rest.partition(":")
+        names = [o.strip() for o in options.split("Config search path")[0].split() if o.strip()]
+        return (f"{head.strip().split(': ', 1)[-1].rstrip('.')}. Fix: choose one of "
+                f"{group.strip().strip(chr(39))}={' | '.join(names)}")
     lines = []
-    for line in str(e).splitlines():
+    for line in text.splitlines():
         line = line.strip()
         if line.startswith("Config search path"):
             break
         if line and not line.startswith(("provider=", "See https://")):
             lines.append(line.rstrip("."))
     text = "; ".join(lines)
-    text = text.replace("Available options in", "available options in").replace(":; ", ": ")
     cause = e.__cause__
-    if isinstance(cause, ConfigKeyError) and "not in struct" in str(cause):
-        key = str(cause).split("'")[1] if "'" in str(cause) else "the key"
+    override = re.match(r"Could not override '([^']+)'", str(e))
+    if override and cause is not None and "not in struct" in str(cause):
+        key = override.group(1)
         return (f"unknown config key '{key}'. Fix: check its spelling (`--help` lists every "
                 f"key), or add a new key with +{key}=<value>")
     if cause is not None:
@@ -78,21 +92,33 @@ def hydra_message(e: BaseException) -> str | None:
     return text
 
 
+# what a run directory holds before a stage has made anything: Hydra's record of the call and
+# the stage's record of its settings (config.yaml, seeds.json)
+RECORD_ONLY = {".hydra", "config.yaml", "seeds.json"}
+
+
 def discard_hydra_record() -> None:
-    """Remove the run directory Hydra made for this job when it holds nothing but Hydra's own
-    record (.hydra/, <job>.log): a command that failed on bad input leaves no run behind."""
+    """Remove the run directory Hydra made for this job when it holds nothing but the record of
+    the call (.hydra/, <job>.log, config.yaml, seeds.json), and the empty folders above it up
+    to the working directory: a command that failed on bad input leaves no run behind."""
     try:
         from hydra.core.hydra_config import HydraConfig
 
         hc = HydraConfig.get()
-    except (ImportError, ValueError):  # not inside a Hydra job
+        run, job = Path(hc.runtime.output_dir), hc.job.name
+    except Exception:  # noqa: BLE001  (not inside a Hydra job: nothing Hydra made)
         return
-    run = Path(hc.runtime.output_dir)
-    if not run.is_dir() or run.resolve() == Path.cwd().resolve():
+    cwd = Path.cwd().resolve()
+    if not run.is_dir() or run.resolve() == cwd:
         return
     names = {p.name for p in run.iterdir()}
-    if ".hydra" in names and names <= {".hydra", f"{hc.job.name}.log"}:
-        shutil.rmtree(run, ignore_errors=True)
+    if ".hydra" not in names or not names <= RECORD_ONLY | {f"{job}.log"}:
+        return
+    shutil.rmtree(run, ignore_errors=True)
+    parent = run.resolve().parent
+    while parent != cwd and cwd in parent.parents and not any(parent.iterdir()):
+        parent.rmdir()
+        parent = parent.parent
 
 
 def fail(message: str, error: BaseException | None = None) -> None:

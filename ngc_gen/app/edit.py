@@ -23,7 +23,7 @@ import yaml
 from ngc_gen.edit.errors import EditError
 from ngc_gen.edit.spec import check_program
 
-from .outputs import check_writable
+from .checks import check_writable
 
 PROGRAMS = "ngc_gen/conf/edit"  # the shipped programs: package data, Hydra group `edit`
 
@@ -60,8 +60,12 @@ def load_program_file(path) -> dict:
     try:
         d = yaml.safe_load(path.read_text(encoding="utf-8"))
     except yaml.YAMLError as e:
-        raise EditError(f"malformed YAML ({' '.join(str(e).split())})",
-                        program=str(path), fix="fix the YAML syntax at that line") from None
+        mark = getattr(e, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+        problem = getattr(e, "problem", None) or " ".join(str(e).split())
+        raise EditError(f"malformed YAML{where}: {problem}", program=str(path),
+                        fix="correct the YAML syntax there (indentation, brackets, "
+                            "'key: value')") from None
     return {**check_program(d, source=str(path)), "source": str(path)}
 
 

@@ -1,5 +1,6 @@
-"""Output folders checked before the work starts: a run that cannot write its results fails in
-a second with the setting to change, not after an hour of training or extraction."""
+"""Settings checked before the work starts, with light imports only: a run that cannot write its
+results or has a malformed setting fails in a second with the setting to change, not after an
+hour of preparation, training or extraction."""
 from __future__ import annotations
 
 import os
@@ -33,3 +34,17 @@ def check_writable(path, key: str) -> Path:
         raise ConfigError(f"no permission to write in {probe}", key=key, value=str(path),
                           fix=fix)
     return path
+
+
+def trainer_steps(cfg) -> int:
+    """trainer.max_steps as an int (ConfigError if it is not a positive whole number)."""
+    value = cfg.trainer.get("max_steps")
+    try:
+        steps = int(value)
+    except (TypeError, ValueError):
+        steps = 0
+    if steps < 1 or str(value).strip() not in (str(steps), f"{steps}.0"):
+        raise ConfigError("must be a whole number of optimizer steps >= 1",
+                          key="trainer.max_steps", value=value,
+                          fix="pass e.g. trainer.max_steps=3000")
+    return steps
