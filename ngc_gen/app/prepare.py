@@ -4,6 +4,7 @@
 multirun over i, e.g. on SLURM) fill the same cache as one process would, file for file."""
 from __future__ import annotations
 
+import os
 import time
 from pathlib import Path
 
@@ -41,7 +42,19 @@ def parse_shard(shard) -> tuple[int, int] | None:
     return i, n
 
 
+def process_rank() -> int:
+    """This process's rank in a multi-process run (0 when alone): the variables torchrun,
+    Lightning's launcher and SLURM set, in Lightning's order."""
+    for key in ("RANK", "LOCAL_RANK", "SLURM_PROCID"):
+        if os.environ.get(key, "").isdigit():
+            return int(os.environ[key])
+    return 0
+
+
 def prepare_dataset(cfg: DictConfig, verbose: bool = True) -> list[PreparedShape]:
+    """The dataset's shapes, prepared (from the cache when it is up to date); the table of
+    shapes is printed by rank 0 only."""
+    verbose = verbose and process_rank() == 0
     shard = parse_shard(cfg.prepare.get("shard"))
     if shard is not None and cfg.get("stage", "prepare") != "prepare":
         raise ConfigError(f"sharding is for stage=prepare; stage={cfg.stage} needs every shape",

@@ -205,13 +205,15 @@ def reference(ops: list[str] | None = None) -> str:
 
 def reference_markdown() -> str:
     """The README's edit-op table (generated; do not edit the README's copy by hand)."""
-    rows = ["| op | what it does | fields (* = required) | example |",
-            "|---|---|---|---|"]
+    def cell(text: str) -> str:
+        return text.replace("|", "\\|")
+
+    rows = ["| op | what it does | fields | example |", "|---|---|---|---|"]
     for op, spec in OPS.items():
-        fields = "<br>".join(f"`{n}`{'*' if f.required else ''}: {TYPES[f.type].text}"
-                             for n, f in spec.fields.items())
-        rows.append(f"| `{op}` | {spec.summary} | {fields} | `{spec.example}` |")
-    return "\n".join(rows).replace("|`", "| `")
+        fields = "<br>".join(f"`{n}`{' (required)' if f.required else ''}: "
+                             f"{cell(TYPES[f.type].text)}" for n, f in spec.fields.items())
+        rows.append(f"| `{op}` | {cell(spec.summary)} | {fields} | `{spec.example}` |")
+    return "\n".join(rows)
 
 
 # ---- checking a program's structure ------------------------------------------------------------

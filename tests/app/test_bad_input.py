@@ -283,6 +283,13 @@ def case_edit_two_programs(t, i):
         r"give exactly one program.*\(got both\)"
 
 
+def case_edit_py_rejects_before_torch_loads(t, i):
+    path = t / "program.yaml"
+    path.write_text(yaml.safe_dump({"name": "p", "ops": [{"op": "bendd", "gc": "tail"}]}))
+    return command("edit.py", f"run={i['fit']}", f"program_file={path}", f"out_dir={t}/out"), \
+        r"ops\[0\]: op = 'bendd': unknown op"
+
+
 def case_unknown_stage(t, i):
     return command("train.py", "stage=train"), r"stage = 'train': unknown stage.*Fix: choose one of"
 
@@ -304,7 +311,8 @@ def case_override_syntax(t, i):
 
 
 CASES = {name[len("case_"):]: fn for name, fn in globals().items() if name.startswith("case_")}
-HELP = {"edit_unknown_op", "edit_unknown_field", "edit_handles_fixed_part_of_a_gc"}
+HELP = {"edit_unknown_op", "edit_unknown_field", "edit_handles_fixed_part_of_a_gc",
+        "edit_py_rejects_before_torch_loads"}
 
 
 def files_under(root: Path) -> set[Path]:
