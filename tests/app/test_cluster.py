@@ -57,6 +57,16 @@ def test_slurm_launcher_composes_to_the_sbatch_job(tmp_path, monkeypatch):
         assert f"#SBATCH {line}\n" in script, line
 
 
+def test_cpu_jobs_for_sharded_preparation_compose(tmp_path):
+    """The README's SLURM command for preparation shards: CPU jobs, one task each."""
+    cfg = compose_with_hydra(["hydra/launcher=slurm", "stage=prepare", "prepare.shard=0/4",
+                              "hydra.launcher.gpus_per_node=null",
+                              "hydra.launcher.tasks_per_node=1"], tmp_path)
+    launcher = OmegaConf.to_container(cfg.hydra.launcher, resolve=True)
+    assert launcher["gpus_per_node"] is None and launcher["tasks_per_node"] == 1
+    assert parse_shard(cfg.prepare.shard) == (0, 4)
+
+
 def test_slurm_trainer_takes_nodes_and_gpus_from_the_launcher(tmp_path):
     cfg = compose_with_hydra(SLURM, tmp_path)
     hc = HydraConfig.instance()
@@ -94,26 +104,46 @@ def folder_of_shapes(root, n=3):
     return folder
 
 
-def test_sharded_preparation_writes_the_caches_of_one_process(tmp_path):
+COMMON = ["stage=prepare", "data=folder", "prepare.n_samples=3000",
+          "+prepare.coverage_samples=3000"]
+
+
+def prepare_in(folder, cache, *extra):
+    return prepare_dataset(compose_config(overrides=[*COMMON, f"data.path={folder}",
+                                                     f"prepare.cache_dir={cache}", *extra]),
+                           verbose=False)
+
+
+def assert_same_files(a, b):
+    files = sorted(p.name for p in a.iterdir())
+    assert files == ["ball0.npz", "ball1.npz", "ball2.npz"]
+    assert sorted(p.name for p in b.iterdir()) == files
+    for name in files:
+        assert (a / name).read_bytes() == (b / name).read_bytes(), name
+
+
+def test_two_shards_write_the_caches_of_one_process(tmp_path):
     folder = folder_of_shapes(tmp_path)
-    common = ["stage=prepare", "data=folder", f"data.path={folder}", "prepare.n_samples=3000",
-              "+prepare.coverage_samples=3000"]
-    # one process, in this one
-    whole = tmp_path / "whole"
-    prepare_dataset(compose_config(overrides=[*common, f"prepare.cache_dir={whole}"]),
-                    verbose=False)
-    # two jobs: a multirun over the shards (the basic launcher runs them one after the other;
-    # hydra/launcher=slurm runs them as two sbatch jobs)
-    sharded = tmp_path / "sharded"
-    r = run_entry("train.py", "-m", *common, f"prepare.cache_dir={sharded}", "threads=1",
-                  "prepare.shard=0/2,1/2", f"hydra.sweep.dir={tmp_path}/sweep")
+    whole, sharded = tmp_path / "whole", tmp_path / "sharded"
+    assert len(prepare_in(folder, whole)) == 3
+    first = prepare_in(folder, sharded, "prepare.shard=0/2")
+    second = prepare_in(folder, sharded, "prepare.shard=1/2")
+    assert [s.name for s in first] == ["ball0", "ball2"] and [s.name for s in second] == ["ball1"]
+    assert_same_files(whole, sharded)
+
+
+@pytest.mark.slow  # the multirun command in a subprocess: `make test-all`
+def test_a_multirun_over_shards_writes_the_caches_of_one_process(tmp_path):
+    folder = folder_of_shapes(tmp_path)
+    whole, sharded = tmp_path / "whole", tmp_path / "sharded"
+    prepare_in(folder, whole)
+    # the basic launcher runs the jobs one after the other; hydra/launcher=slurm submits them
+    r = run_entry("train.py", "-m", *COMMON, f"data.path={folder}",
+                  f"prepare.cache_dir={sharded}", "threads=1", "prepare.shard=0/2,1/2",
+                  f"hydra.sweep.dir={tmp_path}/sweep")
     assert r.returncode == 0, r.stderr[-3000:]
     assert "shard 0/2: 2 shapes" in r.stdout and "shard 1/2: 1 shapes" in r.stdout
-    files = sorted(p.name for p in whole.iterdir())
-    assert files == ["ball0.npz", "ball1.npz", "ball2.npz"]
-    assert sorted(p.name for p in sharded.iterdir()) == files
-    for name in files:
-        assert (whole / name).read_bytes() == (sharded / name).read_bytes(), name
+    assert_same_files(whole, sharded)
 
 
 def test_shard_is_refused_outside_stage_prepare(tmp_path):
