@@ -3,7 +3,7 @@
 import hydra
 from omegaconf import DictConfig
 
-from ngc_gen.app.config import register_resolvers
+from ngc_gen.app.cli import hydra_entry
 
 
 @hydra.main(version_base="1.3", config_path="conf", config_name="sample")
@@ -15,5 +15,4 @@ def main(cfg: DictConfig) -> None:
 
 
 if __name__ == "__main__":
-    register_resolvers()
-    main()
+    hydra_entry(main)

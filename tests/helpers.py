@@ -16,3 +16,4 @@ def run_entry(script: str, *args: str, cwd: Path | None = None, timeout: int = 6
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     return subprocess.run([sys.executable, str(ROOT / script), *args], cwd=cwd or ROOT, env=env,
                           capture_output=True, text=True, timeout=timeout)
+

@@ -1,27 +1,147 @@
-"""What the thin entry points share: torch's thread count from the config, and user errors as
-one clear line with exit code 2."""
+"""What the thin entry points share: torch's thread count from the config, and bad input of any
+kind (a config Hydra cannot compose, a user error of a runner, a disk that is full or not
+writable) as one line `error: ...` with exit code 2, and no run directory left behind.
+
+Nothing heavy is imported here: an entry point rejects a bad command line or edit program in
+about a second, before torch and Lightning load (the error types of the layers are recognised
+through `sys.modules`: an error of a module that was never imported cannot have been raised).
+"""
 from __future__ import annotations
 
+import errno
+import os
+import re
+import shutil
 import sys
 from contextlib import contextmanager
+from pathlib import Path
 
-import torch
+# (module, class) of the project's bad-input errors; FileNotFoundError and the OSErrors below too
+USER_ERROR_CLASSES = (("ngc_gen.app.errors", "ConfigError"), ("ngc_gen.data.errors", "DataError"),
+                      ("ngc_gen.edit.errors", "EditError"),
+                      ("ngc_gen.geometry.errors", "GeometryError"))
+# OS errors that are the machine's state, not a bug: a full disk, a read-only or missing folder
+ENVIRONMENT_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM,
+                      errno.ENOTDIR, errno.EISDIR, errno.ENOENT, errno.EEXIST}
 
-from ngc_gen.data.errors import DataError
-from ngc_gen.edit.errors import EditError
-from ngc_gen.geometry import GeometryError
 
-USER_ERRORS = (DataError, GeometryError, EditError, FileNotFoundError)
+def user_error_types() -> tuple[type, ...]:
+    """The bad-input exception classes of the layers imported so far."""
+    found = [getattr(sys.modules[m], c) for m, c in USER_ERROR_CLASSES if m in sys.modules]
+    return (*found, FileNotFoundError)
+
+
+def os_error_message(e: OSError) -> str:
+    """One line for an OS error of the environment: what failed, where, and what to do."""
+    where = f" {e.filename}" if e.filename else ""
+    fix = ("free disk space, or write elsewhere (hydra.run.dir / out_dir / prepare.cache_dir)"
+           if e.errno in (errno.ENOSPC, errno.EDQUOT) else
+           "choose a writable directory (hydra.run.dir / out_dir / prepare.cache_dir)")
+    return f"cannot write{where}: {e.strerror or e}. Fix: {fix}"
+
+
+def one_line_message(e: BaseException) -> str | None:
+    """The one-line message of a bad-input error, or None if `e` is a bug (traceback)."""
+    from omegaconf.errors import MissingMandatoryValue
+
+    if isinstance(e, user_error_types()):
+        return " ".join(str(e).split("\n"))
+    if isinstance(e, MissingMandatoryValue):
+        key = getattr(e, "full_key", None) or str(e).split(":")[-1].strip()
+        return f"{key} is not set (??? in the config). Fix: pass {key}=<value>"
+    if isinstance(e, OSError) and e.errno in ENVIRONMENT_ERRNOS:
+        return os_error_message(e)
+    return None
+
+
+def hydra_message(e: BaseException) -> str | None:
+    """One line for a config Hydra could not compose (unknown key, group option or syntax)."""
+    from hydra.errors import HydraException
+    from omegaconf.errors import OmegaConfBaseException
+
+    if not isinstance(e, (HydraException, OmegaConfBaseException)):
+        return None
+    from hydra.errors import MissingConfigException, OverrideParseException
+
+    text = str(e)
+    if isinstance(e, OverrideParseException):
+        return (f"cannot parse the override {e.override!r} ({text.splitlines()[0]}). Fix: write "
+                f"key=value, a list as key=[a,b]; quote a value with brackets or commas")
+    if isinstance(e, MissingConfigException) and "Available options in" in text:
+        head, _, rest = text.partition("Available options in")
+        group, _, options = rest.partition(":")
+        names = [o.strip() for o in options.split("Config search path")[0].split() if o.strip()]
+        return (f"{head.strip().split(': ', 1)[-1].rstrip('.')}. Fix: choose one of "
+                f"{group.strip().strip(chr(39))}={' | '.join(names)}")
+    lines = []
+    for line in text.splitlines():
+        line = line.strip()
+        if line.startswith("Config search path"):
+            break
+        if line and not line.startswith(("provider=", "See https://")):
+            lines.append(line.rstrip("."))
+    text = "; ".join(lines)
+    cause = e.__cause__
+    override = re.match(r"Could not override '([^']+)'", str(e))
+    if override and cause is not None and "not in struct" in str(cause):
+        key = override.group(1)
+        return (f"unknown config key '{key}'. Fix: check its spelling (`--help` lists every "
+                f"key), or add a new key with +{key}=<value>")
+    if cause is not None:
+        text += f" ({str(cause).splitlines()[0]})"
+    return text
+
+
+# what a run directory holds before a stage has made anything: Hydra's record of the call and
+# the stage's record of its settings (config.yaml, seeds.json)
+RECORD_ONLY = {".hydra", "config.yaml", "seeds.json"}
+
+
+def discard_hydra_record() -> None:
+    """Remove the run directory Hydra made for this job when it holds nothing but the record of
+    the call (.hydra/, <job>.log, config.yaml, seeds.json), and the empty folders above it up
+    to the working directory: a command that failed on bad input leaves no run behind."""
+    try:
+        from hydra.core.hydra_config import HydraConfig
+
+        hc = HydraConfig.get()
+        run, job = Path(hc.runtime.output_dir), hc.job.name
+    except Exception:  # noqa: BLE001  (not inside a Hydra job: nothing Hydra made)
+        return
+    cwd = Path.cwd().resolve()
+    if not run.is_dir() or run.resolve() == cwd:
+        return
+    names = {p.name for p in run.iterdir()}
+    if ".hydra" not in names or not names <= RECORD_ONLY | {f"{job}.log"}:
+        return
+    shutil.rmtree(run, ignore_errors=True)
+    parent = run.resolve().parent
+    while parent != cwd and cwd in parent.parents and not any(parent.iterdir()):
+        parent.rmdir()
+        parent = parent.parent
+
+
+def fail(message: str, error: BaseException | None = None) -> None:
+    """Print `error: <message>` (and the error's `help` text, if any) and exit with status 2."""
+    print(f"error: {message}", file=sys.stderr)
+    help_text = getattr(error, "help", None)
+    if help_text:
+        print(help_text, file=sys.stderr)
+    sys.exit(2)
 
 
 @contextmanager
 def user_errors():
-    """Print bad-input errors as `error: <message>` (no traceback) and exit with status 2."""
+    """Print bad-input errors as `error: <message>` (no traceback), followed by the error's
+    `help` text if it has one (the edit-op reference), and exit with status 2."""
     try:
         yield
-    except USER_ERRORS as e:
-        print(f"error: {e}", file=sys.stderr)
-        sys.exit(2)
+    except Exception as e:  # noqa: BLE001  (only bad input is reported; bugs are re-raised)
+        message = one_line_message(e)
+        if message is None:
+            raise
+        discard_hydra_record()
+        fail(message, e)
 
 
 def set_threads(threads) -> None:
@@ -29,15 +149,25 @@ def set_threads(threads) -> None:
     often faster on a machine shared with other jobs: two threads then contend for the cores."""
     if threads is None:
         return
-    if int(threads) < 1:
-        raise DataError(f"threads must be >= 1, got {threads}", field="threads",
-                        fix="pass threads=1 (shared machine) or threads=null (all cores)")
-    torch.set_num_threads(int(threads))
+    try:
+        n = int(threads)
+    except (TypeError, ValueError):
+        n = 0
+    if n < 1:
+        from .errors import ConfigError
+
+        raise ConfigError(f"threads must be >= 1, got {threads}", key="threads", value=threads,
+                          fix="pass threads=1 (shared machine) or threads=null (all cores)")
+    import torch
+
+    torch.set_num_threads(n)
 
 
 @contextmanager
 def torch_threads(n: int):
     """Run the block with `n` torch intra-op threads, then restore the previous count."""
+    import torch
+
     previous = torch.get_num_threads()
     torch.set_num_threads(int(n))
     try:
@@ -51,3 +181,29 @@ def run_job(fn, cfg):
     with user_errors():
         set_threads(cfg.get("threads"))
         return fn(cfg)
+
+
+OURS = "NGC_GEN_HYDRA_ERRORS"
+
+
+def hydra_entry(main) -> None:
+    """Run a `@hydra.main` function as an entry point: the project's resolvers registered, and
+    a config Hydra cannot compose (unknown key or option, bad override syntax, a run directory
+    it cannot create) reported as one line with exit code 2 instead of Hydra's several lines
+    and status 1. HYDRA_FULL_ERROR=1 set by the user keeps Hydra's own report."""
+    from .config import register_resolvers
+
+    register_resolvers()
+    if os.environ.get("HYDRA_FULL_ERROR") and not os.environ.get(OURS):
+        main()
+        return
+    # Hydra raises instead of printing and exiting 1; the marker tells our own child processes
+    # (DDP ranks) that the setting is ours, not the user's
+    os.environ.update({"HYDRA_FULL_ERROR": "1", OURS: "1"})
+    try:
+        main()
+    except Exception as e:  # noqa: BLE001
+        message = hydra_message(e) or one_line_message(e)
+        if message is None:
+            raise
+        fail(message, e)

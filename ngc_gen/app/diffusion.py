@@ -13,6 +13,7 @@ import json
 
 import torch
 from omegaconf import DictConfig
+from torch.utils.data import RandomSampler, Sampler
 
 from ngc_gen.data.atomic import atomic_write_text
 
@@ -20,6 +21,23 @@ from .shape_latent import with_stage_steps
 
 # settings of the `diffusion` group the stage reads itself (not LatentDiffusion arguments)
 RUNNER_KEYS = ("batch_size", "batches_per_epoch", "max_steps")
+EVAL_SEED, SAMPLE_SEED = 1, 0  # the EDM loss before/after and the nearest-neighbour samples
+
+
+class Draws(Sampler):
+    """The training draws of an epoch: `num_samples` latent indices of a seeded RandomSampler.
+    Not itself a RandomSampler, so under DDP Lightning shards these draws across ranks
+    (DistributedSamplerWrapper) instead of replacing them by one pass over the latents."""
+
+    def __init__(self, n: int, num_samples: int, seed: int):
+        self.inner = RandomSampler(range(n), num_samples=num_samples,
+                                   generator=torch.Generator().manual_seed(int(seed)))
+
+    def __iter__(self):
+        return iter(self.inner)
+
+    def __len__(self) -> int:
+        return len(self.inner)
 
 
 @torch.no_grad()
@@ -37,7 +55,7 @@ def nearest_neighbour_stats(samples: torch.Tensor, train: torch.Tensor, std: tor
 
 def run_diffusion(cfg: DictConfig) -> dict:
     import lightning as L
-    from torch.utils.data import DataLoader, RandomSampler, TensorDataset
+    from torch.utils.data import DataLoader, TensorDataset
 
     from ngc_gen.lit.checkpoint import resolve_checkpoint
     from ngc_gen.lit.shape_latent import FIX, ShapeLatentModule
@@ -48,7 +66,7 @@ def run_diffusion(cfg: DictConfig) -> dict:
     ckpt = resolve_checkpoint(cfg.shape_latent_run, FIX, "shape-latent run").resolve()
     shape_latent = ShapeLatentModule.from_checkpoint(ckpt)
     latents = shape_latent.latents.weight.detach().float().clone()
-    run_dir = start_run(cfg)
+    run_dir = start_run(cfg, fixed_seeds={"edm_loss_eval": EVAL_SEED, "samples": SAMPLE_SEED})
 
     L.seed_everything(cfg.seed, workers=True, verbose=False)
     module = instantiate_group(
@@ -56,18 +74,17 @@ def run_diffusion(cfg: DictConfig) -> dict:
         meta={"shape_latent_checkpoint": str(ckpt), "names": shape_latent.names,
               "n_latents": int(len(latents))})
     module.fit_standardisation(latents)
-    before = module.evaluate_loss(latents, seed=1, repeats=8)
+    before = module.evaluate_loss(latents, seed=EVAL_SEED, repeats=8)
     dataset = TensorDataset(latents)
     batch = min(int(cfg.diffusion.batch_size), len(latents))
-    sampler = RandomSampler(dataset, num_samples=batch * int(cfg.diffusion.batches_per_epoch),
-                            generator=torch.Generator().manual_seed(int(cfg.seed)))
+    sampler = Draws(len(dataset), batch * int(cfg.diffusion.batches_per_epoch), cfg.seed)
     loader = DataLoader(dataset, batch_size=batch, sampler=sampler, drop_last=True)
     trainer, train_s, start_step = train(cfg, run_dir, module, loader)
     if trainer.global_rank != 0:
         return {}
     module = module.cpu().eval()
-    after = module.evaluate_loss(latents, seed=1, repeats=8, use_ema=True)
-    samples = module.sample(min(256, 4 * len(latents)), seed=0)
+    after = module.evaluate_loss(latents, seed=EVAL_SEED, repeats=8, use_ema=True)
+    samples = module.sample(min(256, 4 * len(latents)), seed=SAMPLE_SEED)
     metrics = {"steps": int(trainer.global_step), "start_step": start_step, "train_s": train_s,
                "n_latents": int(len(latents)), "dim": int(latents.shape[1]),
                "edm_loss_untrained": before, "edm_loss_ema": after,

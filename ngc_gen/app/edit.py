@@ -17,18 +17,13 @@ import json
 import time
 from pathlib import Path
 
-import numpy as np
-import torch
 import yaml
 
-from ngc_gen.data.annotations import Annotation
-from ngc_gen.data.atomic import atomic_write, atomic_write_text
-from ngc_gen.data.errors import DataError
-from ngc_gen.lit.checkpoint import load_autodecoder
-from ngc_gen.shape import shapes_from_autodecoder
-
+# light imports only: the program and out_dir are checked before torch loads (`run_edit`)
 from ngc_gen.edit.errors import EditError
-from ngc_gen.edit.program import EditProgram, MixSource
+from ngc_gen.edit.spec import check_program
+
+from .checks import check_writable
 
 PROGRAMS = "ngc_gen/conf/edit"  # the shipped programs: package data, Hydra group `edit`
 
@@ -54,8 +49,9 @@ def fit_checkpoint(run) -> Path:
                                   "stage=fit` run, or run=<a sample.py output directory>")
 
 
-def load_program_file(path) -> EditProgram:
-    """An EditProgram from a YAML file (EditError naming the file if it is not one)."""
+def load_program_file(path) -> dict:
+    """A program read from a YAML file, its structure checked (`spec.check_program`: parts
+    and the source); EditError naming the file if it is not one."""
     path = Path(path)
     if not path.is_file():
         raise EditError("program file not found", program=str(path),
@@ -64,13 +60,19 @@ def load_program_file(path) -> EditProgram:
     try:
         d = yaml.safe_load(path.read_text(encoding="utf-8"))
     except yaml.YAMLError as e:
-        raise EditError(f"malformed YAML ({str(e).splitlines()[0]})", program=str(path)) from None
-    return EditProgram.from_dict(d, source=str(path))
+        mark = getattr(e, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+        problem = getattr(e, "problem", None) or " ".join(str(e).split())
+        raise EditError(f"malformed YAML{where}: {problem}", program=str(path),
+                        fix="correct the YAML syntax there (indentation, brackets, "
+                            "'key: value')") from None
+    return {**check_program(d, source=str(path)), "source": str(path)}
 
 
-def program_from_config(cfg) -> EditProgram:
-    """The program of an edit config: `edit` (a shipped program composed by Hydra) or
-    `program_file` (any YAML path); exactly one of them."""
+def program_from_config(cfg) -> dict:
+    """The program of an edit config, its structure checked (the parts of an EditProgram):
+    `edit` (a shipped program composed by Hydra) or `program_file` (any YAML path); exactly
+    one of them."""
     from omegaconf import OmegaConf
 
     file, composed = cfg.get("program_file"), cfg.get("edit")
@@ -89,11 +91,14 @@ def program_from_config(cfg) -> EditProgram:
             source = f"{PROGRAMS}/{choice}.yaml"
     except ValueError:  # composed outside @hydra.main (tests, notebooks)
         pass
-    return EditProgram.from_dict(OmegaConf.to_container(composed, resolve=True), source=source)
+    return {**check_program(OmegaConf.to_container(composed, resolve=True), source=source),
+            "source": source}
 
 
 def same_decoder(a, b) -> bool:
     """True if two decoders have the same configuration and identical weights."""
+    import torch
+
     if getattr(a, "config", None) != getattr(b, "config", None):
         return False
     sa, sb = a.state_dict(), b.state_dict()
@@ -109,6 +114,9 @@ class CheckpointSources:
         self._loaded: dict[Path, object] = {}
 
     def _module(self, ckpt):
+        from ngc_gen.data.errors import DataError
+        from ngc_gen.lit.checkpoint import load_autodecoder
+
         if ckpt is None:
             return self.module
         try:
@@ -131,7 +139,10 @@ class CheckpointSources:
             self._loaded[path] = other
         return self._loaded[path]
 
-    def __call__(self, shape: str | None, gc: str, ckpt: str | None) -> MixSource:
+    def __call__(self, shape: str | None, gc: str, ckpt: str | None):
+        from ngc_gen.edit.program import MixSource
+        from ngc_gen.shape import shapes_from_autodecoder
+
         module = self._module(ckpt)
         shapes = shapes_from_autodecoder(module)
         shape = shape or self.shape
@@ -148,6 +159,8 @@ class CheckpointSources:
 
 
 def _json_safe(x):
+    import numpy as np
+
     if isinstance(x, dict):
         return {str(k): _json_safe(v) for k, v in x.items()}
     if isinstance(x, (list, tuple)):
@@ -166,14 +179,32 @@ def _mesh_stats(mesh, prefix: str) -> dict:
             f"n_faces_{prefix}": int(len(mesh.faces))}
 
 
+def output_dir(cfg, program_name: str) -> Path:
+    """`out_dir`, or outputs/edit/<program>/<date_time> (relative to the cwd)."""
+    out_dir = Path(cfg.out_dir) if cfg.get("out_dir") else \
+        Path("outputs/edit") / program_name / time.strftime("%Y-%m-%d_%H-%M-%S")
+    return out_dir.resolve()
+
+
 def run_edit(cfg) -> dict:
-    """Validate and apply the program, extract both meshes, then write every output."""
+    """Validate and apply the program, extract both meshes, then write every output. The
+    program's structure and the output folder are checked first, before torch loads."""
     if cfg.get("viewer"):  # the interactive editor (conf/editor)
         from ngc_gen.app.editor.server import serve
 
         return serve(cfg)
     t_start = time.perf_counter()
-    program = program_from_config(cfg)
+    parts = program_from_config(cfg)
+    out_dir = check_writable(output_dir(cfg, parts["name"]), "out_dir")
+
+    from ngc_gen.data.annotations import Annotation
+    from ngc_gen.data.atomic import atomic_write, atomic_write_text
+    from ngc_gen.data.errors import DataError
+    from ngc_gen.edit.program import EditProgram
+    from ngc_gen.lit.checkpoint import load_autodecoder
+    from ngc_gen.shape import shapes_from_autodecoder
+
+    program = EditProgram(**parts)
     ckpt = fit_checkpoint(cfg.get("run"))
     module = load_autodecoder(ckpt)
     if module.hparams.kind != "ngc":
@@ -223,9 +254,6 @@ def run_edit(cfg) -> dict:
                               "resolution; V from trimesh (watertight meshes)")
 
     # ---- outputs (nothing above wrote a file) ----
-    out_dir = Path(cfg.out_dir) if cfg.get("out_dir") else \
-        Path("outputs/edit") / program.name / time.strftime("%Y-%m-%d_%H-%M-%S")
-    out_dir = out_dir.resolve()
     # GCs and mesh share the fitted NGC frame: `normalize: false` keeps it, so the file can be
     # prepared and fitted again as it is (an AnnotatedShapes list, see the README)
     edited = Annotation(name=f"{shape}_{program.name}", mesh=str(out_dir / "deformed.ply"),

@@ -48,8 +48,8 @@ def run_fit(cfg: DictConfig) -> dict:
 
     from ngc_gen.data.datamodule import PreparedDataModule
 
+    prepared = prepare_dataset(cfg)  # bad data fails before the run directory is made
     run_dir = start_run(cfg)
-    prepared = prepare_dataset(cfg)
     L.seed_everything(cfg.seed, workers=True, verbose=False)
     kind = model_kind(cfg)
     dm = PreparedDataModule(prepared, mode=kind, batch_size=cfg.batch_size, seed=cfg.seed)

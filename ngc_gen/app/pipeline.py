@@ -78,6 +78,13 @@ def plan(cfg: DictConfig, run_dir: Path) -> list[tuple[str, DictConfig]]:
         except Exception as e:  # Hydra's override / missing-config errors
             raise _fail(f"step {step!r}: {e}", step,
                         fix=f"check the overrides in pipeline.{step}: {overrides}") from e
+        trainer = composed.get("trainer") or {}
+        if str(trainer.get("strategy", "")).startswith("ddp") or trainer.get("devices", 1) != 1:
+            # ranks > 0 rerun the whole command: they would run the pipeline's other steps too
+            raise _fail(f"step {step!r} asks for several processes ({trainer.get('strategy')}, "
+                        f"devices {trainer.get('devices')})", step,
+                        fix=f"run it as its own command: python train.py stage={step} "
+                            f"trainer=ddp ... (README, Scaling out)")
         out.append((step, composed))
     return out
 

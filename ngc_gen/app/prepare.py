@@ -1,10 +1,13 @@
-"""Stage `prepare`: every shape of the dataset -> cached samples; prints coverage and counts."""
+"""Stage `prepare`: every shape of the dataset -> cached samples; prints coverage and counts.
+
+`prepare.shard=i/n` prepares only shapes i, i + n, i + 2n, ... of the dataset, so n jobs (a
+multirun over i, e.g. on SLURM) fill the same cache as one process would, file for file."""
 from __future__ import annotations
 
+import os
 import time
 from pathlib import Path
 
-import hydra
 from omegaconf import DictConfig
 from tqdm import tqdm
 from tqdm.contrib.logging import logging_redirect_tqdm
@@ -12,22 +15,61 @@ from tqdm.contrib.logging import logging_redirect_tqdm
 from ngc_gen.data.prepare import PrepareSettings, PreparedShape, prepare_shape
 
 from .cli import torch_threads
-from .training import instantiate_group
+from .errors import ConfigError
+from .checks import check_writable
+from .training import instantiate, instantiate_group
+
+RUNNER_KEYS = ("cache_dir", "shard")  # settings the stage reads itself (not PrepareSettings)
 
 
 def settings_from_config(cfg: DictConfig) -> PrepareSettings:
-    """The `prepare` group's PrepareSettings (`_target_`; cache_dir is the stage's own)."""
-    return instantiate_group(cfg.prepare, ("cache_dir",))
+    """The `prepare` group's PrepareSettings (`_target_`; cache_dir and shard are the stage's)."""
+    return instantiate_group(cfg.prepare, RUNNER_KEYS)
+
+
+def parse_shard(shard) -> tuple[int, int] | None:
+    """`i/n` -> (i, n) with 0 <= i < n; None for no sharding. ConfigError otherwise."""
+    if shard is None:
+        return None
+    fix = "write prepare.shard=i/n with 0 <= i < n, e.g. prepare.shard=0/4 (the first of 4 jobs)"
+    try:
+        i, n = (int(x) for x in str(shard).split("/"))
+    except ValueError:
+        raise ConfigError("is not of the form i/n", key="prepare.shard", value=shard,
+                          fix=fix) from None
+    if not 0 <= i < n:
+        raise ConfigError("needs 0 <= i < n", key="prepare.shard", value=shard, fix=fix)
+    return i, n
+
+
+def process_rank() -> int:
+    """This process's rank in a multi-process run (0 when alone): the variables torchrun,
+    Lightning's launcher and SLURM set, in Lightning's order."""
+    for key in ("RANK", "LOCAL_RANK", "SLURM_PROCID"):
+        if os.environ.get(key, "").isdigit():
+            return int(os.environ[key])
+    return 0
 
 
 def prepare_dataset(cfg: DictConfig, verbose: bool = True) -> list[PreparedShape]:
-    dataset = hydra.utils.instantiate(cfg.data)
+    """The dataset's shapes, prepared (from the cache when it is up to date); the table of
+    shapes is printed by rank 0 only."""
+    verbose = verbose and process_rank() == 0
+    shard = parse_shard(cfg.prepare.get("shard"))
+    if shard is not None and cfg.get("stage", "prepare") != "prepare":
+        raise ConfigError(f"sharding is for stage=prepare; stage={cfg.stage} needs every shape",
+                          key="prepare.shard", value=cfg.prepare.shard,
+                          fix="prepare in shards first (stage=prepare prepare.shard=i/n), then "
+                              "train without prepare.shard: it reads the filled cache")
+    cache_dir = check_writable(cfg.prepare.cache_dir, "prepare.cache_dir")
+    settings = settings_from_config(cfg)
+    dataset = instantiate(cfg.data, "data")
     # a dataset built on first use (the procedural creatures) evaluates small grid blocks: one
     # torch thread, since two contend on a busy 2-core machine (0.8 s vs 9 s per shape, measured)
     with torch_threads(1):
         annotations = dataset.shapes()
-    settings = settings_from_config(cfg)
-    cache_dir = Path(cfg.prepare.cache_dir)
+    if shard is not None:
+        annotations = annotations[shard[0]::shard[1]]
     out, rows = [], []
     bar = tqdm(annotations, desc=f"prepare {dataset.name}", unit="shape",
                disable=not verbose or len(annotations) < 2)
@@ -45,5 +87,6 @@ def prepare_dataset(cfg: DictConfig, verbose: bool = True) -> list[PreparedShape
             print(f"{name:24s} {g:4d} {100 * cov:8.3f}% {n:8d} {p:8d}  {src}")
         for shape in out:
             print(f"{shape.name}: GCs {', '.join(shape.gc_names)}")
-        print(f"cache: {cache_dir}")
+        print(f"cache: {cache_dir}" + (f" (shard {shard[0]}/{shard[1]}: {len(out)} shapes)"
+                                        if shard is not None else ""))
     return out

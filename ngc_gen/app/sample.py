@@ -24,6 +24,8 @@ from ngc_gen.generate.model import ShapeGenerator
 from ngc_gen.generate.shapes import (BOUND, WrittenShape, auto_chunk, decode_shapes, normalise,
                                      write_edit_checkpoint, write_shape)
 
+from .checks import check_writable
+
 MODES = ("generate", "interpolate", "mix", "condition")
 LATENTS_KIND = "ngc_gen.generated_latents"
 
@@ -186,6 +188,7 @@ def run_sample(cfg) -> dict:
     ex = c["extract"]
     _check(int(ex["resolution"]) >= 8, f"resolution must be >= 8, got {ex['resolution']}",
            "extract.resolution", "use e.g. 128 (default) or 256")
+    check_writable(c["out_dir"], "out_dir")  # before the models load
     gen = load_generator(c["run"], c.get("shape_latent_run"))
     if c.get("latents"):
         gen.add_latents(c["latents"])

@@ -134,9 +134,9 @@ def run_shape_latent(cfg: DictConfig) -> dict:
     from .prepare import prepare_dataset
 
     cfg = with_stage_steps(cfg, "shape_latent")
-    run_dir = start_run(cfg)
-    prepared = prepare_dataset(cfg)
+    prepared = prepare_dataset(cfg)  # bad data fails before the run directory is made
     template, vectors = template_and_targets(prepared)
+    run_dir = start_run(cfg)
     L.seed_everything(cfg.seed, workers=True, verbose=False)
     dm = PreparedDataModule(prepared, mode="ngc", batch_size=cfg.batch_size, seed=cfg.seed)
     module = build_module(cfg, template, vectors, prepared)

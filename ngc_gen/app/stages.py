@@ -1,12 +1,44 @@
 """The stages `train.py stage=...` runs; each takes the composed Hydra config."""
 from __future__ import annotations
 
+import importlib
+from pathlib import Path
+
 from omegaconf import DictConfig
 
+from .checks import trainer_steps
+from .errors import ConfigError
+
 STAGES = ("prepare", "annotate", "fit", "shape_latent", "diffusion", "reconstruct", "pipeline")
+# training stage -> (module, name) of the checkpoint kind its module writes
+CHECKPOINT_KINDS = {"fit": ("ngc_gen.lit.autodecoder", "CHECKPOINT_KIND"),
+                    "shape_latent": ("ngc_gen.lit.shape_latent", "CHECKPOINT_KIND"),
+                    "diffusion": ("ngc_gen.lit.diffusion", "CHECKPOINT_KIND")}
+
+
+def preflight(cfg: DictConfig) -> None:
+    """What a training stage checks before it prepares data or makes its run directory:
+    trainer.max_steps is a step count, and the checkpoint it would resume from (the run
+    directory's last.ckpt, or ckpt_path) loads and is one of this stage's."""
+    from .resume import resume_point
+
+    trainer_steps(cfg)
+    module, name = CHECKPOINT_KINDS[cfg.stage]
+    resume_point(cfg, Path(cfg.run_dir), getattr(importlib.import_module(module), name))
 
 
 def run_stage(cfg: DictConfig):
+    if cfg.stage not in STAGES:
+        raise ConfigError("unknown stage", key="stage", value=cfg.stage,
+                          fix=f"choose one of {', '.join(STAGES)} (e.g. stage=fit)")
+    if cfg.stage in ("fit", "reconstruct"):
+        trainer_steps(cfg)
+    if cfg.stage == "fit":
+        preflight(cfg)
+    elif cfg.stage in CHECKPOINT_KINDS:  # trainer.max_steps may come from <stage>.max_steps
+        from .shape_latent import with_stage_steps
+
+        preflight(with_stage_steps(cfg, cfg.stage))
     if cfg.stage == "prepare":
         from .prepare import prepare_dataset
         return prepare_dataset(cfg)
@@ -25,7 +57,5 @@ def run_stage(cfg: DictConfig):
     if cfg.stage == "reconstruct":
         from .reconstruct import run_reconstruct
         return run_reconstruct(cfg)
-    if cfg.stage == "pipeline":
-        from .pipeline import run_pipeline
-        return run_pipeline(cfg)
-    raise ValueError(f"unknown stage {cfg.stage!r}; choose one of {', '.join(STAGES)}")
+    from .pipeline import run_pipeline
+    return run_pipeline(cfg)

@@ -1,8 +1,11 @@
 """What the training stages share: the run directory, the module of a config group, and a
-Lightning trainer built from the config (callbacks, logger, quiet console, resume)."""
+Lightning trainer built from the config (callbacks, logger, quiet console, resume, several
+processes)."""
 from __future__ import annotations
 
+import json
 import logging
+import re
 import time
 from pathlib import Path
 from typing import NamedTuple
@@ -13,12 +16,43 @@ from omegaconf import DictConfig, OmegaConf
 
 from ngc_gen.data.atomic import atomic_write_text
 
+from .checks import trainer_steps
 
-def start_run(cfg: DictConfig) -> Path:
-    """Create the run directory and record the resolved config in it first."""
+SEED_KEY = re.compile(r"(^|_)seed$")
+
+
+def config_seeds(cfg: DictConfig) -> dict:
+    """Every seed setting of the config, by its dotted key (seed, prepare.seed, data.seed,
+    metrics_seed, ...)."""
+    out = {}
+
+    def walk(node, prefix: str) -> None:
+        if isinstance(node, dict):
+            for k, v in node.items():
+                key = f"{prefix}{k}"
+                if SEED_KEY.search(str(k)) and (v is None or isinstance(v, int)):
+                    out[key] = v
+                walk(v, f"{key}.")
+        elif isinstance(node, list):
+            for i, v in enumerate(node):
+                walk(v, f"{prefix}{i}.")
+
+    walk(OmegaConf.to_container(cfg, resolve=True), "")
+    return out
+
+
+def start_run(cfg: DictConfig, fixed_seeds: dict | None = None) -> Path:
+    """Create the run directory and record the resolved config in it first, and every seed the
+    run uses in seeds.json: the config's seed settings, the stage's `fixed_seeds` (evaluation
+    seeds that are constants of the stage) and how ranks of a multi-process run seed."""
+    trainer_steps(cfg)  # a malformed trainer setting fails before the run directory is made
     run_dir = Path(cfg.run_dir)
     run_dir.mkdir(parents=True, exist_ok=True)
     atomic_write_text(run_dir / "config.yaml", OmegaConf.to_yaml(cfg, resolve=True))
+    seeds = {"config": config_seeds(cfg), "fixed": dict(fixed_seeds or {}),
+             "ranks": "rank r of a multi-process run reseeds with seed + r when training starts"
+                      " (its own noise); one process keeps seed"}
+    atomic_write_text(run_dir / "seeds.json", json.dumps(seeds, indent=2))
     return run_dir
 
 
@@ -44,6 +78,35 @@ def quiet_lightning() -> None:
     if not any(isinstance(f, _DropTip) for f in tip.filters):
         tip.addFilter(_DropTip())
     warnings.filterwarnings("ignore", message=r".*isinstance\(treespec, LeafSpec\)")
+    # the stages train for max_steps over short epochs; logging counts steps across epochs,
+    # so an epoch shorter than log_every_n_steps loses no log line (Lightning warns anyway)
+    warnings.filterwarnings("ignore", message=r".*smaller than the logging interval")
+    # resuming (ngc_gen.app.resume): the run directory's logs and checkpoints are continued on
+    # purpose, and the interrupted epoch's batches are drawn again (README, "Scaling out")
+    for message in (r"Experiment logs directory .* exists and is not empty",
+                    r"Checkpoint directory .* exists and is not empty",
+                    r"You're resuming from a checkpoint that ended before the epoch ended"):
+        warnings.filterwarnings("ignore", message=message)
+
+
+def instantiate(node, what: str, **kwargs):
+    """hydra.utils.instantiate, with a value the target rejects (trainer.max_steps=abc, an
+    unknown argument) reported as a ConfigError naming the config group `what`."""
+    from hydra.errors import InstantiationException
+
+    from .errors import ConfigError
+
+    from .cli import user_error_types
+
+    try:
+        return hydra.utils.instantiate(node, **kwargs)
+    except InstantiationException as e:
+        cause = e.__cause__ if e.__cause__ is not None else e
+        if isinstance(cause, user_error_types()):  # already says what and how to fix
+            raise cause from None
+        raise ConfigError(f"config group '{what}' does not build: "
+                          f"{' '.join(str(cause).split())[:300]}",
+                          fix=f"check the {what}.* settings (python train.py --help)") from None
 
 
 def instantiate_group(node: DictConfig, runner_keys: tuple[str, ...] = (), **runtime):
@@ -55,7 +118,8 @@ def instantiate_group(node: DictConfig, runner_keys: tuple[str, ...] = (), **run
     d = OmegaConf.to_container(node, resolve=True)
     for k in runner_keys:
         d.pop(k, None)
-    return hydra.utils.instantiate(d, _convert_="all", **runtime)
+    what = node._key() if hasattr(node, "_key") and node._key() else "model"
+    return instantiate(d, str(what), _convert_="all", **runtime)
 
 
 def build_callbacks(cfg: DictConfig) -> list:
@@ -70,12 +134,27 @@ def build_callbacks(cfg: DictConfig) -> list:
             continue
         kw = {}
         if "every_n_train_steps" in node and node.every_n_train_steps is None:
-            kw["every_n_train_steps"] = max(1, min(500, int(cfg.trainer.max_steps) // 4))
-        cb = hydra.utils.instantiate(node, **kw)
+            kw["every_n_train_steps"] = max(1, min(500, trainer_steps(cfg) // 4))
+        cb = instantiate(node, "callbacks", **kw)
         if isinstance(cb, ProgressBar) and not cfg.trainer.get("enable_progress_bar", True):
             continue
         out.append(cb)
     return out
+
+
+class RankSeeds(Callback):
+    """In a multi-process run, rank r reseeds with seed + r when training starts, so ranks draw
+    their own noise (EDM noise levels, latent noise) for their own batches; one process keeps
+    the seed it has (single-process runs are unchanged)."""
+
+    def __init__(self, seed: int):
+        self.seed = int(seed)
+
+    def on_train_start(self, trainer, pl_module) -> None:
+        if trainer.world_size > 1:
+            import lightning as L
+
+            L.seed_everything(self.seed + trainer.global_rank, workers=True, verbose=False)
 
 
 class StartStep(Callback):
@@ -87,24 +166,18 @@ class StartStep(Callback):
         self.step = int(trainer.global_step)
 
 
-def build_trainer(cfg: DictConfig, run_dir: Path, extra_callbacks=()):
-    """The Lightning trainer of `cfg.trainer` with `cfg.callbacks` and `cfg.logger`."""
+def build_trainer(cfg: DictConfig, run_dir: Path, extra_callbacks=(), resume_step: int = 0):
+    """The Lightning trainer of `cfg.trainer` with `cfg.callbacks` and `cfg.logger`;
+    checkpoints are written atomically, and a resumed run's CSV log keeps its earlier rows."""
+    from .resume import AtomicCheckpointIO
+
     quiet_lightning()
-    logger = hydra.utils.instantiate(cfg.logger) if cfg.get("logger") else False
-    callbacks = build_callbacks(cfg) + list(extra_callbacks)
-    return hydra.utils.instantiate(cfg.trainer, callbacks=callbacks, logger=logger,
-                                   default_root_dir=str(run_dir))
-
-
-def resume_checkpoint(cfg: DictConfig) -> str | None:
-    """`ckpt_path`: a checkpoint file or a run directory (its checkpoints/last.ckpt), or null."""
-    from ngc_gen.lit.checkpoint import resolve_checkpoint
-
-    if cfg.get("ckpt_path") is None:
-        return None
-    return str(resolve_checkpoint(cfg.ckpt_path, what="checkpoint to resume from",
-                                  fix="pass ckpt_path=<run dir> or <run>/checkpoints/last.ckpt of "
-                                      "an interrupted run of the same stage"))
+    logger = instantiate(cfg.logger, "logger") if cfg.get("logger") else False
+    if hasattr(logger, "keep_until"):
+        logger.keep_until = int(resume_step)
+    callbacks = build_callbacks(cfg) + [RankSeeds(cfg.seed)] + list(extra_callbacks)
+    return instantiate(cfg.trainer, "trainer", callbacks=callbacks, logger=logger,
+                       default_root_dir=str(run_dir), plugins=[AtomicCheckpointIO()])
 
 
 class Trained(NamedTuple):
@@ -114,10 +187,15 @@ class Trained(NamedTuple):
 
 
 def train(cfg: DictConfig, run_dir: Path, module, *data, **fit_kwargs) -> Trained:
-    """trainer.fit, resuming from `ckpt_path` if set; (trainer, seconds, start step)."""
-    ckpt = resume_checkpoint(cfg)
+    """trainer.fit, resuming from the run directory's last.ckpt or `ckpt_path`
+    (`resume.resume_point`); (trainer, seconds, start step)."""
+    from .resume import resume_point
+
+    point = resume_point(cfg, run_dir, module.hparams.get("checkpoint_kind"))
     start = StartStep()
-    trainer = build_trainer(cfg, run_dir, [start])
+    trainer = build_trainer(cfg, run_dir, [start], resume_step=point.step)
+    if point.path is not None and trainer.is_global_zero:
+        print(f"resuming from {point.path} (step {point.step})", flush=True)
     t0 = time.perf_counter()
-    trainer.fit(module, *data, ckpt_path=ckpt, **fit_kwargs)
+    trainer.fit(module, *data, ckpt_path=point.path, **fit_kwargs)
     return Trained(trainer, time.perf_counter() - t0, start.step)

@@ -16,7 +16,8 @@ def atomic_write(path: str | os.PathLike, write: Callable[[BinaryIO], None]) -> 
     """Write ``path`` through ``write(fileobj)`` into a temp file in the same folder, then
     ``os.replace`` it into place (atomic on POSIX and Windows within one file system).
 
-    The folder is created if needed; the temp file is removed if ``write`` raises.
+    The folder is created if needed; the temp file is removed if ``write`` raises (an OSError
+    without a file name, such as a full disk, is raised again naming ``path``).
     Returns the final path.
     """
     path = Path(path)
@@ -28,11 +29,14 @@ def atomic_write(path: str | os.PathLike, write: Callable[[BinaryIO], None]) -> 
             f.flush()
             os.fsync(f.fileno())
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as e:
         try:
             os.unlink(tmp)
         except FileNotFoundError:
             pass
+        if isinstance(e, OSError) and e.errno is not None and not e.filename:
+            # a full disk mid-write: say which file could not be written
+            raise OSError(e.errno, e.strerror or os.strerror(e.errno), str(path)) from e
         raise
     return path
 

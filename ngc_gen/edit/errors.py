@@ -1,11 +1,13 @@
 """The one error type of the edit layer."""
 from __future__ import annotations
 
-import numpy as np
-
 
 def _show(value) -> str:
     """A short, plain rendering of a bad value (numpy scalars and arrays as Python values)."""
+    if not type(value).__module__.startswith("numpy"):
+        return repr(value)
+    import numpy as np  # here, not at import: edit.py checks programs before numpy loads
+
     if isinstance(value, np.ndarray):
         value = np.round(value.astype(np.float64), 6).tolist() if value.dtype.kind == "f" \
             else value.tolist()
@@ -49,8 +51,10 @@ class EditError(ValueError):
         super().__init__(message)
 
 
-def in_program(e: EditError, program: str | None, index: int | None) -> EditError:
-    """The same error, located in an edit program file and its op index."""
-    return EditError(e.what, op=e.op, gc=e.gc, field=e.field, value=e.value, fix=e.fix,
+def in_program(e: EditError, program: str | None, index: int | None,
+               op: str | None = None) -> EditError:
+    """The same error, located in an edit program file and its op index; `op` renames the op
+    as the program calls it (`bend`, where the function raising was `move_points`)."""
+    return EditError(e.what, op=op or e.op, gc=e.gc, field=e.field, value=e.value, fix=e.fix,
                      program=program if program is not None else e.program,
                      index=index if index is not None else e.index)

@@ -35,7 +35,6 @@ neither writes anything: an entry point validates the whole program before any o
 """
 from __future__ import annotations
 
-import inspect
 import math
 from dataclasses import dataclass, field
 from typing import Callable
@@ -52,37 +51,13 @@ from .blend import BLEND_PARAMS, mix_weight
 from .errors import EditError, in_program
 from .handles import deform_by_handles
 from .ops import OPS, check_array, check_number, check_t, curve_points_at, local_motion
+from .spec import OPS as OPS_SPEC
+from .spec import check_program, op_fields  # noqa: F401  (op_fields: the one source, re-exported)
 
-PROGRAM_KEYS = {"name", "description", "shape", "smooth_union", "ops"}
-MULTI_OPS = {"rigid", "rotate", "translate", "scale", "twist", "twist_ramp"}
-CARRY_OPS = {"bend", "move", "stretch", "scale", "twist", "twist_ramp"}
-HANDLE_FIELDS = {"gc": True, "at": False, "rotate": False, "translate": False, "fixed": False,
-                 "attached": False, "on_unreachable": False}
-MIX_FIELDS = {"gc": True, "source": True, "blend": False, "t0": False, "t1": False, "w": False,
-              "geometry": False}
+MULTI_OPS = {op for op, spec in OPS_SPEC.items() if spec.fields["gc"].type == "gcs"}
+CARRY_OPS = {op for op, spec in OPS_SPEC.items() if "carry" in spec.fields}
+ALL_OPS = sorted(OPS_SPEC)
 SOURCE_FIELDS = {"shape", "gc", "ckpt"}
-MIX_BLENDS = set(BLEND_PARAMS)
-
-
-def _signature_fields(fn) -> dict[str, bool]:
-    """{field: required} of a GC op from its signature (after the GC)."""
-    params = list(inspect.signature(fn).parameters.values())[1:]
-    return {p.name: p.default is inspect.Parameter.empty for p in params}
-
-
-def op_fields(op: str) -> dict[str, bool]:
-    """Every field an op takes (besides `op`), with whether it is required."""
-    if op == "handles":
-        return dict(HANDLE_FIELDS)
-    if op == "mix":
-        return dict(MIX_FIELDS)
-    fields = {"gc": True, **_signature_fields(OPS[op])}
-    if op in CARRY_OPS:
-        fields["carry"] = False
-    return fields
-
-
-ALL_OPS = sorted([*OPS, "handles", "mix"])
 
 
 @dataclass
@@ -109,51 +84,11 @@ class EditProgram:
 
     @classmethod
     def from_dict(cls, d, source: str | None = None) -> "EditProgram":
-        """Check the program's structure: known top-level keys, a non-empty list of ops, every
-        op known, every required field present and no unknown field."""
-        def err(what, index=None, **kw):
-            return EditError(what, program=source, index=index, **kw)
-
-        if not isinstance(d, dict):
-            raise err(f"a program must be a mapping with 'ops', got {type(d).__name__}",
-                      fix="write `name: ...` and `ops: [...]` at the top level")
-        unknown = set(d) - PROGRAM_KEYS
-        if unknown:
-            raise err(f"unknown program keys {sorted(unknown)}; allowed {sorted(PROGRAM_KEYS)}")
-        ops = d.get("ops")
-        if not isinstance(ops, list) or not ops:
-            raise err(f"'ops' must be a non-empty list of ops, got {ops!r}", field="ops",
-                      fix="list ops like `- {op: twist, gc: tail, t: 1.0, degrees: 90}`")
-        checked = []
-        for i, entry in enumerate(ops):
-            if not isinstance(entry, dict) or "op" not in entry:
-                raise err(f"each op must be a mapping with an 'op' name, got {entry!r}", i)
-            name = entry["op"]
-            if name not in ALL_OPS:
-                raise err(f"unknown op; use one of {ALL_OPS}", i, field="op", value=name)
-            fields = op_fields(name)
-            extra = sorted(set(entry) - {"op"} - set(fields))
-            if extra:
-                raise err(f"unknown field(s) {extra}; '{name}' takes {sorted(fields)}", i,
-                          op=name, gc=_gc_label(entry.get("gc")))
-            missing = [f for f, req in fields.items() if req and f not in entry]
-            if missing:
-                raise err(f"missing required field(s) {missing}; '{name}' takes "
-                          f"{sorted(fields)}", i, op=name, gc=_gc_label(entry.get("gc")))
-            checked.append(dict(entry))
-        name = d.get("name", "program")
-        shape = d.get("shape")
-        if shape is not None and not isinstance(shape, str):
-            raise err(f"shape must be a shape name, got {shape!r}", field="shape")
-        k = d.get("smooth_union", 0.0) or 0.0
-        try:
-            k = float(k)
-        except (TypeError, ValueError):
-            k = float("nan")
-        if not (k >= 0.0 and math.isfinite(k)):
-            raise err("must be a width >= 0 (0: hard minimum over GCs)", field="smooth_union",
-                      value=d.get("smooth_union"))
-        return cls(str(name), checked, shape, k, str(d.get("description", "") or ""), source)
+        """Check the program's structure against the op reference (`spec.check_program`: known
+        top-level keys, a non-empty list of ops, every op known, its required fields present,
+        no unknown field, every field of its type)."""
+        p = check_program(d, source)
+        return cls(p["name"], p["ops"], p["shape"], p["smooth_union"], p["description"], source)
 
 
 def _gc_label(gc) -> str | None:
@@ -418,8 +353,8 @@ def apply_program(program: EditProgram, gcs: list[GeneralizedCylinder],
                 rec = _mix_op(entry, state, resolve, mixes)
             else:
                 rec = _gc_op(entry, state, op)
-        except EditError as e:
-            raise in_program(e, program.source, i) from None
+        except EditError as e:  # named as the program names the op (bend, not move_points)
+            raise in_program(e, program.source, i, op=op) from None
         except (TypeError, ValueError) as e:  # a value no op check anticipated
             raise EditError(f"bad value ({type(e).__name__}: {e})", op=op,
                             gc=_gc_label(entry.get("gc")), program=program.source,

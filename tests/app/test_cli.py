@@ -3,7 +3,7 @@ import pytest
 import torch
 
 from ngc_gen.app.cli import run_job, set_threads
-from ngc_gen.data.errors import DataError
+from ngc_gen.app.errors import ConfigError
 
 from ..helpers import run_entry
 
@@ -20,7 +20,7 @@ def test_set_threads_sets_torch_and_null_keeps_it():
 
 
 def test_bad_threads_is_a_user_error():
-    with pytest.raises(DataError, match="threads must be >= 1"):
+    with pytest.raises(ConfigError, match="threads must be >= 1"):
         set_threads(0)
     with pytest.raises(SystemExit) as e:
         run_job(lambda cfg: pytest.fail("ran with bad threads"), {"threads": -2})

@@ -160,6 +160,8 @@ def test_mixing_a_gc_twice_is_an_error(gcs):
 
 
 def test_unanticipated_bad_values_still_name_the_op(gcs):
+    # a program built without the structure check (from_dict would reject samples: "many")
+    prog = EditProgram("t", [{"op": "stretch", "gc": "body", "t0": 0.2, "t1": 0.4, "factor": 2,
+                              "samples": "many"}], source=SRC)
     with pytest.raises(EditError, match=r"ops\[0\]: edit 'stretch' on GC 'body': bad value"):
-        run(gcs, {"op": "stretch", "gc": "body", "t0": 0.2, "t1": 0.4, "factor": 2,
-                  "samples": "many"})
+        apply_program(prog, gcs)

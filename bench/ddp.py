@@ -1,0 +1,116 @@
+"""DDP step time on CPU: the same fit run as one process (trainer=cpu) and as two (trainer=ddp,
+gloo), each process with one torch thread and the same batch per process.
+
+    python bench/ddp.py [--steps 150] [--warmup 20] [--batch 4096] [--repeats 2]
+
+Each run is the real command (`train.py stage=fit ...`); a callback (StepTimer, below) records
+the wall time of every optimizer step on every rank, and the first `warmup` steps are dropped.
+One process and two processes run alternately `repeats` times, so both see the same drift of
+the machine's load. Writes bench/results/ddp.json: step_s_1proc, step_s_2proc (median seconds
+per optimizer step), step_ratio_2_to_1, samples_per_s_1proc / _2proc (batch x processes /
+step time), speedup_samples_per_s, per-run medians, loadavg_before / loadavg_after
+(os.getloadavg()), cpu_count, batch_per_process, steps_timed. The machine is shared: compare the
+ratio, which both settings measured in the same minutes, not absolute times.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from lightning.pytorch.callbacks import Callback
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+class StepTimer(Callback):
+    """Lightning callback (built by Hydra from `+callbacks.timer._target_=ddp.StepTimer`) that
+    writes <out_dir>/rank<r>.json: the perf_counter time after every optimizer step."""
+
+    def __init__(self, out_dir: str):
+        self.out_dir, self.times = Path(out_dir), []
+
+    def on_train_batch_end(self, trainer, pl_module, outputs, batch, batch_idx) -> None:
+        self.times.append(time.perf_counter())
+
+    def on_train_end(self, trainer, pl_module) -> None:
+        self.out_dir.mkdir(parents=True, exist_ok=True)
+        (self.out_dir / f"rank{trainer.global_rank}.json").write_text(
+            json.dumps({"times": self.times, "world_size": trainer.world_size}))
+
+
+def meshes(folder: Path) -> Path:
+    import trimesh
+
+    folder.mkdir(parents=True, exist_ok=True)
+    trimesh.creation.torus(major_radius=0.6, minor_radius=0.25).export(folder / "torus.ply")
+    trimesh.creation.icosphere(subdivisions=3).export(folder / "ball.ply")
+    return folder
+
+
+def run(trainer: str, work: Path, tag: str, steps: int, batch: int) -> list[float]:
+    """One `train.py stage=fit` run; the per-step seconds of its rank 0."""
+    out = work / tag
+    env = {**os.environ, "PYTHONPATH": f"{ROOT}{os.pathsep}{ROOT / 'bench'}",
+           "OMP_NUM_THREADS": "1"}
+    args = [sys.executable, str(ROOT / "train.py"), "stage=fit", f"trainer={trainer}",
+            "data=folder", f"data.path={work / 'meshes'}", f"paths.cache_dir={work / 'cache'}",
+            "prepare.n_samples=40000", f"batch_size={batch}", f"trainer.max_steps={steps}",
+            "trainer.enable_progress_bar=false", "extract.resolution=16", "threads=1",
+            "+callbacks.timer._target_=ddp.StepTimer", f"+callbacks.timer.out_dir={out}",
+            f"hydra.run.dir={out / 'run'}"]
+    r = subprocess.run(args, cwd=ROOT, env=env, capture_output=True, text=True)
+    if r.returncode != 0:
+        raise SystemExit(f"{trainer} run failed:\n{r.stderr[-3000:]}")
+    times = json.loads((out / "rank0.json").read_text())["times"]
+    return [b - a for a, b in zip(times, times[1:])]
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--steps", type=int, default=150)
+    ap.add_argument("--warmup", type=int, default=20)
+    ap.add_argument("--batch", type=int, default=4096)
+    ap.add_argument("--repeats", type=int, default=2)
+    a = ap.parse_args()
+
+    load_before = os.getloadavg()
+    runs = {"cpu": [], "ddp": []}
+    with tempfile.TemporaryDirectory() as tmp:
+        work = Path(tmp)
+        meshes(work / "meshes")
+        for k in range(a.repeats):
+            for trainer in ("cpu", "ddp"):
+                dt = run(trainer, work, f"{trainer}{k}", a.steps + a.warmup + 1, a.batch)
+                runs[trainer].append(statistics.median(dt[a.warmup:]))
+                print(f"{trainer} run {k}: {runs[trainer][-1] * 1e3:.1f} ms/step "
+                      f"(load {os.getloadavg()[0]:.2f})", flush=True)
+    one, two = statistics.median(runs["cpu"]), statistics.median(runs["ddp"])
+    result = {
+        "step_s_1proc": one, "step_s_2proc": two, "step_ratio_2_to_1": two / one,
+        "samples_per_s_1proc": a.batch / one, "samples_per_s_2proc": 2 * a.batch / two,
+        "speedup_samples_per_s": (2 * a.batch / two) / (a.batch / one),
+        "runs_step_s": runs, "batch_per_process": a.batch, "steps_timed": a.steps,
+        "warmup_steps": a.warmup, "threads_per_process": 1, "cpu_count": os.cpu_count(),
+        "loadavg_before": list(load_before), "loadavg_after": list(os.getloadavg()),
+        "model": "small (conf/model/small.yaml), 2 shapes (torus 1 GC, ball 1 GC)",
+        "convention": "median wall seconds per optimizer step of rank 0 after warm-up; "
+                      "2 processes: gloo all-reduce of the gradients each step",
+    }
+    path = ROOT / "bench" / "results" / "ddp.json"
+    path.write_text(json.dumps(result, indent=2))
+    print(f"1 process: {one * 1e3:.1f} ms/step ({a.batch / one:.0f} samples/s); 2 processes: "
+          f"{two * 1e3:.1f} ms/step ({2 * a.batch / two:.0f} samples/s); step time x"
+          f"{two / one:.2f}, throughput x{result['speedup_samples_per_s']:.2f}; load "
+          f"{load_before[0]:.2f} -> {result['loadavg_after'][0]:.2f} on {os.cpu_count()} cores")
+    print(f"wrote {path}")
+
+
+if __name__ == "__main__":
+    main()
