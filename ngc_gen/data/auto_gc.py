@@ -180,4 +180,10 @@ def auto_annotation(mesh: str | os.PathLike, name: str | None = None, bound: flo
     spec = str(mesh) if is_resource(str(mesh)) else os.path.abspath(mesh)
     if name is None:
         name = Path(spec.split(":", 1)[-1] if is_resource(spec) else spec).stem
-    return Annotation(name=name, mesh=spec, gcs=auto_gcs(normalized, settings), bound=bound)
+    try:
+        gcs = auto_gcs(normalized, settings)
+    except DataError as e:
+        if e.path is not None:
+            raise
+        raise DataError(e.what, path=spec, gc=e.gc, field=e.field, fix=e.fix) from None
+    return Annotation(name=name, mesh=spec, gcs=gcs, bound=bound)

@@ -63,6 +63,7 @@ class MeshFolder:
         self.name = name
         self.path = Path(path)
         self.bound = bound
+        self.annotate = annotate
         self.settings = AutoGCSettings.from_config(annotate) if annotate is not None else AutoGCSettings()
 
     def mesh_files(self) -> list[Path]:

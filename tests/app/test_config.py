@@ -226,7 +226,7 @@ def test_each_entry_point_composes_its_own_groups():
     assert not {"data", "model", "trainer", "diffusion", "edit"} & set(sample)
     assert Path(train.paths.root_dir) == ROOT and edit.edit.name == "bent_tail"
     modes = {m: compose_config("sample", [f"mode={m}", "out_dir=x"]) for m in options("mode")}
-    assert set(modes) == {"generate", "interpolate", "mix"}
+    assert set(modes) == {"generate", "interpolate", "mix", "condition"}
     assert modes["generate"].n == 16 and "a" not in modes["generate"]
     assert modes["interpolate"].steps == 8 and "part" not in modes["interpolate"]
     assert modes["mix"].part == "head" and "n" not in modes["mix"]
@@ -237,9 +237,10 @@ def test_each_entry_point_composes_its_own_groups():
 
 
 @pytest.mark.parametrize("script, groups", [
-    ("train.py", {"callbacks", "data", "diffusion", "experiment", "extract", "logger", "model",
+    ("train.py", {"annotate", "callbacks", "data", "diffusion", "experiment", "extract", "logger",
+                  "model",
                   "paths", "prepare", "reconstruct", "shape_latent", "trainer"}),
-    ("edit.py", {"edit", "extract"}),
+    ("edit.py", {"edit", "editor", "extract"}),
     ("sample.py", {"extract", "mode"}),
 ])
 def test_help_lists_only_the_groups_the_entry_point_reads(script, groups):

@@ -44,4 +44,5 @@ def test_same_seed_and_config_give_identical_runs(tmp_path):
     assert wa.keys() == wb.keys() and all(torch.equal(wa[k], wb[k]) for k in wa)
     assert (a / "run/meshes/torus.ply").read_bytes() == (b / "run/meshes/torus.ply").read_bytes()
     seeds = json.loads((a / "run/seeds.json").read_text())
-    assert seeds["config"] == {"seed": 3, "prepare.seed": 0, "metrics_seed": 5}
+    assert seeds["config"] == {"seed": 3, "prepare.seed": 0, "metrics_seed": 5, "annotate.seed": 0,
+                               "data.annotate.seed": 0}
