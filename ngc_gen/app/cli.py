@@ -22,7 +22,7 @@ USER_ERROR_CLASSES = (("ngc_gen.app.errors", "ConfigError"), ("ngc_gen.data.erro
                       ("ngc_gen.geometry.errors", "GeometryError"))
 # OS errors that are the machine's state, not a bug: a full disk, a read-only or missing folder
 ENVIRONMENT_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM,
-                      errno.ENOTDIR, errno.EISDIR, errno.ENOENT, errno.EEXIST}
+                      errno.ENOTDIR, errno.EISDIR, errno.EEXIST}
 
 
 def user_error_types() -> tuple[type, ...]:
@@ -34,10 +34,11 @@ def user_error_types() -> tuple[type, ...]:
 def os_error_message(e: OSError) -> str:
     """One line for an OS error of the environment: what failed, where, and what to do."""
     where = f" {e.filename}" if e.filename else ""
-    fix = ("free disk space, or write elsewhere (hydra.run.dir / out_dir / prepare.cache_dir)"
-           if e.errno in (errno.ENOSPC, errno.EDQUOT) else
-           "choose a writable directory (hydra.run.dir / out_dir / prepare.cache_dir)")
-    return f"cannot write{where}: {e.strerror or e}. Fix: {fix}"
+    if e.errno in (errno.ENOSPC, errno.EDQUOT):
+        return (f"cannot write{where}: {e.strerror or e}. Fix: free disk space, or write "
+                f"elsewhere (hydra.run.dir / out_dir / prepare.cache_dir)")
+    return (f"cannot use{where}: {e.strerror or e}. Fix: check the path and its permissions, or "
+            f"choose another folder (hydra.run.dir / out_dir / prepare.cache_dir)")
 
 
 def one_line_message(e: BaseException) -> str | None:

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import os
 import time
-from pathlib import Path
 
 from omegaconf import DictConfig
 from tqdm import tqdm

@@ -5,7 +5,7 @@ In a terminal, one bar over the whole run: step / max_steps, the loss and tqdm's
 When stdout is not a terminal (a batch job, a log file), a line every `line_interval_s`
 seconds and at the end:
 
-    step 1200/3000  loss 0.01234  41.2 it/s  ETA 0:00:44
+    fit: step 1200/3000  loss 0.01234  41.2 it/s  ETA 0:00:44
 
 Configured as the `progress` callback (conf/callbacks/default.yaml); rank 0 prints only.
 """

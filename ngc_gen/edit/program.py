@@ -47,7 +47,7 @@ from ngc_gen.geometry import GeneralizedCylinder
 from ngc_gen.shape import PartFeatures
 from ngc_gen.shape.mixing import mixed_parts
 
-from .blend import BLEND_PARAMS, mix_weight
+from .blend import mix_weight
 from .errors import EditError, in_program
 from .handles import deform_by_handles
 from .ops import OPS, check_array, check_number, check_t, curve_points_at, local_motion

@@ -8,7 +8,9 @@ import json
 import pytest
 import torch
 import trimesh
+import yaml
 
+from ..conftest import straight_gc
 from ..helpers import run_entry
 
 DUMP = "+callbacks.dump._target_=tests.app.rank_dump.RankDump"
@@ -33,8 +35,13 @@ def assert_same_weights_from_different_batches(ranks, steps: int, moved: str):
 def test_two_cpu_processes_hold_identical_weights_after_n_steps(tmp_path):
     folder = tmp_path / "meshes"
     folder.mkdir()
-    trimesh.creation.torus(major_radius=0.6, minor_radius=0.25).export(folder / "torus.ply")
-    trimesh.creation.icosphere(subdivisions=3).export(folder / "ball.ply")
+    pill = trimesh.creation.capsule(height=1.2, radius=0.3)  # along z, turned onto x
+    pill.apply_transform(trimesh.transformations.rotation_matrix(1.5707963, [0, 1, 0]))
+    pill.export(folder / "pill.ply")
+    (folder / "pill.yaml").write_text(yaml.safe_dump(  # two GCs: two codes of one shape
+        {"name": "pill", "mesh": "pill.ply", "normalize": {"bound": 0.8},
+         "gcs": [straight_gc("lower", -0.55, 0.0, (0.35, 0.35), (0.3, 0.3)),
+                 straight_gc("upper", 0.0, 0.55, (0.35, 0.35), (0.3, 0.3))]}))
     run, dump = tmp_path / "run", tmp_path / "dump"
     r = run_entry("train.py", "stage=fit", "trainer=ddp", "data=folder", f"data.path={folder}",
                   f"paths.cache_dir={tmp_path}/cache", "prepare.n_samples=6000",
@@ -42,9 +49,11 @@ def test_two_cpu_processes_hold_identical_weights_after_n_steps(tmp_path):
                   "extract.resolution=16", "threads=1", DUMP, f"+callbacks.dump.out_dir={dump}",
                   f"hydra.run.dir={run}", timeout=300)
     assert r.returncode == 0, r.stderr[-3000:]
-    assert_same_weights_from_different_batches(load_ranks(dump), 6, "codes.weight")
+    ranks = load_ranks(dump)
+    assert ranks[0]["state_dict"]["codes.weight"].shape[0] == 2
+    assert_same_weights_from_different_batches(ranks, 6, "codes.weight")
     metrics = json.loads((run / "metrics.json").read_text())  # rank 0 extracts and scores
-    assert metrics["steps"] == 6 and set(metrics["shapes"]) == {"torus", "ball"}
+    assert metrics["steps"] == 6 and set(metrics["shapes"]) == {"pill"}
 
 
 @pytest.mark.slow  # two 2-process runs on built creatures, ~2 min: `make test-all`

@@ -4,7 +4,6 @@ logging interval on every fit."""
 import warnings
 
 import lightning as L
-import pytest
 import torch
 from torch.utils.data import DataLoader, TensorDataset
 
