@@ -6,14 +6,16 @@ Shapes: the deformation bench's fit (bench/deform.py: a one-GC square bar, creat
 GCs and the ant with 15 GCs, small preset, 1500 steps; trained once into bench/runs/deform if
 absent). Per shape and resolution R (grid over [-1, 1]^3):
 - dense: the network at every grid point of the box for every GC, dense_evals = R^3 x n_gcs.
-  Timed where dense_evals <= --dense-max-evals; elsewhere dense_s is the same shape's measured
-  seconds per evaluation times dense_evals, and the case says `dense_s_extrapolated: true`.
+  Timed where dense_evals <= --dense-max-evals; elsewhere dense_s is the same shape's seconds
+  per evaluation (timed at --dense-rate-resolution) times dense_evals, and the case says
+  `dense_s_extrapolated: true`.
 - prefiltered: the network at the grid points inside each GC (the previous default path).
 - sparse: the default multi-level path (`ngc_gen.extract`), timed after a warm-up run.
 - cd_sparse_vs_prefiltered: Chamfer distance between the two meshes, DeepSDF convention (30k
   surface samples each way, squared distances, mean each way, summed).
 - incremental_s / incremental_evals: a FieldCache re-extraction after one GC changed (a leg's
-  radii, or the bar's, scaled by 1.1), against full_after_edit_s from scratch.
+  radii, or the bar's, scaled by 1.1), against full_after_edit_s from scratch (resolutions up
+  to --incremental-max-resolution).
 Wall times with --threads torch (and numba) threads; the 1-minute load average at start and end
 is recorded, since the machine may be shared. Writes bench/results/extract.json
 ({machine, settings, cases: [{shape, resolution, dense_evals, prefiltered_evals, sparse_evals,
@@ -65,7 +67,8 @@ def scaled(gc, factor: float):
                             for k in gc.keys])
 
 
-def run_shape(label: str, module, resolutions, dense_max_evals: float) -> list[dict]:
+def run_shape(label: str, module, resolutions, dense_max_evals: float, rate_resolution: int,
+              incremental_max: int) -> list[dict]:
     from ngc_gen.extract import FieldCache, extract_mesh
     from ngc_gen.shape import Shape, recorded_gcs
 
@@ -76,6 +79,9 @@ def run_shape(label: str, module, resolutions, dense_max_evals: float) -> list[d
     fn = Shape(gcs, codes, module.decoder).rows
     extract_mesh(gcs, fn, 64)                       # warm-up: JIT caches, allocator
     dense_rate = None
+    if any(R ** 3 * len(gcs) > dense_max_evals for R in resolutions):
+        _, s = timed(lambda: extract_mesh(gcs, fn, rate_resolution, method="dense"))
+        dense_rate = s / (rate_resolution ** 3 * len(gcs))
     cases = []
     for R in resolutions:
         K = len(gcs)
@@ -104,6 +110,10 @@ def run_shape(label: str, module, resolutions, dense_max_evals: float) -> list[d
                                         and np.array_equal(sp.mesh.faces, pre.mesh.faces)),
                     cd_sparse_vs_prefiltered=chamfer(sp.mesh, pre.mesh))
         case["sparse_over_dense_evals"] = case["sparse_evals"] / case["dense_evals"]
+        cases.append(case)
+        if R > incremental_max:
+            print_case(case)
+            continue
         # incremental: one GC edited, the others from the cache
         cache = FieldCache()
         extract_mesh(gcs, fn, R, cache=cache, gc_keys=[gc_key(g, c) for g, c in zip(gcs, codes)])
@@ -118,17 +128,22 @@ def run_shape(label: str, module, resolutions, dense_max_evals: float) -> list[d
                     incremental_identical=bool(
                         np.array_equal(inc.mesh.vertices, full.mesh.vertices)
                         and np.array_equal(inc.mesh.faces, full.mesh.faces)))
-        print(f"{label:9s} R={R:3d} evals dense {case['dense_evals']:>11,d} prefiltered "
-              f"{case['prefiltered_evals']:>10,d} sparse {case['sparse_evals']:>9,d} "
-              f"(1/{1 / case['sparse_over_dense_evals']:.0f} of dense) | s: dense "
-              f"{case['dense_s'] if case['dense_s'] is not None else float('nan'):7.1f}"
-              f"{'*' if case['dense_s_extrapolated'] else ' '} prefiltered "
-              f"{case['prefiltered_s']:6.2f} sparse {case['sparse_s']:6.2f} | CD "
-              f"{case['cd_sparse_vs_prefiltered']:.1e} identical {case['identical_mesh']} | "
-              f"edit {case['incremental_s']:.2f} s ({case['incremental_evals']:,d} evals) vs "
-              f"{case['full_after_edit_s']:.2f} s", flush=True)
-        cases.append(case)
+        print_case(case)
     return cases
+
+
+def print_case(case: dict) -> None:
+    label, R = case["shape"], case["resolution"]
+    edit = (f"edit {case['incremental_s']:.2f} s ({case['incremental_evals']:,d} evals) vs "
+            f"{case['full_after_edit_s']:.2f} s" if "incremental_s" in case else "")
+    print(f"{label:9s} R={R:3d} evals dense {case['dense_evals']:>11,d} prefiltered "
+          f"{case['prefiltered_evals']:>10,d} sparse {case['sparse_evals']:>9,d} "
+          f"(1/{1 / case['sparse_over_dense_evals']:.0f} of dense) | s: dense "
+          f"{case['dense_s'] if case['dense_s'] is not None else float('nan'):7.1f}"
+          f"{'*' if case['dense_s_extrapolated'] else ' '} prefiltered "
+          f"{case['prefiltered_s']:6.2f} sparse {case['sparse_s']:6.2f} | CD "
+          f"{case['cd_sparse_vs_prefiltered']:.1e} identical {case['identical_mesh']} | "
+          f"{edit}", flush=True)
 
 
 def main():
@@ -137,6 +152,9 @@ def main():
     ap.add_argument("--shapes", nargs="+", default=list(SHAPES))
     ap.add_argument("--dense-max-evals", type=float, default=4e7,
                     help="time dense extraction up to this many evaluations, extrapolate above")
+    ap.add_argument("--dense-rate-resolution", type=int, default=64,
+                    help="resolution at which dense time per evaluation is measured")
+    ap.add_argument("--incremental-max-resolution", type=int, default=256)
     ap.add_argument("--threads", type=int, default=os.cpu_count() or 1)
     ap.add_argument("--steps", type=int, default=1500, help="fit steps (bench/deform.py's fit)")
     ap.add_argument("--out", type=Path, default=ROOT / "bench/results/extract.json")
@@ -155,7 +173,8 @@ def main():
     module = load_autodecoder(fit["checkpoint"])
     cases = []
     for label in args.shapes:
-        cases += run_shape(label, module, args.resolutions, args.dense_max_evals)
+        cases += run_shape(label, module, args.resolutions, args.dense_max_evals,
+                           args.dense_rate_resolution, args.incremental_max_resolution)
     at = {c["shape"]: c for c in cases if c["resolution"] == TARGET_R}
     res = {
         "machine": {"cpus": os.cpu_count(), "threads": args.threads,

@@ -104,7 +104,10 @@ def test_same_seed_same_latents_and_meshes(runs, gen, tmp_path):
     assert torch.equal(torch.load(tmp_path / "latents.pt", weights_only=True)["latents"], saved)
     a = trimesh.load(tmp_path / "sample_001.ply", process=False)
     b = trimesh.load(runs["gen"] / "sample_001.ply", process=False)
-    assert np.array_equal(a.vertices, b.vertices) and np.array_equal(a.faces, b.faces)
+    # same faces; vertices to float rounding (the network's rows come in batches of varying
+    # size, and BLAS rounding may depend on a batch's size and memory alignment)
+    assert np.array_equal(a.faces, b.faces)
+    np.testing.assert_allclose(a.vertices, b.vertices, rtol=0, atol=1e-6)
 
 
 @pytest.mark.parametrize("method", ["lerp", "slerp"])
