@@ -150,7 +150,8 @@ def test_mix_with_zero_weight_is_shape_a(gen, tmp_path):
         geometry="target", resolution=RES, progress=False)
     a = trimesh.load(tmp_path / "w0/sample_000.ply", process=False)
     m = trimesh.load(tmp_path / "w0/mix_tail.ply", process=False)
-    assert np.array_equal(a.vertices, m.vertices)
+    from ngc_gen.eval import chamfer  # the mixed GC goes through the per-GC blend path:
+    assert chamfer(a.vertices, m.vertices) < 1e-10  # equal to float rounding
     summary = mix(gen, tmp_path / "w1", a=0, b=1, part="tail", blend="truncated_linear",
                   blend_params={"t0": 0.0, "t1": 0.5}, resolution=12,
                   progress=False)
