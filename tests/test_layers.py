@@ -9,7 +9,9 @@ from pathlib import Path
 from .helpers import ROOT
 
 # calls that change the whole process: torch threads, log handlers, warning filters, resolvers
-PROCESS_WIDE = re.compile(r"set_num_threads\(|warnings\.(filterwarnings|simplefilter)\(|"
+# numba.set_num_threads is thread-local (it sizes the calling thread's parallel regions, following
+# the torch thread count the app layer set), so it is not process-wide state
+PROCESS_WIDE = re.compile(r"(?<!numba\.)set_num_threads\(|warnings\.(filterwarnings|simplefilter)\(|"
                           r"register_new_resolver\(|logging\.basicConfig\(|\.(add|remove)Handler\(")
 
 

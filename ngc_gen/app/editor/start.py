@@ -40,7 +40,9 @@ def open_session(cfg) -> tuple[EditorSession, LatentShapes | None]:
             latent.training()
     program = None
     if cfg.get("program_file") is not None or cfg.get("edit") is not None:
-        program = program_from_config(cfg)
+        from ngc_gen.edit.program import EditProgram
+
+        program = EditProgram(**program_from_config(cfg))
     shape = cfg.get("shape") or (program.shape if program is not None else None) \
         or library.names[0]
     if shape not in library:
