@@ -126,7 +126,10 @@ def test_mix_with_zero_weight_is_shape_a(gen, tmp_path):
         resolution=RES, progress=False)
     a = trimesh.load(tmp_path / "w0/sample_000.ply", process=False)
     m = trimesh.load(tmp_path / "w0/mix_tail.ply", process=False)
-    assert np.array_equal(a.vertices, m.vertices)
+    # shape A's mesh comes from the batched decoder rows (NGCDecoder.sdf_rows), the mix from
+    # the per-GC feature path: the same field up to float rounding
+    assert np.array_equal(a.faces, m.faces)
+    np.testing.assert_allclose(a.vertices, m.vertices, rtol=0, atol=1e-6)
     summary = mix(gen, tmp_path / "w1", a=0, b=1, part="tail", blend="truncated_linear",
                   blend_params={"t0": 0.0, "t1": 0.5}, resolution=12,
                   progress=False)
