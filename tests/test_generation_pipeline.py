@@ -129,7 +129,7 @@ def test_mix_with_zero_weight_is_shape_a(gen, tmp_path):
     # shape A's mesh comes from the batched decoder rows (NGCDecoder.sdf_rows), the mix from
     # the per-GC feature path: the same field up to float rounding
     assert np.array_equal(a.faces, m.faces)
-    np.testing.assert_allclose(a.vertices, m.vertices, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(a.vertices, m.vertices, rtol=0, atol=1e-4)  # ~1e-3 voxel
     summary = mix(gen, tmp_path / "w1", a=0, b=1, part="tail", blend="truncated_linear",
                   blend_params={"t0": 0.0, "t1": 0.5}, resolution=12,
                   progress=False)
