@@ -52,7 +52,7 @@ from .errors import EditError, in_program
 from .handles import deform_by_handles
 from .ops import OPS, check_array, check_number, check_t, curve_points_at, local_motion
 from .spec import OPS as OPS_SPEC
-from .spec import check_program, op_fields  # noqa: F401  (op_fields: the one source, re-exported)
+from .spec import _gc_label, check_program, op_fields  # noqa: F401  (op_fields re-exported)
 
 MULTI_OPS = {op for op, spec in OPS_SPEC.items() if spec.fields["gc"].type == "gcs"}
 CARRY_OPS = {op for op, spec in OPS_SPEC.items() if "carry" in spec.fields}
@@ -89,14 +89,6 @@ class EditProgram:
         no unknown field, every field of its type)."""
         p = check_program(d, source)
         return cls(p["name"], p["ops"], p["shape"], p["smooth_union"], p["description"], source)
-
-
-def _gc_label(gc) -> str | None:
-    if gc is None:
-        return None
-    if isinstance(gc, list):
-        return ", ".join(map(str, gc))
-    return str(gc)
 
 
 # ---- sources for part mixing -----------------------------------------------------------------

@@ -118,11 +118,11 @@ class Shape:
                             dtype=torch.float64)
         out = torch.full((len(q),), float("inf"), dtype=torch.float32)
         for j, gc in enumerate(self.gcs):  # a loop over the K GCs, never over points
-            inside = gc.contains(q)
-            idx = torch.nonzero(inside).squeeze(1)
+            rel, measure = gc.relative_inside(q)  # one closest-point solve per point and GC
+            idx = torch.from_numpy(np.flatnonzero(measure <= 1.0))
             if len(idx) == 0:
                 continue
-            v = self.gc_sdf(j, gc.to_relative(q[idx]).float()).float()
+            v = self.gc_sdf(j, rel[idx].float()).float()
             cur = out[idx]
             out[idx] = torch.where(torch.isinf(cur), v, smooth_min(cur, v, self.smooth))
         return out.masked_fill_(torch.isinf(out), OUTSIDE)
