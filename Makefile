@@ -5,7 +5,8 @@ VENV ?= .venv
 TORCH_SPEC ?= torch==2.13.0
 BIN := $(VENV)/bin
 
-.PHONY: setup test test-all bench bench-geometry bench-fit bench-deform bench-generate demo clean
+.PHONY: setup test test-all bench bench-geometry bench-fit bench-deform bench-generate \
+	bench-condition demo clean
 
 $(BIN)/activate:
 	$(PY) -m venv $(VENV)
@@ -26,7 +27,7 @@ test-all: setup
 demo: setup  # the whole pipeline: fit, edit, shape latents, diffusion, sample (conf/experiment/demo.yaml)
 	$(BIN)/python train.py experiment=demo
 
-bench: bench-geometry bench-fit bench-deform bench-generate
+bench: bench-geometry bench-fit bench-deform bench-generate bench-condition
 
 bench-geometry: setup
 	$(BIN)/python bench/geometry.py
@@ -39,6 +40,9 @@ bench-deform: setup
 
 bench-generate: setup
 	$(BIN)/python bench/generate.py
+
+bench-condition: setup  # reuses bench-generate's runs (trains them if missing)
+	$(BIN)/python bench/condition.py --sweep
 
 clean:
 	rm -rf $(VENV) outputs .pytest_cache
