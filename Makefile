@@ -5,7 +5,8 @@ VENV ?= .venv
 TORCH_SPEC ?= torch==2.13.0
 BIN := $(VENV)/bin
 
-.PHONY: setup chromium test test-all bench bench-geometry bench-fit bench-deform bench-generate bench-editor bench-autogc demo clean
+.PHONY: setup chromium test test-all bench bench-geometry bench-fit bench-deform bench-generate \
+	bench-editor bench-autogc bench-condition demo clean
 
 $(BIN)/activate:
 	$(PY) -m venv $(VENV)
@@ -35,7 +36,7 @@ test-all: setup
 demo: setup  # the whole pipeline: fit, edit, shape latents, diffusion, sample (conf/experiment/demo.yaml)
 	$(BIN)/python train.py experiment=demo
 
-bench: bench-geometry bench-fit bench-deform bench-generate bench-editor bench-autogc
+bench: bench-geometry bench-fit bench-deform bench-generate bench-editor bench-autogc bench-condition
 
 bench-geometry: setup
 	$(BIN)/python bench/geometry.py
@@ -54,6 +55,9 @@ bench-editor: setup
 
 bench-autogc: setup
 	$(BIN)/python bench/autogc.py
+
+bench-condition: setup  # reuses bench-generate's runs (trains them if missing)
+	$(BIN)/python bench/condition.py --sweep
 
 clean:
 	rm -rf $(VENV) outputs .pytest_cache
