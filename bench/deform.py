@@ -17,10 +17,13 @@ GC, plus the GC's own start region t <= 0.1):
   constraint (the ant has 15 pieces) gets one vertex pinned, so the system is not singular.
 eps_V = |V' - V| / V and eps_A = |A' - A| / A (ngc_gen.eval.volume_area_change, fractions; the
 tables print percent). time_s: NGC = handle solve + extraction of the deformed mesh; ARAP =
-precomputation + solve.
+precomputation + solve. Measured in the same run (--matched): edit_to_mesh_s_128 / _256, the
+handle solve plus the incremental extraction of the edited shape at 128^3 / 256^3 (the undeformed
+shape extracted first, so only the GCs the solve moved are evaluated again), and arap_s_matched,
+libigl ARAP with the same handle region and motion on the undeformed NGC 256^3 mesh.
 
-Writes bench/results/deform.json ({cases: [{name, ngc: {eps_v, eps_a, time_s}, arap: {...}}],
-mean: {...}, settings}), bench/results/deform.md and bench/results/deform.png (before / NGC /
+Writes bench/results/deform.json ({cases: [{name, ngc: {eps_v, eps_a, time_s, ...}, arap:
+{...}}], mean: {...}, edit_to_mesh_s_128, edit_to_mesh_s_256, arap_s_matched, settings}), bench/results/deform.md and bench/results/deform.png (before / NGC /
 ARAP for the cases marked `picture`, the camera on the edited part).
 """
 from __future__ import annotations
@@ -234,8 +237,39 @@ def arap(V, F, handle, fixed, targets, iters: int) -> tuple[np.ndarray, float]:
     return U, time.perf_counter() - t0
 
 
+def edit_to_mesh(case: Case, shape, gcs, R, t, handles, targets, fixed_pts, resolution: int,
+                 arap_iters: int, undeformed: dict, arap_at: int = 256):
+    """Seconds from handle targets to the edited mesh at `resolution`, the interactive loop:
+    the handle solve plus the incremental extraction (the undeformed shape was extracted
+    before, untimed, so its per-GC values sit in shape.cache and only the GCs the solve moved
+    are evaluated again); the solve gets the same handles as the case. At `arap_at` also
+    returns (ARAP seconds, vertex count): libigl ARAP with the same handle region and motion
+    on that undeformed NGC mesh (a mesh of NGC's vertex count), else None."""
+    import torch
+
+    from ngc_gen.edit import deform_by_handles
+
+    key = (case.shape, resolution)
+    with torch.inference_mode():
+        if key not in undeformed:
+            undeformed[key] = shape.mesh(resolution, BOUND).mesh
+        before = undeformed[key]
+        t0 = time.perf_counter()
+        new = deform_by_handles(gcs, handles, targets, fixed_pts)
+        shape.replaced(gcs=new).mesh(resolution, BOUND)
+        seconds = time.perf_counter() - t0
+    arap_matched = None
+    if resolution == arap_at:
+        V = np.asarray(before.vertices, dtype=np.float64)
+        F = np.asarray(before.faces, dtype=np.int64)
+        handle, fixed = constraints(case, gcs, V)
+        _, arap_s = arap(V, F, handle, fixed, V[handle] @ R.T + t, arap_iters)
+        arap_matched = (arap_s, int(len(V)))
+    return seconds, arap_matched
+
+
 def run_case(case: Case, module, shape_index: dict, inputs: dict, resolution: int,
-             arap_iters: int, undeformed: dict) -> dict:
+             arap_iters: int, undeformed: dict, matched: tuple = ()) -> dict:
     import torch
     import trimesh
 
@@ -253,7 +287,9 @@ def run_case(case: Case, module, shape_index: dict, inputs: dict, resolution: in
     R, t = case.motion(gc)
     targets = V[handle] @ R.T + t
 
-    shape = Shape(gcs, codes, module.decoder, name=case.shape)
+    # one Shape per input shape, so its FieldCache carries the undeformed values across cases
+    shape = undeformed.setdefault(("shape", case.shape),
+                                  Shape(gcs, codes, module.decoder, name=case.shape))
     with torch.no_grad():
         if case.shape not in undeformed:
             undeformed[case.shape] = shape.mesh(resolution, BOUND).mesh
@@ -273,6 +309,12 @@ def run_case(case: Case, module, shape_index: dict, inputs: dict, resolution: in
     ngc = {**volume_area_change(before, after), "time_s": ngc_s, "solve_s": solve_s,
            "handle_err": float(np.linalg.norm(carried - targets, axis=1).max()),
            "bent": sorted(info.bent), "followers": sorted(info.followers)}
+
+    for res in matched:  # edit-to-mesh at 128 / 256, ARAP on a mesh of NGC's vertex count
+        ngc[f"edit_to_mesh_s_{res}"], arap_matched = edit_to_mesh(
+            case, shape, gcs, R, t, V[handle], targets, fixed_pts, res, arap_iters, undeformed)
+        if arap_matched is not None:
+            ngc["arap_s_matched"], ngc["arap_matched_vertices"] = arap_matched
 
     U, arap_s = arap(V, F, handle, fixed, targets, arap_iters)
     m0 = trimesh.Trimesh(V, F, process=False)
@@ -294,6 +336,13 @@ def mean_of(cases: list[dict]) -> dict:
             for m, ks in keys.items()}
 
 
+def matched_means(cases: list[dict]) -> dict:
+    """edit_to_mesh_s_<res> and arap_s_matched, means over the cases that measured them."""
+    keys = sorted({k for c in cases for k in c["ngc"]
+                   if k.startswith("edit_to_mesh_s_") or k == "arap_s_matched"})
+    return {k: float(np.mean([c["ngc"][k] for c in cases if k in c["ngc"]])) for k in keys}
+
+
 def markdown(res: dict) -> str:
     lines = ["| case | NGC eps_V | NGC eps_A | NGC time (s) (solve) | ARAP eps_V | ARAP eps_A | "
              "ARAP time (s) |", "|---|---|---|---|---|---|---|"]
@@ -305,6 +354,15 @@ def markdown(res: dict) -> str:
                      f"{100 * a['eps_a']:.2f}% | {a['time_s']:.2f} |")
     s = res["settings"]
     mv = res["mean"]
+    matched = {k: v for k, v in res.items() if k.startswith("edit_to_mesh_s_")}
+    if matched:
+        lines += ["", "| edit to mesh (handle solve + incremental extraction) | seconds |",
+                  "|---|---|"]
+        lines += [f"| NGC at {k.rsplit('_', 1)[1]}^3 | {v:.2f} |" for k, v in matched.items()]
+        if "arap_s_matched" in res:
+            nv = np.mean([c["ngc"]["arap_matched_vertices"] for c in res["cases"]])
+            lines.append(f"| libigl ARAP on the undeformed NGC 256^3 mesh (mean {nv:.0f} "
+                         f"vertices), precomputation + solve | {res['arap_s_matched']:.2f} |")
     lines += ["", f"eps_V = |V'-V|/V, eps_A = |A'-A|/A in percent (paper Tables 2-3: NGC "
               f"0.1-2.6% vs ARAP 5-46% volume change). NGC: deformed vs undeformed NGC mesh, "
               f"both marching cubes at {s['resolution']}^3 over [-{BOUND}, {BOUND}]^3, fitted "
@@ -372,6 +430,8 @@ def main():
     ap.add_argument("--resolution", type=int, default=224)
     ap.add_argument("--arap-iters", type=int, default=100)
     ap.add_argument("--refit", action="store_true")
+    ap.add_argument("--matched", type=int, nargs="*", default=[128, 256],
+                    help="resolutions for edit_to_mesh_s_<res> (ARAP matched at 256)")
     ap.add_argument("--cases", nargs="+", default=[c.name for c in CASES])
     ap.add_argument("--results", type=Path, default=RESULTS, help="output folder")
     args = ap.parse_args()
@@ -399,7 +459,7 @@ def main():
         if case.name not in args.cases:
             continue
         r = run_case(case, module, shape_index, inputs, args.resolution, args.arap_iters,
-                     undeformed)
+                     undeformed, tuple(args.matched))
         r["_picture"] = case.picture
         results.append(r)
         print(f"{case.name:22s} NGC eps_v {100 * r['ngc']['eps_v']:6.2f}% eps_a "
@@ -407,7 +467,7 @@ def main():
               f"{100 * r['arap']['eps_v']:6.2f}% eps_a {100 * r['arap']['eps_a']:6.2f}% "
               f"({r['arap']['time_s']:.1f} s)", flush=True)
     clean = [{k: v for k, v in r.items() if not k.startswith("_")} for r in results]
-    res = {"cases": clean, "mean": mean_of(clean),
+    res = {"cases": clean, "mean": mean_of(clean), **matched_means(clean),
            "settings": {"resolution": args.resolution, "bound": BOUND, "steps": args.steps,
                         "arap_iters": args.arap_iters, "fixed_t": FIXED_T,
                         "train_s": fit["train_s"],

@@ -9,12 +9,15 @@ through `sys.modules`: an error of a module that was never imported cannot have 
 from __future__ import annotations
 
 import errno
+import logging
 import os
 import re
 import shutil
 import sys
 from contextlib import contextmanager
 from pathlib import Path
+
+log = logging.getLogger(__name__)
 
 # (module, class) of the project's bad-input errors; FileNotFoundError and the OSErrors below too
 USER_ERROR_CLASSES = (("ngc_gen.app.errors", "ConfigError"), ("ngc_gen.data.errors", "DataError"),
@@ -145,23 +148,42 @@ def user_errors():
         fail(message, e)
 
 
-def set_threads(threads) -> None:
-    """`threads=N`: torch's CPU threads (null keeps torch's default, all cores). One thread is
-    often faster on a machine shared with other jobs: two threads then contend for the cores."""
+def auto_threads(cores: int | None = None, load: float | None = None) -> int:
+    """The `threads=auto` rule: the cores no other job is using, at least one. Measured here
+    (bench notes in README "Threads"): on 2 cores, an NGC training step takes 77 ms with one
+    thread and 334 ms with two while one other process runs, because torch's two threads wait
+    on each other when one is descheduled; on an idle machine two threads are faster. The
+    1-minute load average stands for the other jobs."""
+    cores = (os.cpu_count() or 1) if cores is None else int(cores)
+    load = os.getloadavg()[0] if load is None else float(load)
+    return max(1, min(cores, cores - int(round(load))))
+
+
+def set_threads(threads) -> int | None:
+    """`threads=N` sets torch's CPU threads; `auto` picks them from the machine's load
+    (`auto_threads`); null keeps torch's default (all cores). Returns the count set."""
     if threads is None:
-        return
-    try:
-        n = int(threads)
-    except (TypeError, ValueError):
-        n = 0
+        return None
+    if str(threads) == "auto":
+        n = auto_threads()
+    else:
+        try:
+            n = int(threads)
+        except (TypeError, ValueError):
+            n = 0
     if n < 1:
         from .errors import ConfigError
 
-        raise ConfigError(f"threads must be >= 1, got {threads}", key="threads", value=threads,
-                          fix="pass threads=1 (shared machine) or threads=null (all cores)")
+        raise ConfigError(f"threads must be >= 1, auto or null, got {threads}", key="threads",
+                          value=threads, fix="pass threads=auto (default), threads=1 (shared "
+                          "machine) or threads=null (all cores)")
     import torch
 
+    if threads == "auto" and n != torch.get_num_threads():
+        log.info("threads=auto: %d torch thread(s) (1-minute load %.1f on %d cores)", n,
+                 os.getloadavg()[0], os.cpu_count() or 1)
     torch.set_num_threads(n)
+    return n
 
 
 @contextmanager

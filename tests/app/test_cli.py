@@ -2,7 +2,7 @@
 import pytest
 import torch
 
-from ngc_gen.app.cli import run_job, set_threads
+from ngc_gen.app.cli import auto_threads, run_job, set_threads
 from ngc_gen.app.errors import ConfigError
 
 from ..helpers import run_entry
@@ -15,6 +15,23 @@ def test_set_threads_sets_torch_and_null_keeps_it():
         assert torch.get_num_threads() == 1
         set_threads(None)
         assert torch.get_num_threads() == 1
+    finally:
+        torch.set_num_threads(before)
+
+
+@pytest.mark.parametrize("cores,load,expected", [
+    (2, 0.1, 2), (2, 0.6, 1), (2, 1.0, 1), (2, 7.5, 1), (8, 2.4, 6), (1, 0.0, 1)])
+def test_auto_threads_leaves_the_busy_cores_to_the_other_jobs(cores, load, expected):
+    # two torch threads on 2 cores with one other busy process run a training step 4x slower
+    # than one thread: auto must fall back to one thread as soon as another job runs
+    assert auto_threads(cores, load) == expected
+
+
+def test_threads_auto_sets_a_count_within_the_cores():
+    before = torch.get_num_threads()
+    try:
+        n = set_threads("auto")
+        assert 1 <= n <= (__import__("os").cpu_count() or 1) and torch.get_num_threads() == n
     finally:
         torch.set_num_threads(before)
 
