@@ -180,14 +180,10 @@ def render(rows, path: Path) -> None:
 
 
 def main():
+    from generate import recipe_args
+
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--n", type=int, default=64, help="creatures in the dataset (bench/generate)")
-    ap.add_argument("--test-fraction", type=float, default=0.25)
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--samples", type=int, default=50_000, help="prepare.n_samples per shape")
-    ap.add_argument("--batch-size", type=int, default=8192)
-    ap.add_argument("--shape-latent-steps", type=int, default=6000)
-    ap.add_argument("--diffusion-steps", type=int, default=3000)
+    recipe_args(ap)  # the generate bench's recipe: its runs are reused
     ap.add_argument("--per-condition", type=int, default=4, help="samples per condition")
     ap.add_argument("--limit", type=int, default=None, help="use only the first held-out shapes")
     ap.add_argument("--strength", type=float, default=None, help="default: conf/sample.yaml")

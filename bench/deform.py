@@ -434,8 +434,13 @@ def main():
                     help="resolutions for edit_to_mesh_s_<res> (ARAP matched at 256)")
     ap.add_argument("--cases", nargs="+", default=[c.name for c in CASES])
     ap.add_argument("--results", type=Path, default=RESULTS, help="output folder")
+    ap.add_argument("--threads", default="auto", help="torch threads: auto (as the entry "
+                    "points: the cores the load leaves free), N or null")
     args = ap.parse_args()
     load_at_start = os.getloadavg()[0]  # timings need an idle machine: record how idle it was
+    from ngc_gen.app.cli import set_threads
+
+    threads = set_threads(None if args.threads == "null" else args.threads)
 
     import yaml
 
@@ -472,7 +477,8 @@ def main():
                         "arap_iters": args.arap_iters, "fixed_t": FIXED_T,
                         "train_s": fit["train_s"],
                         "checkpoint": str(Path(fit["checkpoint"]).relative_to(ROOT)),
-                        "load_avg_1min_at_start": load_at_start}}
+                        "load_avg_1min_at_start": load_at_start, "threads": threads,
+                        "load_avg_1min_at_end": os.getloadavg()[0]}}
     out = args.results
     out.mkdir(parents=True, exist_ok=True)
     atomic_write_text(out / "deform.json", json.dumps(res, indent=2))

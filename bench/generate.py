@@ -145,8 +145,9 @@ def markdown(res: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def main():
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def recipe_args(ap: argparse.ArgumentParser) -> None:
+    """The training recipe's options (dataset, samples, steps), shared with bench/condition.py,
+    which reuses these runs."""
     ap.add_argument("--n", type=int, default=64, help="creatures in the dataset")
     ap.add_argument("--test-fraction", type=float, default=0.25)
     ap.add_argument("--seed", type=int, default=0)
@@ -154,6 +155,11 @@ def main():
     ap.add_argument("--batch-size", type=int, default=8192)
     ap.add_argument("--shape-latent-steps", type=int, default=6000)
     ap.add_argument("--diffusion-steps", type=int, default=3000)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    recipe_args(ap)
     ap.add_argument("--resolution", type=int, default=128)
     ap.add_argument("--points", type=int, default=2048)
     ap.add_argument("--sets", type=int, default=10,

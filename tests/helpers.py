@@ -10,6 +10,18 @@ from ngc_gen.app.config import compose_config  # noqa: F401  (re-exported for te
 
 ROOT = Path(__file__).resolve().parents[1]
 
+#: An ASCII PLY header for one triangle (3 vertices, 1 face): append the vertex and face lines.
+PLY_TRIANGLE_HEADER = """ply
+format ascii 1.0
+element vertex 3
+property float x
+property float y
+property float z
+element face 1
+property list uchar int vertex_indices
+end_header
+"""
+
 
 def run_entry(script: str, *args: str, cwd: Path | None = None, timeout: int = 600):
     """Run `python <script> args...` as a user would; returns the CompletedProcess."""

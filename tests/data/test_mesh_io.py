@@ -12,16 +12,7 @@ import trimesh
 from ngc_gen.data.errors import DataError
 from ngc_gen.data.mesh_io import load_mesh, normalize, resolve_mesh_path
 
-PLY_HEADER = """ply
-format ascii 1.0
-element vertex 3
-property float x
-property float y
-property float z
-element face 1
-property list uchar int vertex_indices
-end_header
-"""
+from ..helpers import PLY_TRIANGLE_HEADER
 
 
 @pytest.mark.parametrize("ext", ["obj", "ply", "stl", "off", "glb"])
@@ -78,9 +69,9 @@ def _write(tmp_path, name, text):
     ("garbage.ply", "\x00\x01 not a mesh", ["could not read"]),
     ("points.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\n", ["no triangles"]),
     ("empty.obj", "", ["no triangles"]),
-    ("nan.ply", PLY_HEADER + "0 0 0\n1 nan 0\n0 1 0\n3 0 1 2\n", ["NaN", "vertex 1"]),
-    ("inf.ply", PLY_HEADER + "0 0 0\n1 0 0\n0 1 inf\n3 0 1 2\n", ["NaN or infinite"]),
-    ("range.ply", PLY_HEADER + "0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n", ["face indices", "3 vertices"]),
+    ("nan.ply", PLY_TRIANGLE_HEADER + "0 0 0\n1 nan 0\n0 1 0\n3 0 1 2\n", ["NaN", "vertex 1"]),
+    ("inf.ply", PLY_TRIANGLE_HEADER + "0 0 0\n1 0 0\n0 1 inf\n3 0 1 2\n", ["NaN or infinite"]),
+    ("range.ply", PLY_TRIANGLE_HEADER + "0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n", ["face indices", "3 vertices"]),
 ])
 def test_bad_meshes_raise_dataerror_naming_the_file(tmp_path, name, text, words):
     path = tmp_path / name if text is None else _write(tmp_path, name, text)

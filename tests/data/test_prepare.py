@@ -17,6 +17,8 @@ from ngc_gen.data.errors import DataError
 from ngc_gen.data.prepare import PrepareSettings, cache_path, load_prepared, prepare_shape
 from ngc_gen.geometry import GeneralizedCylinder
 
+from ..helpers import PLY_TRIANGLE_HEADER
+
 SMALL = PrepareSettings(n_samples=5_000, coverage_samples=5_000)
 
 
@@ -133,20 +135,7 @@ def test_corrupt_cache_is_replaced(sphere_annotation, cache):
     assert not shape.from_cache and load_prepared(shape.path).key == shape.key
 
 
-NAN_PLY = """ply
-format ascii 1.0
-element vertex 3
-property float x
-property float y
-property float z
-element face 1
-property list uchar int vertex_indices
-end_header
-0 0 0
-1 nan 0
-0 1 0
-3 0 1 2
-"""
+NAN_PLY = PLY_TRIANGLE_HEADER + "0 0 0\n1 nan 0\n0 1 0\n3 0 1 2\n"
 
 
 def _bad_case(case, tmp_path, gc_dict):
