@@ -5,7 +5,9 @@
 A fit run: the new shapes' per-GC codes are optimised with the decoder frozen; the run's
 checkpoints/last.ckpt is a fit checkpoint of the new shapes (`edit.py run=<this run>`).
 A shape-latent run: one latent per new shape is optimised with the shape decoder and the NGC
-decoder frozen (the shapes' annotations must follow the model's GC template); the run writes
+decoder frozen (the shapes' annotations must follow the model's GC template); the shapes keep
+their own GCs (the codes were fitted in those frames; `reconstruct.gcs=decoded` meshes the
+latent's GCs instead); the run writes
 latents.pt (sample.py can interpolate from them: `latents=<this run>/latents.pt`) and
 shapes.ckpt (the decoded shapes, for edit.py). Both write meshes/<name>.ply and metrics.json
 (Chamfer etc. against the input meshes, as stage=fit does).
@@ -93,12 +95,18 @@ def _latents(cfg: DictConfig, path: Path) -> dict:
                                          write_edit_checkpoint, write_shape)
     from ngc_gen.lit.reconstruct import latent_only_module
     from ngc_gen.lit.shape_latent import ShapeLatentModule
+    from ngc_gen.shape import recorded_gcs
 
     from .fit import print_metrics
     from .prepare import prepare_dataset
     from .shape_latent import save_latents, template_and_targets
     from .training import start_run, train
 
+    gcs_from = str(cfg.reconstruct.gcs)
+    if gcs_from not in ("input", "decoded"):
+        raise DataError(f"reconstruct.gcs must be input or decoded, got {gcs_from!r}",
+                        field="reconstruct.gcs", fix="pass reconstruct.gcs=input (the meshes' own "
+                        "GCs, default) or reconstruct.gcs=decoded (the latent's GCs)")
     trained_model = ShapeLatentModule.from_checkpoint(path)
     run_dir = start_run(cfg)
     prepared = prepare_dataset(cfg)
@@ -126,6 +134,9 @@ def _latents(cfg: DictConfig, path: Path) -> dict:
     per, written = {}, []
     with torch.no_grad():
         shapes = decode_shapes(module, module.latents.weight, module.names)
+        if gcs_from == "input":  # the codes were fitted in the input's GC frames: keep them
+            shapes = [shape.replaced(gcs=recorded_gcs({"annotation_yaml": s.annotation_yaml}))
+                      for shape, s in zip(shapes, prepared)]
         for shape, s in zip(shapes, prepared):
             mesh = shape.mesh(res, float(cfg.extract.bound), chunk=auto_chunk(res),
                               progress=False).mesh
@@ -141,6 +152,7 @@ def _latents(cfg: DictConfig, path: Path) -> dict:
     keys = [k for k, v in next(iter(per.values())).items() if not isinstance(v, bool)]
     mean = {k: float(sum(p[k] for p in per.values()) / len(per)) for k in keys}
     metrics = {"shapes": per, "mean": mean, "into": str(path), "kind": "shape_latent",
+               "gcs": gcs_from,
                "steps": int(trained.trainer.global_step), "train_s": trained.seconds,
                "checkpoint": str(last), "latents": str(run_dir / "latents.pt"),
                "edit_checkpoint": str(run_dir / "shapes.ckpt"), "resolution": res}

@@ -225,6 +225,15 @@ def test_reconstruct_a_held_out_creature_and_interpolate_to_a_generated_one(runs
     lat = torch.load(out / "latents.pt", weights_only=True)
     assert lat["names"] == held_out and lat["latents"].shape == (1, 16)
     assert set(metrics["shapes"]) == set(held_out) and (out / "shapes.ckpt").is_file()
+    # the reconstructed shape keeps the input's GCs (the frames its codes were fitted in), up to
+    # the similarity that normalises the written mesh; decoded GCs would miss them by ~0.4 std
+    given = np.concatenate([g.curve.points for g in load_annotation(
+        base / "data" / f"{held_out[0]}.yaml").gcs])
+    kept = np.concatenate([g.curve.points for g in load_annotation(
+        out / "shapes" / f"{held_out[0]}.yaml").gcs])
+    a, b = given - given.mean(0), kept - kept.mean(0)
+    scale = float((a * b).sum() / (a * a).sum())
+    assert np.abs(a * scale - b).max() < 1e-6 * max(1.0, np.abs(b).max())
     run_sample(compose_config("sample", [
         f"run={runs['diff']}", "mode=interpolate", f"latents={out / 'latents.pt'}",
         f"a={held_out[0]}", "b=0", "steps=3", f"extract.resolution={RES}", "progress=false",
