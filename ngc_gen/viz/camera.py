@@ -250,3 +250,40 @@ def camera_distance(points: np.ndarray, center: np.ndarray, direction: np.ndarra
     need = P @ d + np.maximum(np.abs(P @ r) / (fill[0] * tan_h),
                               np.abs(P @ t) / (fill[1] * tan_v))
     return float(need.max()) + 1e-6 * float(np.linalg.norm(P, axis=1).max())
+
+
+def edit_view(points: np.ndarray, gcs_before, gcs_after, up) -> np.ndarray:
+    """The camera direction of an edit's before/after picture: `least_motion_view` of the GCs'
+    curve displacements (`curve_displacements`), from the side view of `points` (before and
+    after together). Unit (3,) vector."""
+    return least_motion_view(curve_displacements(gcs_before, gcs_after), up,
+                             side_view(points, up))
+
+
+def frame_points(points: np.ndarray, direction: np.ndarray, up, aspect: float,
+                 view_angle: float = VIEW_ANGLE, fill: tuple[float, float] = (0.9, 0.9),
+                 steps: int = 3) -> tuple[np.ndarray, float]:
+    """(focal point, distance) of a camera looking along -`direction` that shows every point
+    inside the central fraction `fill` of the image, the points centred: start at their
+    bounding-box centre, then `steps` times move the focal point across the view by the middle
+    of the points' projected extent (perspective makes the box centre project off-centre) and
+    recompute `camera_distance` there, which keeps every point inside whatever the shift.
+
+    points: (N, 3) float."""
+    P = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    d = np.asarray(direction, dtype=np.float64)
+    d = d / np.linalg.norm(d)
+    if not len(P):
+        return np.zeros(3), 1.0
+    t = np.asarray(up, dtype=np.float64) - (np.asarray(up, dtype=np.float64) @ d) * d
+    t = horizontal_axes(d)[0] if np.linalg.norm(t) < 1e-9 else t / np.linalg.norm(t)
+    r = np.cross(d, t)
+    c = (P.min(0) + P.max(0)) / 2
+    D = camera_distance(P, c, d, t, aspect, view_angle, fill)
+    for _ in range(steps):
+        Q = P - (c + D * d)
+        depth = -(Q @ d)
+        x, y = (Q @ r) / depth, (Q @ t) / depth
+        c = c + D * ((x.max() + x.min()) / 2 * r + (y.max() + y.min()) / 2 * t)
+        D = camera_distance(P, c, d, t, aspect, view_angle, fill)
+    return c, D

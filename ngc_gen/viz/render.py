@@ -51,11 +51,11 @@ def render_grid(rows: list[list], path, labels: list[str] | None = None,
     row's shapes (`camera.side_view`) about its up axis. `up`: 'auto' (`camera.resolve_up`
     over the row's meshes), an axis name ('y', '-z') or a vector. `view` and `up` may also
     be lists with one entry per row. The camera distance frames the whole shape and overlay
-    (`camera.camera_distance`): nothing is cut at the cell's edges, with `margin` (a fraction
+    (`camera.frame_points`): nothing is cut at the cell's edges, with `margin` (a fraction
     of the cell) free on each side and room for the cell's title. `frame="cell"` fits each
     cell; `frame="row"` fits every cell to its whole row, so before/after keep one scale.
     `titles[i][j]` names one cell (after the row label / column title, if any)."""
-    from .camera import VIEW_ANGLE, camera_distance, resolve_up, side_view
+    from .camera import VIEW_ANGLE, frame_points, resolve_up, side_view
 
     if frame not in ("cell", "row"):
         raise ValueError(f"frame must be 'cell' or 'row', got {frame!r}")
@@ -88,25 +88,27 @@ def render_grid(rows: list[list], path, labels: list[str] | None = None,
             if titles and i < len(titles) and j < len(titles[i]) and titles[i][j]:
                 title.append(titles[i][j])
             if title:
-                p.add_text(" / ".join(title), font_size=9, color="black")
+                # fixed 12 px text (a corner annotation would scale short titles up)
+                p.add_text(" / ".join(title), position=(4, cell[1] - title_px + 2), font_size=6,
+                           color="black")
             if overlay is not None:
                 p.add_mesh(_poly(pv, overlay), color="#4a78c2", opacity=0.25)
             if mesh is None or not len(mesh.faces):
                 continue
             p.add_mesh(_poly(pv, mesh), color=COLORS[j % len(COLORS)], smooth_shading=True)
             if point_labels:
-                p.add_point_labels(np.array([q for _, q in point_labels], dtype=float),
-                                   [str(t) for t, _ in point_labels], font_size=9,
-                                   point_size=6, point_color="black", shape_opacity=0.6,
-                                   shape_color="white", text_color="black",
-                                   always_visible=True, reset_camera=False)
+                names = p.add_point_labels(
+                    np.array([q for _, q in point_labels], dtype=float),
+                    [str(t) for t, _ in point_labels], font_size=8, point_size=5,
+                    point_color="black", shape_opacity=0.6, shape_color="white",
+                    text_color="black", always_visible=True, reset_camera=False)
+                names.GetMapper().PlaceAllLabelsOn()  # VTK drops overlapping ones otherwise
             pts = row_points if frame == "row" else np.concatenate(
                 [np.asarray(mesh.vertices)] + ([np.asarray(overlay.vertices)]
                                                if overlay is not None else []))
-            c = (pts.min(0) + pts.max(0)) / 2
             free_h = 1 - 2 * margin - (2 * title_px / cell[1] if title else 0.0)
-            dist = camera_distance(pts, c, d, u, aspect=cell[0] / cell[1],
-                                   view_angle=VIEW_ANGLE, fill=(1 - 2 * margin, free_h))
+            c, dist = frame_points(pts, d, u, aspect=cell[0] / cell[1], view_angle=VIEW_ANGLE,
+                                   fill=(1 - 2 * margin, free_h))
             p.camera.view_angle = VIEW_ANGLE
             p.camera_position = [tuple(c + dist * d), tuple(c), tuple(u)]
             p.reset_camera_clipping_range()
