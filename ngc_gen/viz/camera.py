@@ -97,8 +97,10 @@ def detect_up(vertices: np.ndarray, min_base: float = 0.15, flat: float = 0.5) -
     3. Else +z (the project's convention; the creatures are z-up).
 
     Measured (README): pyvista's ant -> +y (rule 1), airplane -> +z (rule 2), 64 creatures
-    -> +z (rule 1); each also when turned to x-, y- or -z-up. Shapes without a base, neither
-    flat nor z-up (a pole along x, a cube) get +z: set `viz.up` for those.
+    -> +z (rule 1); each also when turned to x-, y- or -z-up (bench/up_axis.py), except that
+    an upside-down airplane is still called +z. Shapes without a base, neither flat nor z-up (a
+    pole along x, a cube) get +z, and boxy shapes whose flat sides count as bases too (a
+    cupboard) fall through to rules 2-3: set `viz.up` for those.
 
     vertices: (V, 3) float. Returns a unit (3,) float64 axis vector."""
     V = np.asarray(vertices, dtype=np.float64)
