@@ -38,6 +38,19 @@ def _per_row(value, n_rows: int, what: str) -> list:
     return [value] * n_rows
 
 
+def _title(i: int, j: int, labels, col_titles, titles) -> str:
+    """Cell (i, j)'s title: its column title (first row), row label (first column) and own
+    title, joined by ' / '; '' for none."""
+    parts = []
+    if col_titles and i == 0 and j < len(col_titles):
+        parts.append(col_titles[j])
+    if labels and j == 0 and i < len(labels):
+        parts.append(labels[i])
+    if titles and i < len(titles) and j < len(titles[i]) and titles[i][j]:
+        parts.append(titles[i][j])
+    return " / ".join(parts)
+
+
 def render_grid(rows: list[list], path, labels: list[str] | None = None,
                 col_titles: list[str] | None = None, cell: tuple[int, int] = (320, 260),
                 view=None, up="auto", frame: str = "cell",
@@ -64,7 +77,7 @@ def render_grid(rows: list[list], path, labels: list[str] | None = None,
 
     n_rows, n_cols = len(rows), max(len(r) for r in rows)
     views, ups = _per_row(view, n_rows, "view"), _per_row(up, n_rows, "up")
-    title_px = 18  # a 9 pt title line at the cell's top
+    title_px = 18  # a title line (12 px text) at the cell's top
     p = pv.Plotter(off_screen=True, shape=(n_rows, n_cols),
                    window_size=(cell[0] * n_cols, cell[1] * n_rows), border=False)
     p.set_background("white")
@@ -78,18 +91,13 @@ def render_grid(rows: list[list], path, labels: list[str] | None = None,
         row_points = np.concatenate(row_points) if row_points else np.zeros((0, 3))
         d = (side_view(row_points, u) if views[i] is None
              else np.asarray(views[i], dtype=float) / np.linalg.norm(views[i]))
+        row_titles = [_title(i, j, labels, col_titles, titles) for j in range(len(row))]
         for j, (mesh, overlay, point_labels) in enumerate(parts):
             p.subplot(i, j)
-            title = []
-            if col_titles and i == 0 and j < len(col_titles):
-                title.append(col_titles[j])
-            if labels and j == 0 and i < len(labels):
-                title.append(labels[i])
-            if titles and i < len(titles) and j < len(titles[i]) and titles[i][j]:
-                title.append(titles[i][j])
+            title = row_titles[j]
             if title:
                 # fixed 12 px text (a corner annotation would scale short titles up)
-                p.add_text(" / ".join(title), position=(4, cell[1] - title_px + 2), font_size=6,
+                p.add_text(title, position=(4, cell[1] - title_px + 2), font_size=6,
                            color="black")
             if overlay is not None:
                 p.add_mesh(_poly(pv, overlay), color="#4a78c2", opacity=0.25)
@@ -106,7 +114,8 @@ def render_grid(rows: list[list], path, labels: list[str] | None = None,
             pts = row_points if frame == "row" else np.concatenate(
                 [np.asarray(mesh.vertices)] + ([np.asarray(overlay.vertices)]
                                                if overlay is not None else []))
-            free_h = 1 - 2 * margin - (2 * title_px / cell[1] if title else 0.0)
+            band = any(row_titles) if frame == "row" else bool(title)  # row: one scale
+            free_h = 1 - 2 * margin - (2 * title_px / cell[1] if band else 0.0)
             c, dist = frame_points(pts, d, u, aspect=cell[0] / cell[1], view_angle=VIEW_ANGLE,
                                    fill=(1 - 2 * margin, free_h))
             p.camera.view_angle = VIEW_ANGLE
