@@ -6,7 +6,7 @@ TORCH_SPEC ?= torch==2.13.0
 BIN := $(VENV)/bin
 
 .PHONY: setup chromium test test-all bench bench-geometry bench-fit bench-deform bench-generate \
-	bench-editor bench-autogc bench-condition demo clean
+	bench-editor bench-autogc bench-condition bench-up demo clean
 
 $(BIN)/activate:
 	$(PY) -m venv $(VENV)
@@ -36,7 +36,8 @@ test-all: setup
 demo: setup  # the whole pipeline: fit, edit, shape latents, diffusion, sample (conf/experiment/demo.yaml)
 	$(BIN)/python train.py experiment=demo
 
-bench: bench-geometry bench-fit bench-deform bench-generate bench-editor bench-autogc bench-condition
+bench: bench-geometry bench-fit bench-deform bench-generate bench-editor bench-autogc bench-condition \
+	bench-up
 
 bench-geometry: setup
 	$(BIN)/python bench/geometry.py
@@ -58,6 +59,9 @@ bench-autogc: setup
 
 bench-condition: setup  # reuses bench-generate's runs (trains them if missing)
 	$(BIN)/python bench/condition.py --sweep
+
+bench-up: setup  # the pictures' up-axis rule on the ant, airplane and creatures
+	$(BIN)/python bench/up_axis.py
 
 clean:
 	rm -rf $(VENV) outputs .pytest_cache

@@ -46,15 +46,19 @@ def _ours(path: Path) -> bool:
     return not path.exists() or path.read_text(encoding="utf-8", errors="replace").startswith(HEADER)
 
 
-def _picture(ann: Annotation, path: Path) -> Path | None:
+def _picture(ann: Annotation, path: Path, up="auto") -> Path | None:
+    """The GCs over the mesh, and alone with their names (`up`: `viz.up`)."""
     import trimesh
 
-    from ngc_gen.viz import gcs_surface, render_grid, render_or_warn
+    from ngc_gen.viz import gc_labels, gcs_surface, render_grid, render_or_warn
 
     mesh, _, _ = normalize(load_mesh(ann.mesh_path), ann.bound)
     shell = gcs_surface(ann.gcs)
-    return render_or_warn(render_grid, path, [[(mesh, shell), trimesh.Trimesh(shell.vertices, shell.faces)]],
-                          col_titles=[f"{ann.name}: {len(ann.gcs)} GCs over the mesh", "the GCs"])
+    return render_or_warn(render_grid, path,
+                          [[(mesh, shell), (trimesh.Trimesh(shell.vertices, shell.faces), None,
+                                            gc_labels(ann.gcs))]],
+                          col_titles=[f"{ann.name}: {len(ann.gcs)} GCs over the mesh",
+                                      "the GCs by name"], frame="row", up=up)
 
 
 def run_annotate(cfg: DictConfig) -> list[dict]:
@@ -72,7 +76,7 @@ def run_annotate(cfg: DictConfig) -> list[dict]:
                                    np.random.default_rng(settings.seed + 1))
         stats = coverage_stats(ann.gcs, points)
         _write_yaml(ann, run_dir / f"{name}.yaml")
-        _picture(ann, run_dir / f"{name}_gcs.png")
+        _picture(ann, run_dir / f"{name}_gcs.png", cfg.viz.up)
         wrote = []
         if beside and not Path(mesh).exists():
             wrote.append("not beside (a resource)")
@@ -80,7 +84,7 @@ def run_annotate(cfg: DictConfig) -> list[dict]:
             target = Path(mesh).with_suffix(".yaml")
             if _ours(target):
                 _write_yaml(ann, target)
-                _picture(ann, target.with_name(f"{name}_gcs.png"))
+                _picture(ann, target.with_name(f"{name}_gcs.png"), cfg.viz.up)
                 wrote.append(f"beside: {target}")
             else:
                 wrote.append(f"kept the hand annotation {target}")

@@ -67,9 +67,10 @@ def condition(gen: ShapeGenerator, out_dir, gcs, n: int, seed: int, strength: fl
     return summary
 
 
-def render_condition(summary: dict, path: Path, per_row: int = 4, limit: int = 8):
+def render_condition(summary: dict, path: Path, per_row: int = 4, limit: int = 8,
+                     up="auto"):
     """The given GCs (left) and up to `limit` conditioned shapes with their GCs translucent, in
-    rows of `per_row`, at one scale per row. None if nothing could be drawn."""
+    rows of `per_row`, at one scale per row; `up`: `viz.up`. None if nothing could be drawn."""
     import trimesh
 
     from ngc_gen.data.annotations import load_annotation
@@ -85,4 +86,5 @@ def render_condition(summary: dict, path: Path, per_row: int = 4, limit: int = 8
     labels = [f"{n} ({s['gc_err_std']:.2f} std)" for n, s in shown]
     rows = [[drawn] + cells[i:i + per_row] for i in range(0, len(cells), per_row)]
     titles = [["given GCs"] + labels[i:i + per_row] for i in range(0, len(cells), per_row)]
-    return render_or_warn(render_grid, path, rows, titles=titles, frame="row")
+    return render_or_warn(render_grid, path, rows, titles=titles, frame="row",
+                          up=up)

@@ -272,7 +272,7 @@ def run_edit(cfg) -> dict:
                                      width=100))
     if cfg.get("picture", True):
         metrics["picture"] = render_edit(before.mesh, gcs, after.mesh, edited.gcs,
-                                         out_dir / "edit.png", program.name)
+                                         out_dir / "edit.png", program.name, up=cfg.viz.up)
     metrics["time_total_s"] = time.perf_counter() - t_start
     metrics["out_dir"] = str(out_dir)
     atomic_write_text(out_dir / "metrics.json", json.dumps(_json_safe(metrics), indent=2))
@@ -280,13 +280,22 @@ def run_edit(cfg) -> dict:
     return metrics
 
 
-def render_edit(before, gcs, after, edited_gcs, path: Path, program: str) -> str | None:
-    """edit.png: the shape before and after, its GCs drawn translucent, one camera for both."""
-    from ngc_gen.viz import gcs_surface, render_grid, render_or_warn
+def render_edit(before, gcs, after, edited_gcs, path: Path, program: str,
+                up="auto") -> str | None:
+    """edit.png: the shape before and after, its GCs drawn translucent, one camera for both,
+    looking across the edited GCs' motion (`viz.camera.edit_view`); `up`: `viz.up`."""
+    import numpy as np
 
-    done = render_or_warn(render_grid, path, [[(before, gcs_surface(gcs)),
-                                               (after, gcs_surface(edited_gcs))]],
-                          col_titles=["before", f"after {program}"], frame="row")
+    from ngc_gen.viz import gcs_surface, render_grid, render_or_warn
+    from ngc_gen.viz.camera import edit_view, resolve_up
+
+    shells = gcs_surface(gcs), gcs_surface(edited_gcs)
+    u = resolve_up(up, [before])
+    view = edit_view(np.concatenate([np.asarray(m.vertices) for m in (before, after, *shells)]),
+                     gcs, edited_gcs, u)
+    done = render_or_warn(render_grid, path, [[(before, shells[0]), (after, shells[1])]],
+                          col_titles=["before", f"after {program}"], frame="row",
+                          view=view, up=u)
     return None if done is None else str(done)
 
 

@@ -63,7 +63,8 @@ def run_fit(cfg: DictConfig) -> dict:
                    kind=kind,
                    checkpoint=str(run_dir / "checkpoints" / "last.ckpt"))
     atomic_write_text(run_dir / "metrics.json", json.dumps(metrics, indent=2))
-    render_comparison(gt, run_dir)
+    render_comparison(gt, run_dir, gcs=named_gcs(prepared) if kind == "ngc" else None,
+                      up=cfg.viz.up)
     print_metrics(metrics)
     print(f"run directory: {run_dir}")
     return metrics
@@ -81,18 +82,37 @@ def score_fit(cfg: DictConfig, module, prepared: list[PreparedShape], run_dir: P
     return metrics, gt
 
 
-def render_comparison(gt: dict, run_dir: Path) -> None:
-    """run_dir/meshes.png: ground truth beside the fitted mesh, one row per shape. A failed
-    render (no off-screen OpenGL) is reported, not fatal: the meshes are already written."""
+def named_gcs(prepared: list[PreparedShape]) -> dict:
+    """{shape name: its GCs} of prepared shapes (what an NGC fit's edit programs refer to)."""
+    return {s.name: s.gcs() for s in prepared}
+
+
+def comparison_rows(gt: dict, meshes_dir: Path, gcs: dict | None = None) -> list[list]:
+    """The rows of meshes.png, one per shape: the ground truth (with its GCs translucent and
+    each labelled with its name at its curve's middle, if `gcs` {shape: GCs} has the shape)
+    beside the fitted mesh meshes_dir/<shape>.ply."""
     import trimesh
 
+    from ngc_gen.viz import gc_labels, gcs_surface
+
+    rows = []
+    for n, (V, F) in gt.items():
+        truth = trimesh.Trimesh(V, F, process=False)
+        if gcs and gcs.get(n):
+            truth = (truth, gcs_surface(gcs[n]), gc_labels(gcs[n]))
+        rows.append([truth, trimesh.load(meshes_dir / f"{n}.ply", process=False)])
+    return rows
+
+
+def render_comparison(gt: dict, run_dir: Path, gcs: dict | None = None, up="auto") -> None:
+    """run_dir/meshes.png: ground truth beside the fitted mesh, one row per shape; with `gcs`
+    ({shape: GCs}) the GCs are drawn over the ground truth with their names. `up`: `viz.up`.
+    A failed render (no off-screen OpenGL) is reported, not fatal: the meshes are written."""
     from ngc_gen.viz import render_grid, render_or_warn
 
-    names = list(gt)
-    rows = [[trimesh.Trimesh(*gt[n], process=False),
-             trimesh.load(run_dir / "meshes" / f"{n}.ply", process=False)] for n in names]
-    render_or_warn(render_grid, run_dir / "meshes.png", rows, labels=names,
-                   col_titles=["ground truth", "fitted"])
+    render_or_warn(render_grid, run_dir / "meshes.png", comparison_rows(gt, run_dir / "meshes", gcs),
+                   labels=list(gt), col_titles=["ground truth" + (", GCs by name" if gcs else ""),
+                                                "fitted"], frame="row", up=up)
 
 
 def print_metrics(metrics: dict) -> None:

@@ -154,7 +154,7 @@ def run_pipeline(cfg: DictConfig) -> dict:
         summary["total_s"] = sum(s["seconds"] for s in summary["steps"].values())
         atomic_write_text(run_dir / "summary.json", json.dumps(summary, indent=2))
     summary["total_s"] = sum(s["seconds"] for s in summary["steps"].values())
-    render_overview(run_dir, list(summary["steps"]))
+    render_overview(run_dir, list(summary["steps"]), up=cfg.viz.up)
     print_summary(summary)
     return summary
 
@@ -169,9 +169,9 @@ def print_summary(summary: dict) -> None:
     print(f"  summary.json, overview.png in {summary['run_dir']}")
 
 
-def render_overview(run_dir: Path, done: list[str], per_row: int = 4) -> None:
-    """overview.png: one row per step that made meshes (fitted / edited / generated). A failed
-    render (no off-screen OpenGL) is reported, not fatal."""
+def render_overview(run_dir: Path, done: list[str], per_row: int = 4, up="auto") -> None:
+    """overview.png: one row per step that made meshes (fitted / edited / generated), `up`:
+    `viz.up`. A failed render (no off-screen OpenGL) is reported, not fatal."""
     import trimesh
 
     from ngc_gen.viz import render_grid, render_or_warn
@@ -195,4 +195,4 @@ def render_overview(run_dir: Path, done: list[str], per_row: int = 4) -> None:
     if not kept:
         return
     render_or_warn(render_grid, run_dir / "overview.png", [r for r, _ in kept],
-                   labels=[lab for _, lab in kept], frame="row")
+                   labels=[lab for _, lab in kept], frame="row", up=up)

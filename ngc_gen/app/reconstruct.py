@@ -58,7 +58,7 @@ def _codes(cfg: DictConfig, path: Path) -> dict:
     from ngc_gen.lit.checkpoint import load_autodecoder
     from ngc_gen.lit.reconstruct import codes_only_autodecoder
 
-    from .fit import print_metrics, render_comparison, score_fit, shapes_meta
+    from .fit import named_gcs, print_metrics, render_comparison, score_fit, shapes_meta
     from .prepare import prepare_dataset
     from .training import start_run, train
 
@@ -78,7 +78,8 @@ def _codes(cfg: DictConfig, path: Path) -> dict:
                    train_s=trained.seconds,
                    checkpoint=str(run_dir / "checkpoints" / "last.ckpt"))
     atomic_write_text(run_dir / "metrics.json", json.dumps(metrics, indent=2))
-    render_comparison(gt, run_dir)
+    render_comparison(gt, run_dir, gcs=named_gcs(prepared) if kind == "ngc" else None,
+                      up=cfg.viz.up)
     print_metrics(metrics)
     print(f"run directory: {run_dir}\nedit one: python edit.py run={run_dir} "
           f"shape={prepared[0].name} edit=<program>")

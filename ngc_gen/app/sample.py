@@ -211,19 +211,22 @@ def run_sample(cfg) -> dict:
                       blend_params=params, geometry=c.get("geometry", "source"), **common)
     if c.get("picture", True) and mode == "condition":
         from .condition import render_condition
-        picture = render_condition(summary, out_dir / "shapes.png")
+        picture = render_condition(summary, out_dir / "shapes.png", up=c["viz"]["up"])
         if picture is not None:
             print(f"picture: {picture}")
     elif c.get("picture", True):
-        picture = render_shapes(summary, out_dir / "shapes.png", one_row=mode != "generate")
+        picture = render_shapes(summary, out_dir / "shapes.png", one_row=mode != "generate",
+                                up=c["viz"]["up"])
         if picture is not None:
             print(f"picture: {picture}")
     return summary
 
 
-def render_shapes(summary: dict, path: Path, one_row: bool = False, limit: int = 32):
+def render_shapes(summary: dict, path: Path, one_row: bool = False, limit: int = 32,
+                  up="auto"):
     """A picture of the written shapes (at most `limit`), each with its GCs drawn translucent:
-    what was made, and the handles edit.py will move. None if nothing could be drawn."""
+    what was made, and the handles edit.py will move. `up`: `viz.up`. None if nothing could
+    be drawn."""
     import trimesh
 
     from ngc_gen.data.annotations import load_annotation
@@ -235,4 +238,5 @@ def render_shapes(summary: dict, path: Path, one_row: bool = False, limit: int =
     cells = [(trimesh.load(s["mesh"], process=False),
               gcs_surface(load_annotation(s["annotation"]).gcs)) for _, s in shown]
     per_row = len(cells) if one_row and len(cells) <= 8 else 4
-    return render_or_warn(render_gallery, path, cells, [n for n, _ in shown], per_row=per_row)
+    return render_or_warn(render_gallery, path, cells, [n for n, _ in shown], per_row=per_row,
+                          up=up)

@@ -34,3 +34,10 @@ def gc_surface(gc: GeneralizedCylinder, n_u: int = 64, n_theta: int = 24) -> tri
 def gcs_surface(gcs: list[GeneralizedCylinder], **kwargs) -> trimesh.Trimesh:
     """All GC surfaces of a shape in one mesh."""
     return trimesh.util.concatenate([gc_surface(g, **kwargs) for g in gcs])
+
+
+def gc_labels(gcs: list[GeneralizedCylinder]) -> list[tuple[str, np.ndarray]]:
+    """(name, (3,) point) per GC, the point at the middle of its curve (normalised arc length
+    1/2, relative coordinates (0, 0, 0)): where a picture writes the name an edit program uses."""
+    mid = np.zeros((1, 3))
+    return [(g.name, np.asarray(g.to_world(mid), dtype=np.float64)[0]) for g in gcs]

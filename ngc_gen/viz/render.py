@@ -20,52 +20,107 @@ def _poly(pv, mesh: trimesh.Trimesh):
                                           np.asarray(mesh.faces))
 
 
+def _cell_parts(cell):
+    """(mesh, overlay, labels) of a cell: a mesh, None, (mesh, overlay) or (mesh, overlay,
+    labels) with labels a list of (text, (3,) point)."""
+    if isinstance(cell, tuple):
+        mesh, overlay, *rest = cell
+        return mesh, overlay, (rest[0] if rest else None) or []
+    return cell, None, []
+
+
+def _per_row(value, n_rows: int, what: str) -> list:
+    """A setting given once for the grid or as a list with one entry per row."""
+    if isinstance(value, list) and value and not isinstance(value[0], (int, float)):
+        if len(value) != n_rows:
+            raise ValueError(f"{what} has {len(value)} entries for {n_rows} rows")
+        return value
+    return [value] * n_rows
+
+
+def _title(i: int, j: int, labels, col_titles, titles) -> str:
+    """Cell (i, j)'s title: its column title (first row), row label (first column) and own
+    title, joined by ' / '; '' for none."""
+    parts = []
+    if col_titles and i == 0 and j < len(col_titles):
+        parts.append(col_titles[j])
+    if labels and j == 0 and i < len(labels):
+        parts.append(labels[i])
+    if titles and i < len(titles) and j < len(titles[i]) and titles[i][j]:
+        parts.append(titles[i][j])
+    return " / ".join(parts)
+
+
 def render_grid(rows: list[list], path, labels: list[str] | None = None,
                 col_titles: list[str] | None = None, cell: tuple[int, int] = (320, 260),
-                view: tuple = (1.0, -1.6, 0.9), up: tuple = (0, 0, 1),
-                frame: str = "cell", titles: list[list[str]] | None = None) -> Path:
+                view=None, up="auto", frame: str = "cell",
+                titles: list[list[str]] | None = None, margin: float = 0.04) -> Path:
     """Render rows x columns of meshes into one PNG, atomically. A cell is a mesh, None
-    (empty) or a pair (mesh, overlay) whose overlay (e.g. GC surfaces) is drawn translucent.
+    (empty), a pair (mesh, overlay) whose overlay (e.g. GC surfaces) is drawn translucent, or
+    a triple (mesh, overlay, point labels [(text, (3,) point), ...]) (`gc_labels`).
 
-    Each column gets its own colour; every cell uses the same camera direction `view` so
-    shapes can be compared side by side. `frame="cell"` fits the camera to each mesh;
-    `frame="row"` to the bounds of its whole row, so before/after pairs keep one scale.
+    Each column gets its own colour. A row has one camera direction, so its shapes compare
+    side by side: `view` (a world direction toward the camera) or, None, the side view of the
+    row's shapes (`camera.side_view`) about its up axis. `up`: 'auto' (`camera.resolve_up`
+    over the row's meshes), an axis name ('y', '-z') or a vector. `view` and `up` may also
+    be lists with one entry per row. The camera distance frames the whole shape and overlay
+    (`camera.frame_points`): nothing is cut at the cell's edges, with `margin` (a fraction
+    of the cell) free on each side and room for the cell's title. `frame="cell"` fits each
+    cell; `frame="row"` fits every cell to its whole row, so before/after keep one scale.
     `titles[i][j]` names one cell (after the row label / column title, if any)."""
+    from .camera import VIEW_ANGLE, frame_points, resolve_up, side_view
+
     if frame not in ("cell", "row"):
         raise ValueError(f"frame must be 'cell' or 'row', got {frame!r}")
     os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
     import pyvista as pv
 
     n_rows, n_cols = len(rows), max(len(r) for r in rows)
+    views, ups = _per_row(view, n_rows, "view"), _per_row(up, n_rows, "up")
+    title_px = 18  # a title line (12 px text) at the cell's top
     p = pv.Plotter(off_screen=True, shape=(n_rows, n_cols),
                    window_size=(cell[0] * n_cols, cell[1] * n_rows), border=False)
     p.set_background("white")
     for i, row in enumerate(rows):
-        meshes = [m[0] if isinstance(m, tuple) else m for m in row]
-        meshes = [m for m in meshes if m is not None and len(m.faces)]
-        row_bounds = (np.stack([m.bounds for m in meshes]) if meshes else None)
-        for j, mesh in enumerate(row):
+        parts = [_cell_parts(c) for c in row]
+        shown = [(m, o) for m, o, _ in parts if m is not None and len(m.faces)]
+        u = resolve_up(ups[i], [m for m, _ in shown])
+        row_points = [np.concatenate([np.asarray(m.vertices)] +
+                                     ([np.asarray(o.vertices)] if o is not None else []))
+                      for m, o in shown]
+        row_points = np.concatenate(row_points) if row_points else np.zeros((0, 3))
+        d = (side_view(row_points, u) if views[i] is None
+             else np.asarray(views[i], dtype=float) / np.linalg.norm(views[i]))
+        row_titles = [_title(i, j, labels, col_titles, titles) for j in range(len(row))]
+        for j, (mesh, overlay, point_labels) in enumerate(parts):
             p.subplot(i, j)
-            if isinstance(mesh, tuple):
-                mesh, overlay = mesh
-                p.add_mesh(_poly(pv, overlay), color="#4a78c2", opacity=0.25)
-            if mesh is not None and len(mesh.faces):
-                p.add_mesh(_poly(pv, mesh), color=COLORS[j % len(COLORS)], smooth_shading=True)
-                b = mesh.bounds if frame == "cell" else np.stack(
-                    [row_bounds[:, 0].min(0), row_bounds[:, 1].max(0)])
-                c = b.mean(0)
-                r = float(np.linalg.norm(b[1] - b[0])) * 1.3
-                d = np.asarray(view, dtype=float)
-                p.camera_position = [tuple(c + r * d / np.linalg.norm(d)), tuple(c), tuple(up)]
-            title = []
-            if col_titles and i == 0 and j < len(col_titles):
-                title.append(col_titles[j])
-            if labels and j == 0 and i < len(labels):
-                title.append(labels[i])
-            if titles and i < len(titles) and j < len(titles[i]) and titles[i][j]:
-                title.append(titles[i][j])
+            title = row_titles[j]
             if title:
-                p.add_text(" / ".join(title), font_size=9, color="black")
+                # fixed 12 px text (a corner annotation would scale short titles up)
+                p.add_text(title, position=(4, cell[1] - title_px + 2), font_size=6,
+                           color="black")
+            if overlay is not None:
+                p.add_mesh(_poly(pv, overlay), color="#4a78c2", opacity=0.25)
+            if mesh is None or not len(mesh.faces):
+                continue
+            p.add_mesh(_poly(pv, mesh), color=COLORS[j % len(COLORS)], smooth_shading=True)
+            if point_labels:
+                names = p.add_point_labels(
+                    np.array([q for _, q in point_labels], dtype=float),
+                    [str(t) for t, _ in point_labels], font_size=8, point_size=5,
+                    point_color="black", shape_opacity=0.6, shape_color="white",
+                    text_color="black", always_visible=True, reset_camera=False)
+                names.GetMapper().PlaceAllLabelsOn()  # VTK drops overlapping ones otherwise
+            pts = row_points if frame == "row" else np.concatenate(
+                [np.asarray(mesh.vertices)] + ([np.asarray(overlay.vertices)]
+                                               if overlay is not None else []))
+            band = any(row_titles) if frame == "row" else bool(title)  # row: one scale
+            free_h = 1 - 2 * margin - (2 * title_px / cell[1] if band else 0.0)
+            c, dist = frame_points(pts, d, u, aspect=cell[0] / cell[1], view_angle=VIEW_ANGLE,
+                                   fill=(1 - 2 * margin, free_h))
+            p.camera.view_angle = VIEW_ANGLE
+            p.camera_position = [tuple(c + dist * d), tuple(c), tuple(u)]
+            p.reset_camera_clipping_range()
     p.render()
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)

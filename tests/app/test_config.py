@@ -222,6 +222,7 @@ def test_each_entry_point_composes_its_own_groups():
         (256, 160, 128)
     assert train.extract.bound == edit.extract.bound == sample.extract.bound == 1.0
     assert sample.extract.chunk is None and edit.extract.chunk == train.extract.chunk
+    assert train.viz.up == edit.viz.up == sample.viz.up == "auto"  # one home: conf/viz
     assert not {"data", "model", "trainer", "diffusion", "mode"} & set(edit)
     assert not {"data", "model", "trainer", "diffusion", "edit"} & set(sample)
     assert Path(train.paths.root_dir) == ROOT and edit.edit.name == "bent_tail"
@@ -239,9 +240,9 @@ def test_each_entry_point_composes_its_own_groups():
 @pytest.mark.parametrize("script, groups", [
     ("train.py", {"annotate", "callbacks", "data", "diffusion", "experiment", "extract", "logger",
                   "model",
-                  "paths", "prepare", "reconstruct", "shape_latent", "trainer"}),
-    ("edit.py", {"edit", "editor", "extract"}),
-    ("sample.py", {"extract", "mode"}),
+                  "paths", "prepare", "reconstruct", "shape_latent", "trainer", "viz"}),
+    ("edit.py", {"edit", "editor", "extract", "viz"}),
+    ("sample.py", {"extract", "mode", "viz"}),
 ])
 def test_help_lists_only_the_groups_the_entry_point_reads(script, groups):
     r = run_entry(script, "--help", timeout=120)

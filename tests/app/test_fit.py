@@ -123,3 +123,29 @@ def test_reconstruct_puts_a_new_mesh_into_the_fit_with_the_decoder_frozen(torus_
     after = load_autodecoder(out / "checkpoints/last.ckpt").decoder.state_dict()
     assert all(torch.equal(before[k], after[k]) for k in before)  # the decoder never moved
     assert list(load_shapes(out)) == ["thin"]  # what edit.py run=<out> opens
+
+
+def test_fit_picture_names_every_gc_of_every_shape(tmp_path):
+    """meshes.png's rows: the ground truth carries its GC surfaces and one label per GC (the
+    names edit programs use, at each curve's middle) beside the fitted mesh."""
+    from ngc_gen.app.fit import comparison_rows
+    from ngc_gen.geometry import GeneralizedCylinder
+
+    from ..conftest import straight_gc
+
+    box = trimesh.creation.box()
+    (tmp_path / "meshes").mkdir()
+    for name in ("a", "b"):
+        box.export(tmp_path / "meshes" / f"{name}.ply")
+    gt = {n: (box.vertices, box.faces) for n in ("a", "b")}
+    gcs = {"a": [GeneralizedCylinder.from_dict(straight_gc("tail", -0.5, 0.0)),
+                 GeneralizedCylinder.from_dict(straight_gc("head", 0.0, 0.5))],
+           "b": [GeneralizedCylinder.from_dict(straight_gc("body", -0.5, 0.5))]}
+    rows = comparison_rows(gt, tmp_path / "meshes", gcs)
+    (truth, shell, labels), fitted = rows[0]
+    assert [n for n, _ in labels] == ["tail", "head"]
+    assert np.allclose([p for _, p in labels], [[-0.25, 0, 0], [0.25, 0, 0]])
+    assert len(shell.faces) > 0 and len(fitted.faces) == len(box.faces)
+    assert [n for n, _ in rows[1][0][2]] == ["body"]
+    plain = comparison_rows(gt, tmp_path / "meshes")  # DeepSDF: no GCs, plain meshes
+    assert all(isinstance(c, trimesh.Trimesh) for r in plain for c in r)

@@ -50,3 +50,58 @@ def test_row_framing_keeps_one_scale_per_row(tmp_path):
     assert row_small < 0.5 * row_big          # one camera: the small box looks small
     with pytest.raises(ValueError, match="frame"):
         render_grid([[small]], tmp_path / "x.png", frame="column")
+
+
+def _cells(path, cell, n_rows, n_cols):
+    from PIL import Image
+
+    img = np.asarray(Image.open(path).convert("RGB")).astype(int)
+    drawn = np.abs(img - 255).sum(-1) > 30
+    w, h = cell
+    return [drawn[i * h:(i + 1) * h, j * w:(j + 1) * w] for i in range(n_rows)
+            for j in range(n_cols)]
+
+
+def _rod(axis: int, length: float = 2.0) -> trimesh.Trimesh:
+    rod = trimesh.creation.cylinder(radius=length / 20, height=length)  # 10:1 along z
+    if axis != 2:
+        rod.apply_transform(trimesh.geometry.align_vectors([0, 0, 1], np.eye(3)[axis]))
+    return rod
+
+
+@pytest.mark.parametrize("frame", ["cell", "row"])
+def test_long_tall_and_flat_shapes_fit_whole_in_their_cells(tmp_path, frame):
+    """A 10:1 rod along x, y and z (tall), a plate and a cube: no drawn pixel on any cell's
+    edge, and each shape spans most of its cell's width or height (not a speck)."""
+    cell = (160, 120)
+    rows = [[_rod(0), _rod(1), _rod(2)],
+            [trimesh.creation.box(extents=(3.0, 2.0, 0.1)), trimesh.creation.box(),
+             _rod(2, length=6.0)]]
+    out = render_grid(rows, tmp_path / "grid.png", cell=cell, frame=frame)
+    spans = []
+    for k, c in enumerate(_cells(out, cell, 2, 3)):
+        assert c.any(), k
+        edge = np.concatenate([c[0], c[-1], c[:, 0], c[:, -1]])
+        assert not edge.any(), f"cell {k} is cut at its edge"
+        ys, xs = np.nonzero(c)
+        spans.append(max((np.ptp(xs) + 1) / cell[0], (np.ptp(ys) + 1) / cell[1]))
+    spans = np.reshape(spans, (2, 3))
+    # each cell fitted to its shape, or (one scale per row) to the row's largest
+    assert (spans if frame == "cell" else spans.max(1)).min() > 0.75, spans
+
+
+def test_a_y_up_mesh_is_drawn_standing(tmp_path):
+    """A tall rod along y, drawn with up=y (or detected: it stands on a foot plate), is upright
+    in the picture: taller than wide; with up=z it lies."""
+    foot = trimesh.creation.box(extents=(1.0, 0.05, 1.0), transform=trimesh.transformations
+                                .translation_matrix((0, -1.0, 0)))
+    rod = trimesh.util.concatenate([_rod(1), foot])
+    cell = (160, 120)
+    shapes = {}
+    for up in ("y", "auto", "z"):
+        out = render_grid([[rod]], tmp_path / f"{up}.png", cell=cell, up=up)
+        c = _cells(out, cell, 1, 1)[0]
+        ys, xs = np.nonzero(c)
+        shapes[up] = (np.ptp(ys) + 1) / (np.ptp(xs) + 1)
+    assert shapes["y"] > 1.5 and shapes["auto"] > 1.5, shapes
+    assert shapes["z"] < 1.0, shapes

@@ -1,0 +1,99 @@
+"""The up-axis rule of the pictures (`ngc_gen.viz.camera.detect_up`, `viz.up: auto`), measured.
+
+    python bench/up_axis.py [--creatures 64] [--creatures-dir DIR]
+
+Meshes with a known up: pyvista's ant (+y), airplane (+z) and the procedural creatures (+z;
+read from DIR, default .cache/datasets/creatures_n64_s0, built there if missing). Each mesh is
+also turned so that its up becomes +x, -x, +y, -y, +z, -z (rotations by 90 degrees), and the
+rule's answer is compared with the true up: right, right axis but wrong sign, or wrong. Shapes
+with no natural up (pyvista's nut and sphere) are listed with what the rule gives.
+Writes bench/results/up_axis.json ({meshes: [{name, up, detected: {orientation: axis}, right,
+axis_only, wrong}], totals, seconds_per_mesh}).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+RESULTS = ROOT / "bench/results"
+NAMES = {(0, 1): "+x", (0, -1): "-x", (1, 1): "+y", (1, -1): "-y", (2, 1): "+z", (2, -1): "-z"}
+
+
+def axis_name(v) -> str:
+    k = int(np.argmax(np.abs(v)))
+    return NAMES[(k, int(np.sign(v[k])))]
+
+
+def rotation_to(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
+    """A rotation by multiples of 90 degrees taking axis vector src to axis vector dst."""
+    if np.allclose(src, dst):
+        return np.eye(3)
+    if np.allclose(src, -dst):  # half turn about an axis perpendicular to both
+        k = int(np.argmin(np.abs(src)))
+        a = np.eye(3)[k]
+        return 2 * np.outer(a, a) - np.eye(3)
+    a = np.cross(src, dst)  # quarter turn about src x dst
+    K = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
+    return np.eye(3) + K + K @ K
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--creatures", type=int, default=64)
+    ap.add_argument("--creatures-dir", default=str(ROOT / ".cache/datasets/creatures_n64_s0"))
+    args = ap.parse_args()
+
+    from ngc_gen.data.creatures import build_creatures
+    from ngc_gen.data.mesh_io import load_mesh
+    from ngc_gen.viz.camera import detect_up
+
+    meshes = [("ant", "pyvista:ant.ply", "+y"), ("airplane", "pyvista:airplane.ply", "+z")]
+    folder = Path(args.creatures_dir)
+    if len(list(folder.glob("creature_*.ply"))) < args.creatures:
+        build_creatures(folder, n=64, seed=0)
+    meshes += [(p.stem, str(p), "+z") for p in sorted(folder.glob("creature_*.ply"))
+               [:args.creatures]]
+    others = [("nut", "pyvista:nut.ply"), ("sphere", "pyvista:sphere.ply")]
+    axes = {n: np.eye(3)[k] * s for (k, s), n in NAMES.items()}
+
+    rows, seconds = [], []
+    for name, path, up in meshes:
+        V = np.asarray(load_mesh(path).vertices)
+        row = {"name": name, "up": up, "detected": {}, "right": 0, "axis_only": 0, "wrong": 0}
+        for target, t in axes.items():
+            R = rotation_to(axes[up], t)
+            t0 = time.perf_counter()
+            got = axis_name(detect_up(V @ R.T))
+            seconds.append(time.perf_counter() - t0)
+            row["detected"][target] = got
+            kind = ("right" if got == target else
+                    "axis_only" if got[1] == target[1] else "wrong")
+            row[kind] += 1
+        rows.append(row)
+        print(f"{name:14s} true {up}: " + " ".join(f"{k}->{v}" for k, v in row["detected"].items())
+              + f"   right {row['right']}/6")
+    for name, path in others:
+        got = axis_name(detect_up(np.asarray(load_mesh(path).vertices)))
+        rows.append({"name": name, "up": None, "detected": {"as shipped": got}})
+        print(f"{name:14s} no natural up: {got}")
+    known = [r for r in rows if r["up"]]
+    totals = {k: sum(r[k] for r in known) for k in ("right", "axis_only", "wrong")}
+    totals["orientations"] = 6 * len(known)
+    print(f"\n{totals['right']}/{totals['orientations']} right, {totals['axis_only']} with the "
+          f"right axis but the wrong sign, {totals['wrong']} wrong; "
+          f"{1e3 * np.mean(seconds):.0f} ms per mesh")
+    RESULTS.mkdir(parents=True, exist_ok=True)
+    (RESULTS / "up_axis.json").write_text(json.dumps(
+        {"meshes": rows, "totals": totals, "seconds_per_mesh": float(np.mean(seconds))}, indent=2))
+
+
+if __name__ == "__main__":
+    main()
