@@ -6,7 +6,7 @@ TORCH_SPEC ?= torch==2.13.0
 BIN := $(VENV)/bin
 
 .PHONY: setup chromium test test-all bench bench-geometry bench-fit bench-deform bench-generate \
-	bench-editor bench-autogc bench-condition bench-up demo clean
+	bench-editor bench-autogc bench-condition bench-up bench-reconstruct demo clean
 
 $(BIN)/activate:
 	$(PY) -m venv $(VENV)
@@ -37,7 +37,7 @@ demo: setup  # the whole pipeline: fit, edit, shape latents, diffusion, sample (
 	$(BIN)/python train.py experiment=demo
 
 bench: bench-geometry bench-fit bench-deform bench-generate bench-editor bench-autogc bench-condition \
-	bench-up
+	bench-up bench-reconstruct
 
 bench-geometry: setup
 	$(BIN)/python bench/geometry.py
@@ -56,6 +56,9 @@ bench-editor: setup
 
 bench-autogc: setup
 	$(BIN)/python bench/autogc.py
+
+bench-reconstruct: setup  # reuses bench-generate's shape-latent run
+	$(BIN)/python bench/reconstruct.py
 
 bench-condition: setup  # reuses bench-generate's runs (trains them if missing)
 	$(BIN)/python bench/condition.py --sweep
