@@ -182,48 +182,168 @@ def near(st: GCState, grid: Grid, blocks: np.ndarray, step: int) -> np.ndarray:
     return st.gc.near(centre, pad)
 
 
-def far(f: np.ndarray, m: np.ndarray, st: GCState, cD: float) -> np.ndarray:
-    """Corner values that rule a block of diagonal D = cD / c out for GC i: the corner lies in
-    the GC and f_i there is more than cD above the band (f_i > tau on the whole block), or more
-    than cD below 0 while the corner is deeper than cD inside the GC (f_i < 0 on the block and
-    the GC's boundary does not reach it)."""
+def bounds_flags(f: np.ndarray, m: np.ndarray, st: GCState, cD):
+    """Corner values and a reach cD (c times a distance; scalar or broadcastable) -> (above,
+    deep): the corner lies in GC i and f_i is more than cD above the band there (f_i > tau
+    within that distance), or more than cD below 0 while the corner is deeper than cD inside
+    the GC (within that distance every point is inside with f_i < 0)."""
     inside = m <= 1.0
     depth = (1.0 - np.sqrt(np.minimum(m, 1.0))) * st.r_min
-    return inside & ((f > st.tau + cD) | ((f < -cD) & (depth > cD)))
+    above = inside & (f > st.tau + cD)
+    deep = inside & (f < -cD) & (depth > cD)
+    return above, deep
+
+
+def far(f: np.ndarray, m: np.ndarray, st: GCState, cD: float) -> np.ndarray:
+    """Corner values that rule a block of diagonal D = cD / c out for GC i on their own: every
+    point of the block is within D of the corner (`bounds_flags`)."""
+    above, deep = bounds_flags(f, m, st, cD)
+    return above | deep
 
 
 def keep_blocks(f: np.ndarray, m: np.ndarray, st: GCState, step: int, spacing: float,
-                lipschitz: float) -> np.ndarray:
-    """The refinement test of the module docstring for (n, 8) corner values -> (n,) bool."""
+                lipschitz: float) -> tuple[np.ndarray, np.ndarray]:
+    """The refinement test of the module docstring for (n, 8) corner values -> (keep, deep)
+    (n,) bool. A block is ruled out by one corner within its diagonal D, or by all eight
+    corners within D / 2 (every point of a block is within half its diagonal of its nearest
+    corner); `deep`: ruled out because it lies inside N_i with f_i < 0 throughout, so the
+    field (a minimum or smooth minimum, never above f_i) is negative on the whole block."""
     inside = m <= 1.0
     if step == 1:
         neg = inside & (f < st.tau)
         pos = ~inside | (f >= 0.0)
-        return neg.any(1) & pos.any(1)
+        return neg.any(1) & pos.any(1), np.zeros(len(f), dtype=bool)
     cD = lipschitz * step * spacing * math.sqrt(3.0)
     n_in = inside.sum(1)
     fmin = np.where(inside, f, np.inf).min(1)
     fmax = np.where(inside, f, -np.inf).max(1)
     crossing = (fmin <= st.tau) & (fmax >= 0.0)      # kept even where f is not Lipschitz
-    return (n_in == 0) | crossing | ~far(f, m, st, cD).any(1)
+    above, deep = bounds_flags(f, m, st, cD)
+    above_h, deep_h = bounds_flags(f, m, st, 0.5 * cD)
+    keep = (n_in == 0) | crossing
+    deep_out = ~keep & ~above.any(1) & (deep.any(1) | deep_h.all(1))
+    keep |= ~(above.any(1) | above_h.all(1) | deep_out)
+    return keep, deep_out & ~keep
 
 
 def children(blocks: np.ndarray, f: np.ndarray, m: np.ndarray, st: GCState, step: int,
-             grid: Grid, keys: Keys, lipschitz: float) -> np.ndarray:
+             grid: Grid, keys: Keys, lipschitz: float) -> tuple[np.ndarray, np.ndarray]:
     """Sorted keys of the half-size blocks of kept blocks (sorted keys, (n, 8) corner values)
     that hold a real cell, that their one known corner (child o shares corner o with its
-    parent) does not rule out (`far`), and that come near the GC."""
+    parent) does not rule out (`far`), and that come near the GC; and the sorted keys of the
+    children that corner rules out as deep (`keep_blocks`)."""
     half = step // 2
     cD = lipschitz * half * grid.spacing * math.sqrt(3.0)
-    ruled_out = far(f, m, st, cD)
-    runs = []
+    above, deep = bounds_flags(f, m, st, cD)
+    runs, deep_runs = [], []
     for o, run in enumerate(keys.corner_runs(blocks, half)):
-        runs.append(run[~ruled_out[:, o]])
+        runs.append(run[~(above[:, o] | deep[:, o])])
+        deep_runs.append(run[deep[:, o] & ~above[:, o]])
     kids = np.sort(np.concatenate(runs), kind="stable")
     idx = keys.decode(kids)
     ok = np.all(idx <= grid.resolution - 2, 1)
     kids, idx = kids[ok], idx[ok]
-    return kids[near(st, grid, idx, half)]
+    return kids[near(st, grid, idx, half)], np.sort(np.concatenate(deep_runs))
+
+
+def inside_deep(blocks: np.ndarray, deep: dict[int, np.ndarray], keys: Keys) -> np.ndarray:
+    """(n,) bool: the block (keys, any step) lies in a block some GC ruled out as deep (`deep`:
+    step -> sorted unique keys; the blocks of a step sit on multiples of it)."""
+    hit = np.zeros(len(blocks), dtype=bool)
+    if len(blocks) == 0:
+        return hit
+    idx = keys.decode(blocks)
+    for step, D in deep.items():
+        if len(D):
+            k = keys.encode(idx // step * step)
+            hit |= D[np.minimum(np.searchsorted(D, k), len(D) - 1)] == k
+    return hit
+
+
+# The 3 x 3 x 3 points of a block of side 2 in cell units (corners at 0 and 2), point j at
+# HALF[j]; the block corners each point lies between (CORNERS indices) and its distance to them
+# in cells (sqrt of its number of odd coordinates); CELL[o, c]: corner c of child cell o.
+HALF = np.array([(a, b, c) for a in range(3) for b in range(3) for c in range(3)],
+                dtype=np.int64)
+PARENTS = [(np.flatnonzero(np.all((p == 1) | (2 * CORNERS == p), 1)), int((p == 1).sum()))
+           for p in HALF]
+CELL = (CORNERS[:, None, :] + CORNERS[None, :, :]) @ np.array([9, 3, 1])
+
+
+def finest_cells(field_: SparseField, states: list[GCState], parents: list, lipschitz: float
+                 ) -> int:
+    """The last level: each GC's kept blocks of side 2 (st.blocks, corner values in `parents`)
+    -> st.blocks = its cells that hold a boundary point of N_i (the exact cell test of
+    `keep_blocks` at step 1), evaluating only the points that test cannot do without.
+
+    A new point p of a kept block (an edge midpoint, face centre or the centre) lies within
+    d = 1, sqrt 2, sqrt 3 cells of the block corners it sits between; a corner inside GC i
+    with f_i more than c d above the band, or more than c d below 0 and deeper than c d in the
+    GC, settles p's side of N_i's boundary (`bounds_flags`), so neither its geometry nor the
+    network is needed. A cell whose corners are all settled (or exact) is decided at once;
+    only the unsettled corners of undecided cells are evaluated, for all GCs in one pass.
+    Where corners disagree (f not Lipschitz) p stays unsettled and is evaluated. -> the number
+    of candidate cells (children of the blocks inside the grid)."""
+    grid, keys = field_.grid, field_.keys
+    half_key = keys.encode(HALF)
+    child_key = keys.corner                    # child o of a block: origin + CORNERS[o]
+    plans, want, n_cells = [], [], 0
+    for st, (f, m) in zip(states, parents):
+        P = st.blocks
+        n = len(P)
+        can_neg = np.empty((n, 27), dtype=bool)
+        can_pos = np.empty((n, 27), dtype=bool)
+        sure = np.empty((n, 27), dtype=bool)
+        for j, (ps, n_odd) in enumerate(PARENTS):
+            if n_odd == 0:                     # a block corner: exact
+                inside = m[:, ps[0]] <= 1.0
+                can_neg[:, j] = inside & (f[:, ps[0]] < st.tau)
+                can_pos[:, j] = ~inside | (f[:, ps[0]] >= 0.0)
+                sure[:, j] = True
+                continue
+            above, deep = bounds_flags(f[:, ps], m[:, ps], st,
+                                       lipschitz * grid.spacing * math.sqrt(n_odd))
+            above, deep = above.any(1), deep.any(1)
+            can_neg[:, j], can_pos[:, j] = ~above | deep, ~deep | above
+            sure[:, j] = above ^ deep
+        idx = keys.decode(P)
+        need = np.zeros((n, 27), dtype=bool)
+        undecided = np.zeros((n, 8), dtype=bool)
+        decided_keep = np.zeros((n, 8), dtype=bool)
+        for o in range(8):
+            c = CELL[o]
+            ok = np.all(idx + CORNERS[o] <= grid.resolution - 2, 1)
+            maybe = ok & can_neg[:, c].any(1) & can_pos[:, c].any(1)
+            und = maybe & ~sure[:, c].all(1)
+            if und.any():
+                w = np.flatnonzero(und)
+                cell_idx = idx[w] + CORNERS[o]
+                w = w[near(st, grid, cell_idx, 1)]
+                und[:] = False
+                und[w] = True
+                need[w[:, None], c[None, :]] |= ~sure[w[:, None], c[None, :]]
+            undecided[:, o] = und
+            decided_keep[:, o] = maybe & sure[:, c].all(1)     # settled corners of both kinds
+            n_cells += int(ok.sum())
+        pts = P[:, None] + half_key[None, :]
+        needed = sorted_unique(pts[need])
+        plans.append((P, can_neg, can_pos, need, undecided, decided_keep, pts, needed))
+        want.append(needed)
+    got = field_.ensure(states, want)
+    for st, (P, can_neg, can_pos, need, undecided, decided_keep, pts, needed), (fU, mU) in zip(
+            states, plans, got):
+        where = np.searchsorted(needed, pts[need])
+        inside = mU[where] <= 1.0
+        can_neg[need] = inside & (fU[where] < st.tau)
+        can_pos[need] = ~inside | (fU[where] >= 0.0)
+        runs = []
+        for o in range(8):
+            c = CELL[o]
+            keep = decided_keep[:, o] | (undecided[:, o] & can_neg[:, c].any(1)
+                                         & can_pos[:, c].any(1))
+            runs.append(P[keep] + child_key[o])
+        st.blocks = np.sort(np.concatenate(runs + [np.zeros(0, dtype=np.int64)]))
+    return n_cells
 
 
 def fold(values: list[np.ndarray], inside: list[np.ndarray], smooth: float) -> np.ndarray:
@@ -257,27 +377,49 @@ def extract_sparse(gcs: list[GeneralizedCylinder], grid: Grid, stores: list[Poin
     stats.update(coarse_step=step, levels=[])
     for st in states:
         st.blocks = initial_blocks(st, grid, keys, step)
+    deep: dict[int, list[np.ndarray]] = {}     # blocks inside some N_i with f_i < 0
+
+    def drop_deep():   # another GC's deep block: the field is negative there whatever GC i says
+        merged = {S: sorted_unique(np.concatenate(D)) for S, D in deep.items()}
+        for st in states:
+            st.blocks = st.blocks[~inside_deep(st.blocks, merged, keys)]
+
     while True:
         t0 = time.perf_counter()
         evals0 = stats["n_network_evals"]
+        if deep:
+            drop_deep()
         runs = [keys.corner_runs(st.blocks, step) for st in states]
         U = [sorted_unique(np.concatenate(r)) for r in runs]
         got = field_.ensure(states, U)
-        n_blocks, n_kept = 0, 0
+        n_blocks, n_kept, parents = 0, 0, []
         for st, r, u, (fU, mU) in zip(states, runs, U, got):
             pos = positions(u, r)
             f, m = fU[pos], mU[pos]
-            keep = keep_blocks(f, m, st, step, grid.spacing, settings.lipschitz)
+            keep, deep_out = keep_blocks(f, m, st, step, grid.spacing, settings.lipschitz)
+            deep.setdefault(step, []).append(st.blocks[deep_out])
             n_blocks += len(st.blocks)
             n_kept += int(keep.sum())
             st.blocks = st.blocks[keep]
-            if step > 1:
-                st.blocks = children(st.blocks, f[keep], m[keep], st, step, grid, keys,
-                                     settings.lipschitz)
+            if step > 2:
+                st.blocks, deep_kids = children(st.blocks, f[keep], m[keep], st, step, grid,
+                                                keys, settings.lipschitz)
+                deep.setdefault(step // 2, []).append(deep_kids)
+            elif step == 2:
+                parents.append((f[keep], m[keep]))
         stats["levels"].append({"step": step, "blocks": n_blocks, "kept": n_kept,
                                 "network_evals": stats["n_network_evals"] - evals0,
                                 "seconds": time.perf_counter() - t0})
-        if step == 1:
+        if step == 2:
+            t0 = time.perf_counter()
+            evals0 = stats["n_network_evals"]
+            n_cells = finest_cells(field_, states, parents, settings.lipschitz)
+            drop_deep()
+            stats["levels"].append({"step": 1, "blocks": n_cells,
+                                    "kept": sum(len(st.blocks) for st in states),
+                                    "network_evals": stats["n_network_evals"] - evals0,
+                                    "seconds": time.perf_counter() - t0})
+        if step <= 2:
             break
         step //= 2
 

@@ -52,14 +52,13 @@ class PointStore:
         return found, f, m
 
     def add(self, keys: np.ndarray, f: np.ndarray, m: np.ndarray) -> None:
-        """Add sorted keys not yet in the store."""
+        """Add sorted keys not yet in the store (a merge: one pass over both)."""
         if len(keys) == 0:
             return
-        k = np.concatenate([self.keys, keys])
-        order = np.argsort(k, kind="stable")
-        self.keys = k[order]
-        self.f = np.concatenate([self.f, f.astype(np.float32)])[order]
-        self.m = np.concatenate([self.m, m.astype(np.float32)])[order]
+        at = np.searchsorted(self.keys, keys)
+        self.keys = np.insert(self.keys, at, keys)
+        self.f = np.insert(self.f, at, f.astype(np.float32))
+        self.m = np.insert(self.m, at, m.astype(np.float32))
 
     @property
     def nbytes(self) -> int:
