@@ -30,14 +30,16 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
+from numba import njit, prange
 
 from ngc_gen.geometry import GeneralizedCylinder
 from ngc_gen.geometry.smooth import smooth_min
 
+from . import settle
 from .grid import Grid
 from .marching import CORNERS, cells_mesh, crossing
 from .rows import RowQueue
-from .store import PointStore, sorted_unique
+from .store import PointStore, find_sorted, sorted_unique
 
 
 @dataclass(frozen=True)
@@ -75,9 +77,28 @@ class Keys:
     def decode(self, key: np.ndarray) -> np.ndarray:
         return np.stack([key // (self.Q * self.Q), (key // self.Q) % self.Q, key % self.Q], -1)
 
+    def points(self, key: np.ndarray, grid: Grid) -> np.ndarray:
+        """(n,) keys -> (n, 3) float64 world positions, `grid.coords` of each index."""
+        out = np.empty((len(key), 3), dtype=np.float64)
+        _key_points(np.ascontiguousarray(key, dtype=np.int64), self.Q, grid.axis(),
+                    grid.bound, grid.spacing, out)
+        return out
+
+
     def corner_runs(self, blocks: np.ndarray, step: int) -> list[np.ndarray]:
         """Sorted block keys -> 8 sorted arrays: the keys of each block's corner o."""
         return [blocks + step * off for off in self.corner]
+
+
+@njit(cache=True, parallel=True)
+def _key_points(key, Q, axis, bound, spacing, out):
+    R = axis.shape[0]
+    for n in prange(key.shape[0]):
+        k = key[n]
+        idx = (k // (Q * Q), (k // Q) % Q, k % Q)
+        for a in range(3):
+            i = idx[a]
+            out[n, a] = axis[i] if i < R else -bound + i * spacing
 
 
 @dataclass
@@ -124,9 +145,7 @@ class SparseField:
             miss = np.flatnonzero(~found)
             if len(miss) == 0:
                 continue
-            idx = self.keys.decode(keys[miss])
-            pts = np.stack([self.grid.coords(idx[:, a]) for a in range(3)], 1)
-            rel, mm = st.gc.relative_inside(pts)
+            rel, mm = st.gc.relative_inside(self.keys.points(keys[miss], self.grid))
             inside = mm <= 1.0
             todo.append((st, keys, miss, rel[inside], inside, mm, f, m))
             self.stats["n_relative"] += len(miss)
@@ -153,9 +172,12 @@ class SparseField:
 
 
 def positions(U: np.ndarray, runs: list[np.ndarray]) -> np.ndarray:
-    """Sorted unique keys U, 8 sorted corner runs -> (n, 8) index of each corner in U (sorted
-    needles: one sequential pass each)."""
-    return np.stack([np.searchsorted(U, r) for r in runs], 1)
+    """Sorted unique keys U, 8 sorted corner runs (each key in U) -> (n, 8) index of each
+    corner in U (sorted needles: a galloping pass each)."""
+    out = np.empty((len(runs[0]), len(runs)), dtype=np.int64)
+    for o, r in enumerate(runs):
+        out[:, o] = find_sorted(U, r)
+    return out
 
 
 def initial_blocks(st: GCState, grid: Grid, keys: Keys, step: int) -> np.ndarray:
@@ -260,16 +282,6 @@ def inside_deep(blocks: np.ndarray, deep: dict[int, np.ndarray], keys: Keys) -> 
     return hit
 
 
-# The 3 x 3 x 3 points of a block of side 2 in cell units (corners at 0 and 2), point j at
-# HALF[j]; the block corners each point lies between (CORNERS indices) and its distance to them
-# in cells (sqrt of its number of odd coordinates); CELL[o, c]: corner c of child cell o.
-HALF = np.array([(a, b, c) for a in range(3) for b in range(3) for c in range(3)],
-                dtype=np.int64)
-PARENTS = [(np.flatnonzero(np.all((p == 1) | (2 * CORNERS == p), 1)), int((p == 1).sum()))
-           for p in HALF]
-CELL = (CORNERS[:, None, :] + CORNERS[None, :, :]) @ np.array([9, 3, 1])
-
-
 def finest_cells(field_: SparseField, states: list[GCState], parents: list, lipschitz: float
                  ) -> int:
     """The last level: each GC's kept blocks of side 2 (st.blocks, corner values in `parents`)
@@ -280,73 +292,51 @@ def finest_cells(field_: SparseField, states: list[GCState], parents: list, lips
     d = 1, sqrt 2, sqrt 3 cells of the block corners it sits between (2, 4 or 8 of them). When
     every one of them lies inside GC i with f_i more than c d above the band (or every one more
     than c d below 0 and deeper than c d in the GC), p's side of N_i's boundary is settled
-    (`bounds_flags`): neither its geometry nor the network is needed. One corner would do for a
+    (`settle`): neither its geometry nor the network is needed. One corner would do for a
     c-Lipschitz field, but fitted fields are steeper than c = 1.5 on a few percent of the grid
     edges near the surface (3-4% measured, up to 10x) and one corner then settles the single
     negative grid points of small floaters wrongly; all of them kept every mesh of
     bench/extract.py at 128 and 256 identical to the reference. A cell whose corners are all
-    settled (or exact) is decided at once; only the unsettled corners of undecided cells are
-    evaluated, for all GCs in one pass. -> the number
-    of candidate cells (children of the blocks inside the grid)."""
+    settled (or exact) is decided at once; only the unsettled corners of undecided cells (that
+    come near the GC) are evaluated, for all GCs in one pass. -> the number of candidate cells
+    (children of the blocks inside the grid)."""
     grid, keys = field_.grid, field_.keys
-    half_key = keys.encode(HALF)
-    child_key = keys.corner                    # child o of a block: origin + CORNERS[o]
+    half_key = keys.encode(settle.HALF)
+    reach = lipschitz * grid.spacing * np.sqrt(np.arange(4.0))
     plans, want, n_cells = [], [], 0
     for st, (f, m) in zip(states, parents):
         P = st.blocks
         n = len(P)
-        can_neg = np.empty((n, 27), dtype=bool)
-        can_pos = np.empty((n, 27), dtype=bool)
-        sure = np.empty((n, 27), dtype=bool)
-        for j, (ps, n_odd) in enumerate(PARENTS):
-            if n_odd == 0:                     # a block corner: exact
-                inside = m[:, ps[0]] <= 1.0
-                can_neg[:, j] = inside & (f[:, ps[0]] < st.tau)
-                can_pos[:, j] = ~inside | (f[:, ps[0]] >= 0.0)
-                sure[:, j] = True
-                continue
-            above, deep = bounds_flags(f[:, ps], m[:, ps], st,
-                                       lipschitz * grid.spacing * math.sqrt(n_odd))
-            above, deep = above.all(1), deep.all(1)
-            can_neg[:, j], can_pos[:, j] = ~above | deep, ~deep | above
-            sure[:, j] = above ^ deep
-        idx = keys.decode(P)
+        state = np.empty((n, 27), dtype=np.uint8)
+        status = np.empty((n, 8), dtype=np.uint8)
+        if n:
+            settle.settle_points(np.ascontiguousarray(f), np.ascontiguousarray(m),
+                                 np.float32(st.tau), float(st.tau), float(st.r_min), reach,
+                                 settle.PARENTS, settle.N_PARENTS, settle.N_ODD, state)
+            idx = keys.decode(P)
+            settle.cell_status(state, idx, grid.resolution - 2, CORNERS, settle.CELL, status)
+            n_cells += int(np.all(idx[:, None, :] + CORNERS <= grid.resolution - 2, -1).sum())
+            b, o = np.nonzero(status == settle.UNDECIDED)
+            far_ = ~near(st, grid, idx[b] + CORNERS[o], 1)
+            status[b[far_], o[far_]] = settle.DROP
         need = np.zeros((n, 27), dtype=bool)
-        undecided = np.zeros((n, 8), dtype=bool)
-        decided_keep = np.zeros((n, 8), dtype=bool)
-        for o in range(8):
-            c = CELL[o]
-            ok = np.all(idx + CORNERS[o] <= grid.resolution - 2, 1)
-            maybe = ok & can_neg[:, c].any(1) & can_pos[:, c].any(1)
-            und = maybe & ~sure[:, c].all(1)
-            if und.any():
-                w = np.flatnonzero(und)
-                cell_idx = idx[w] + CORNERS[o]
-                w = w[near(st, grid, cell_idx, 1)]
-                und[:] = False
-                und[w] = True
-                need[w[:, None], c[None, :]] |= ~sure[w[:, None], c[None, :]]
-            undecided[:, o] = und
-            decided_keep[:, o] = maybe & sure[:, c].all(1)     # settled corners of both kinds
-            n_cells += int(ok.sum())
-        pts = P[:, None] + half_key[None, :]
-        needed = sorted_unique(pts[need])
-        plans.append((P, can_neg, can_pos, need, undecided, decided_keep, pts, needed))
+        if n:
+            settle.needed_points(state, status, settle.CELL, need)
+        runs = [P[need[:, j]] + half_key[j] for j in range(27)]      # 27 sorted runs
+        needed = sorted_unique(np.concatenate(runs))
+        plans.append((P, state, status, need, runs, needed))
         want.append(needed)
     got = field_.ensure(states, want)
-    for st, (P, can_neg, can_pos, need, undecided, decided_keep, pts, needed), (fU, mU) in zip(
-            states, plans, got):
-        where = np.searchsorted(needed, pts[need])
-        inside = mU[where] <= 1.0
-        can_neg[need] = inside & (fU[where] < st.tau)
-        can_pos[need] = ~inside | (fU[where] >= 0.0)
-        runs = []
-        for o in range(8):
-            c = CELL[o]
-            keep = decided_keep[:, o] | (undecided[:, o] & can_neg[:, c].any(1)
-                                         & can_pos[:, c].any(1))
-            runs.append(P[keep] + child_key[o])
-        st.blocks = np.sort(np.concatenate(runs + [np.zeros(0, dtype=np.int64)]))
+    for st, (P, state, status, need, runs, needed), (fU, mU) in zip(states, plans, got):
+        if len(P) == 0:
+            st.blocks = P
+            continue
+        for j, run in enumerate(runs):
+            at = find_sorted(needed, run)
+            state[need[:, j], j] = settle.exact_state(fU[at], mU[at], np.float32(st.tau))
+        settle.decide_cells(state, status, settle.CELL)
+        keep = status == settle.KEEP
+        st.blocks = np.sort(np.concatenate([P[keep[:, o]] + keys.corner[o] for o in range(8)]))
     return n_cells
 
 
