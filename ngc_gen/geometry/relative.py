@@ -7,13 +7,13 @@ Per point, in float64 whatever the input dtype (DESIGN.md section 2):
 2. cull (optional): a point outside every coarse cover ball is outside the GC, so it skips the
    rest (`RelativeTables.cover_radius` says why the balls enclose the GC);
 3. Newton on f(s) = |C(s) - q|^2 / 2 from the seed, kept within two dense segments each side,
-   until the step stops changing s: the seed is O(h^2) close, so two or three steps reach
+   until a step moves s by at most NEWTON_TOL: the seed is O(h^2) close, so two steps reach
    rounding. Where f'' <= 0 (q past the centre of curvature) it takes a Gauss-Newton step;
 4. frame, twist, radii and caps at the foot point as `GeneralizedCylinder` defines them.
 
 A torch implementation of the same steps would run ~60 small kernels per chunk of points, each
 a pass over memory; fused, a point costs ~100 ns on one core. Results match the float64
-definition to rounding (round trip < 1e-12 on points inside).
+definition to rounding (round trip ~1e-15 on points inside, float64).
 """
 from __future__ import annotations
 
@@ -27,9 +27,13 @@ from numba import njit, prange
 
 NEWTON_MAX_STEPS = 8
 # stop once a step moves s by at most this: Newton converges quadratically from the O(h^2) seed,
-# so the step after it would move s by ~1e-16 (rounding); waiting for an exactly zero step
-# instead ends in rounding ping-pong for a third of the points (8 steps instead of 2-3)
-NEWTON_TOL = 1e-9
+# so after a step of 1e-7 s is within ~C 1e-14 of the root (C = |f'''| / 2|f''|, O(1)): two
+# steps for most points. Waiting for an exactly zero step instead ended in rounding ping-pong
+# for a third of the points (8 steps)
+NEWTON_TOL = 1e-7
+# the kernels may fuse a * b + c into one rounding (FMA): a few percent; per point the same
+# compiled code runs whatever the batch, so results stay reproducible
+FASTMATH = {"contract"}
 
 
 class RelativeTables(NamedTuple):
@@ -80,7 +84,7 @@ def coarse_cover(poly_x: np.ndarray, fine_radius: np.ndarray, coarse: np.ndarray
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=FASTMATH)
 def _piece(s, breaks):
     """Index of the polynomial piece holding s (clamped)."""
     P = breaks.shape[0] - 1
@@ -96,7 +100,7 @@ def _piece(s, breaks):
     return lo
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=FASTMATH)
 def _curve(s, breaks, coef):
     """C(s), C'(s), C''(s) by Horner's rule on the piece holding s; 9 floats."""
     i = _piece(s, breaks)
@@ -120,7 +124,7 @@ def _curve(s, breaks, coef):
     return cx, cy, cz, dx, dy, dz, ex, ey, ez
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=FASTMATH)
 def _interp(x, xp, fp):
     """np.interp (clamped) for increasing xp."""
     n = xp.shape[0]
@@ -139,7 +143,7 @@ def _interp(x, xp, fp):
     return fp[lo] * (1.0 - w) + fp[hi] * w
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=FASTMATH)
 def _uniform_cell(x, M):
     """Cell index and weight of x in linspace(0, 1, M + 1), clamped."""
     xs = min(max(x, 0.0), 1.0) * M
@@ -147,7 +151,7 @@ def _uniform_cell(x, M):
     return i, xs - i
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=FASTMATH)
 def _dist2(qx, qy, qz, x, k):
     ax = qx - x[k, 0]
     ay = qy - x[k, 1]
@@ -155,7 +159,7 @@ def _dist2(qx, qy, qz, x, k):
     return ax * ax + ay * ay + az * az
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=FASTMATH)
 def _segment(qx, qy, qz, x, ps, a):
     """Closest point of segment (x[a], x[a+1]) to q: (parameter s, squared distance)."""
     abx = x[a + 1, 0] - x[a, 0]
@@ -170,7 +174,7 @@ def _segment(qx, qy, qz, x, ps, a):
     return ps[a] + lam * (ps[a + 1] - ps[a]), ex * ex + ey * ey + ez * ez
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, fastmath=FASTMATH)
 def _relative_kernel(q, out, measure, cull, breaks, coef, poly_x, poly_s, coarse, coarse_x,
                      cover2, arc_t, rep_arc, rep_t, frame_r, key_t, key_r, key_w, twisted, cap0,
                      cap1):
@@ -268,7 +272,7 @@ def _relative_kernel(q, out, measure, cull, breaks, coef, poly_x, poly_s, coarse
         measure[i] = e * e + a_ * a_ + b_ * b_
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, fastmath=FASTMATH)
 def _near_cover_kernel(p, pad, poly_x, coarse, cover, out):
     for i in prange(p.shape[0]):
         hit = False
@@ -281,8 +285,13 @@ def _near_cover_kernel(p, pad, poly_x, coarse, cover, out):
 
 
 def _threads() -> None:
-    """Follow the process's torch thread count (set by the app layer), within numba's pool."""
-    numba.set_num_threads(max(1, min(torch.get_num_threads(), numba.config.NUMBA_NUM_THREADS)))
+    """Follow the process's torch thread count (set by the app layer), within numba's pool.
+    Starting numba's OpenMP pool resets the OpenMP runtime it shares with torch to all cores,
+    so the app's count is put back (measured: torch 1 thread -> 2 after the first call)."""
+    n = torch.get_num_threads()
+    numba.set_num_threads(max(1, min(n, numba.config.NUMBA_NUM_THREADS)))
+    if torch.get_num_threads() != n:
+        torch.set_num_threads(n)
 
 
 def relative_coordinates(tables: RelativeTables, q: np.ndarray, cull: bool = False
