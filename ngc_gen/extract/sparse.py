@@ -282,8 +282,8 @@ def inside_deep(blocks: np.ndarray, deep: dict[int, np.ndarray], keys: Keys) -> 
     return hit
 
 
-def finest_cells(field_: SparseField, states: list[GCState], parents: list, lipschitz: float
-                 ) -> int:
+def finest_cells(field_: SparseField, states: list[GCState], parents: list, lipschitz: float,
+                 stats: dict) -> int:
     """The last level: each GC's kept blocks of side 2 (st.blocks, corner values in `parents`)
     -> st.blocks = its cells that hold a boundary point of N_i (the exact cell test of
     `keep_blocks` at step 1), evaluating only the points that test cannot do without.
@@ -299,7 +299,8 @@ def finest_cells(field_: SparseField, states: list[GCState], parents: list, lips
     bench/extract.py at 128 and 256 identical to the reference. A cell whose corners are all
     settled (or exact) is decided at once; only the unsettled corners of undecided cells (that
     come near the GC) are evaluated, for all GCs in one pass. -> the number of candidate cells
-    (children of the blocks inside the grid)."""
+    (children of the blocks inside the grid); stats get new_points (new points of the blocks,
+    per block) and settled (those settled without evaluation)."""
     grid, keys = field_.grid, field_.keys
     half_key = keys.encode(settle.HALF)
     reach = lipschitz * grid.spacing * np.sqrt(np.arange(4.0))
@@ -326,6 +327,9 @@ def finest_cells(field_: SparseField, states: list[GCState], parents: list, lips
         needed = sorted_unique(np.concatenate(runs))
         plans.append((P, state, status, need, runs, needed))
         want.append(needed)
+    new = np.flatnonzero(settle.N_ODD > 0)
+    stats["settled"] = int(sum(np.count_nonzero(p[1][:, new] & settle.SURE) for p in plans))
+    stats["new_points"] = int(sum(len(p[0]) for p in plans)) * len(new)
     got = field_.ensure(states, want)
     for st, (P, state, status, need, runs, needed), (fU, mU) in zip(states, plans, got):
         if len(P) == 0:
@@ -407,12 +411,13 @@ def extract_sparse(gcs: list[GeneralizedCylinder], grid: Grid, stores: list[Poin
         if step == 2:
             t0 = time.perf_counter()
             evals0 = stats["n_network_evals"]
-            n_cells = finest_cells(field_, states, parents, settings.lipschitz)
+            level = {"step": 1}
+            n_cells = finest_cells(field_, states, parents, settings.lipschitz, level)
             drop_deep()
-            stats["levels"].append({"step": 1, "blocks": n_cells,
-                                    "kept": sum(len(st.blocks) for st in states),
-                                    "network_evals": stats["n_network_evals"] - evals0,
-                                    "seconds": time.perf_counter() - t0})
+            level.update(blocks=n_cells, kept=sum(len(st.blocks) for st in states),
+                         network_evals=stats["n_network_evals"] - evals0,
+                         seconds=time.perf_counter() - t0)
+            stats["levels"].append(level)
         if step <= 2:
             break
         step //= 2
