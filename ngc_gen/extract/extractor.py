@@ -83,7 +83,8 @@ def extract_mesh(gcs: Sequence[GeneralizedCylinder], rows_fn: RowsFn, resolution
     n_network_rows (including padding), n_network_calls, n_relative (relative coordinates
     computed), n_covered (points of the final field inside some GC), n_faces, n_vertices,
     seconds (total) and seconds_network / _geometry / _marching; sparse also coarse_step,
-    levels (per level: step, blocks, kept, network_evals, seconds), n_active_cells,
+    levels (per level: step, blocks, kept, network_evals, seconds; the last level also new_points
+    and settled, new points of its blocks settled without evaluation), n_active_cells,
     n_corner_points, completion_network_evals, cache_hits, cache_misses.
     """
     t_start = time.perf_counter()

@@ -30,14 +30,16 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
+from numba import njit, prange
 
 from ngc_gen.geometry import GeneralizedCylinder
 from ngc_gen.geometry.smooth import smooth_min
 
+from . import settle
 from .grid import Grid
 from .marching import CORNERS, cells_mesh, crossing
 from .rows import RowQueue
-from .store import PointStore, sorted_unique
+from .store import PointStore, find_sorted, sorted_unique
 
 
 @dataclass(frozen=True)
@@ -75,9 +77,28 @@ class Keys:
     def decode(self, key: np.ndarray) -> np.ndarray:
         return np.stack([key // (self.Q * self.Q), (key // self.Q) % self.Q, key % self.Q], -1)
 
+    def points(self, key: np.ndarray, grid: Grid) -> np.ndarray:
+        """(n,) keys -> (n, 3) float64 world positions, `grid.coords` of each index."""
+        out = np.empty((len(key), 3), dtype=np.float64)
+        _key_points(np.ascontiguousarray(key, dtype=np.int64), self.Q, grid.axis(),
+                    grid.bound, grid.spacing, out)
+        return out
+
+
     def corner_runs(self, blocks: np.ndarray, step: int) -> list[np.ndarray]:
         """Sorted block keys -> 8 sorted arrays: the keys of each block's corner o."""
         return [blocks + step * off for off in self.corner]
+
+
+@njit(cache=True, parallel=True)
+def _key_points(key, Q, axis, bound, spacing, out):
+    R = axis.shape[0]
+    for n in prange(key.shape[0]):
+        k = key[n]
+        idx = (k // (Q * Q), (k // Q) % Q, k % Q)
+        for a in range(3):
+            i = idx[a]
+            out[n, a] = axis[i] if i < R else -bound + i * spacing
 
 
 @dataclass
@@ -124,9 +145,7 @@ class SparseField:
             miss = np.flatnonzero(~found)
             if len(miss) == 0:
                 continue
-            idx = self.keys.decode(keys[miss])
-            pts = np.stack([self.grid.coords(idx[:, a]) for a in range(3)], 1)
-            rel, mm = st.gc.relative_inside(pts)
+            rel, mm = st.gc.relative_inside(self.keys.points(keys[miss], self.grid))
             inside = mm <= 1.0
             todo.append((st, keys, miss, rel[inside], inside, mm, f, m))
             self.stats["n_relative"] += len(miss)
@@ -153,9 +172,12 @@ class SparseField:
 
 
 def positions(U: np.ndarray, runs: list[np.ndarray]) -> np.ndarray:
-    """Sorted unique keys U, 8 sorted corner runs -> (n, 8) index of each corner in U (sorted
-    needles: one sequential pass each)."""
-    return np.stack([np.searchsorted(U, r) for r in runs], 1)
+    """Sorted unique keys U, 8 sorted corner runs (each key in U) -> (n, 8) index of each
+    corner in U (sorted needles: a galloping pass each)."""
+    out = np.empty((len(runs[0]), len(runs)), dtype=np.int64)
+    for o, r in enumerate(runs):
+        out[:, o] = find_sorted(U, r)
+    return out
 
 
 def initial_blocks(st: GCState, grid: Grid, keys: Keys, step: int) -> np.ndarray:
@@ -182,48 +204,144 @@ def near(st: GCState, grid: Grid, blocks: np.ndarray, step: int) -> np.ndarray:
     return st.gc.near(centre, pad)
 
 
-def far(f: np.ndarray, m: np.ndarray, st: GCState, cD: float) -> np.ndarray:
-    """Corner values that rule a block of diagonal D = cD / c out for GC i: the corner lies in
-    the GC and f_i there is more than cD above the band (f_i > tau on the whole block), or more
-    than cD below 0 while the corner is deeper than cD inside the GC (f_i < 0 on the block and
-    the GC's boundary does not reach it)."""
+def bounds_flags(f: np.ndarray, m: np.ndarray, st: GCState, cD):
+    """Corner values and a reach cD (c times a distance; scalar or broadcastable) -> (above,
+    deep): the corner lies in GC i and f_i is more than cD above the band there (f_i > tau
+    within that distance), or more than cD below 0 while the corner is deeper than cD inside
+    the GC (within that distance every point is inside with f_i < 0)."""
     inside = m <= 1.0
     depth = (1.0 - np.sqrt(np.minimum(m, 1.0))) * st.r_min
-    return inside & ((f > st.tau + cD) | ((f < -cD) & (depth > cD)))
+    above = inside & (f > st.tau + cD)
+    deep = inside & (f < -cD) & (depth > cD)
+    return above, deep
+
+
+def far(f: np.ndarray, m: np.ndarray, st: GCState, cD: float) -> np.ndarray:
+    """Corner values that rule a block of diagonal D = cD / c out for GC i on their own: every
+    point of the block is within D of the corner (`bounds_flags`)."""
+    above, deep = bounds_flags(f, m, st, cD)
+    return above | deep
 
 
 def keep_blocks(f: np.ndarray, m: np.ndarray, st: GCState, step: int, spacing: float,
-                lipschitz: float) -> np.ndarray:
-    """The refinement test of the module docstring for (n, 8) corner values -> (n,) bool."""
+                lipschitz: float) -> tuple[np.ndarray, np.ndarray]:
+    """The refinement test of the module docstring for (n, 8) corner values -> (keep, deep)
+    (n,) bool. A block is ruled out by one corner within its diagonal D, or by all eight
+    corners within D / 2 (every point of a block is within half its diagonal of its nearest
+    corner); `deep`: ruled out because it lies inside N_i with f_i < 0 throughout, so the
+    field (a minimum or smooth minimum, never above f_i) is negative on the whole block."""
     inside = m <= 1.0
     if step == 1:
         neg = inside & (f < st.tau)
         pos = ~inside | (f >= 0.0)
-        return neg.any(1) & pos.any(1)
+        return neg.any(1) & pos.any(1), np.zeros(len(f), dtype=bool)
     cD = lipschitz * step * spacing * math.sqrt(3.0)
     n_in = inside.sum(1)
     fmin = np.where(inside, f, np.inf).min(1)
     fmax = np.where(inside, f, -np.inf).max(1)
     crossing = (fmin <= st.tau) & (fmax >= 0.0)      # kept even where f is not Lipschitz
-    return (n_in == 0) | crossing | ~far(f, m, st, cD).any(1)
+    above, deep = bounds_flags(f, m, st, cD)
+    above_h, deep_h = bounds_flags(f, m, st, 0.5 * cD)
+    keep = (n_in == 0) | crossing
+    deep_out = ~keep & ~above.any(1) & (deep.any(1) | deep_h.all(1))
+    keep |= ~(above.any(1) | above_h.all(1) | deep_out)
+    return keep, deep_out & ~keep
 
 
 def children(blocks: np.ndarray, f: np.ndarray, m: np.ndarray, st: GCState, step: int,
-             grid: Grid, keys: Keys, lipschitz: float) -> np.ndarray:
+             grid: Grid, keys: Keys, lipschitz: float) -> tuple[np.ndarray, np.ndarray]:
     """Sorted keys of the half-size blocks of kept blocks (sorted keys, (n, 8) corner values)
     that hold a real cell, that their one known corner (child o shares corner o with its
-    parent) does not rule out (`far`), and that come near the GC."""
+    parent) does not rule out (`far`), and that come near the GC; and the sorted keys of the
+    children that corner rules out as deep (`keep_blocks`)."""
     half = step // 2
     cD = lipschitz * half * grid.spacing * math.sqrt(3.0)
-    ruled_out = far(f, m, st, cD)
-    runs = []
+    above, deep = bounds_flags(f, m, st, cD)
+    runs, deep_runs = [], []
     for o, run in enumerate(keys.corner_runs(blocks, half)):
-        runs.append(run[~ruled_out[:, o]])
+        runs.append(run[~(above[:, o] | deep[:, o])])
+        deep_runs.append(run[deep[:, o] & ~above[:, o]])
     kids = np.sort(np.concatenate(runs), kind="stable")
     idx = keys.decode(kids)
     ok = np.all(idx <= grid.resolution - 2, 1)
     kids, idx = kids[ok], idx[ok]
-    return kids[near(st, grid, idx, half)]
+    return kids[near(st, grid, idx, half)], np.sort(np.concatenate(deep_runs))
+
+
+def inside_deep(blocks: np.ndarray, deep: dict[int, np.ndarray], keys: Keys) -> np.ndarray:
+    """(n,) bool: the block (keys, any step) lies in a block some GC ruled out as deep (`deep`:
+    step -> sorted unique keys; the blocks of a step sit on multiples of it)."""
+    hit = np.zeros(len(blocks), dtype=bool)
+    if len(blocks) == 0:
+        return hit
+    idx = keys.decode(blocks)
+    for step, D in deep.items():
+        if len(D):
+            k = keys.encode(idx // step * step)
+            hit |= D[np.minimum(np.searchsorted(D, k), len(D) - 1)] == k
+    return hit
+
+
+def finest_cells(field_: SparseField, states: list[GCState], parents: list, lipschitz: float,
+                 stats: dict) -> int:
+    """The last level: each GC's kept blocks of side 2 (st.blocks, corner values in `parents`)
+    -> st.blocks = its cells that hold a boundary point of N_i (the exact cell test of
+    `keep_blocks` at step 1), evaluating only the points that test cannot do without.
+
+    A new point p of a kept block (an edge midpoint, face centre or the centre) lies within
+    d = 1, sqrt 2, sqrt 3 cells of the block corners it sits between (2, 4 or 8 of them). When
+    every one of them lies inside GC i with f_i more than c d above the band (or every one more
+    than c d below 0 and deeper than c d in the GC), p's side of N_i's boundary is settled
+    (`settle`): neither its geometry nor the network is needed. One corner would do for a
+    c-Lipschitz field, but fitted fields are steeper than c = 1.5 on a few percent of the grid
+    edges near the surface (3-4% measured, up to 10x) and one corner then settles the single
+    negative grid points of small floaters wrongly; all of them kept every mesh of
+    bench/extract.py at 128 and 256 identical to the reference. A cell whose corners are all
+    settled (or exact) is decided at once; only the unsettled corners of undecided cells (that
+    come near the GC) are evaluated, for all GCs in one pass. -> the number of candidate cells
+    (children of the blocks inside the grid); stats get new_points (new points of the blocks,
+    per block) and settled (those settled without evaluation)."""
+    grid, keys = field_.grid, field_.keys
+    half_key = keys.encode(settle.HALF)
+    reach = lipschitz * grid.spacing * np.sqrt(np.arange(4.0))
+    plans, want, n_cells = [], [], 0
+    for st, (f, m) in zip(states, parents):
+        P = st.blocks
+        n = len(P)
+        state = np.empty((n, 27), dtype=np.uint8)
+        status = np.empty((n, 8), dtype=np.uint8)
+        if n:
+            settle.settle_points(np.ascontiguousarray(f), np.ascontiguousarray(m),
+                                 np.float32(st.tau), float(st.tau), float(st.r_min), reach,
+                                 settle.PARENTS, settle.N_PARENTS, settle.N_ODD, state)
+            idx = keys.decode(P)
+            settle.cell_status(state, idx, grid.resolution - 2, CORNERS, settle.CELL, status)
+            n_cells += int(np.all(idx[:, None, :] + CORNERS <= grid.resolution - 2, -1).sum())
+            b, o = np.nonzero(status == settle.UNDECIDED)
+            far_ = ~near(st, grid, idx[b] + CORNERS[o], 1)
+            status[b[far_], o[far_]] = settle.DROP
+        need = np.zeros((n, 27), dtype=bool)
+        if n:
+            settle.needed_points(state, status, settle.CELL, need)
+        runs = [P[need[:, j]] + half_key[j] for j in range(27)]      # 27 sorted runs
+        needed = sorted_unique(np.concatenate(runs))
+        plans.append((P, state, status, need, runs, needed))
+        want.append(needed)
+    new = np.flatnonzero(settle.N_ODD > 0)
+    stats["settled"] = int(sum(np.count_nonzero(p[1][:, new] & settle.SURE) for p in plans))
+    stats["new_points"] = int(sum(len(p[0]) for p in plans)) * len(new)
+    got = field_.ensure(states, want)
+    for st, (P, state, status, need, runs, needed), (fU, mU) in zip(states, plans, got):
+        if len(P) == 0:
+            st.blocks = P
+            continue
+        for j, run in enumerate(runs):
+            at = find_sorted(needed, run)
+            state[need[:, j], j] = settle.exact_state(fU[at], mU[at], np.float32(st.tau))
+        settle.decide_cells(state, status, settle.CELL)
+        keep = status == settle.KEEP
+        st.blocks = np.sort(np.concatenate([P[keep[:, o]] + keys.corner[o] for o in range(8)]))
+    return n_cells
 
 
 def fold(values: list[np.ndarray], inside: list[np.ndarray], smooth: float) -> np.ndarray:
@@ -257,27 +375,50 @@ def extract_sparse(gcs: list[GeneralizedCylinder], grid: Grid, stores: list[Poin
     stats.update(coarse_step=step, levels=[])
     for st in states:
         st.blocks = initial_blocks(st, grid, keys, step)
+    deep: dict[int, list[np.ndarray]] = {}     # blocks inside some N_i with f_i < 0
+
+    def drop_deep():   # another GC's deep block: the field is negative there whatever GC i says
+        merged = {S: sorted_unique(np.concatenate(D)) for S, D in deep.items()}
+        for st in states:
+            st.blocks = st.blocks[~inside_deep(st.blocks, merged, keys)]
+
     while True:
         t0 = time.perf_counter()
         evals0 = stats["n_network_evals"]
+        if deep:
+            drop_deep()
         runs = [keys.corner_runs(st.blocks, step) for st in states]
         U = [sorted_unique(np.concatenate(r)) for r in runs]
         got = field_.ensure(states, U)
-        n_blocks, n_kept = 0, 0
+        n_blocks, n_kept, parents = 0, 0, []
         for st, r, u, (fU, mU) in zip(states, runs, U, got):
             pos = positions(u, r)
             f, m = fU[pos], mU[pos]
-            keep = keep_blocks(f, m, st, step, grid.spacing, settings.lipschitz)
+            keep, deep_out = keep_blocks(f, m, st, step, grid.spacing, settings.lipschitz)
+            deep.setdefault(step, []).append(st.blocks[deep_out])
             n_blocks += len(st.blocks)
             n_kept += int(keep.sum())
             st.blocks = st.blocks[keep]
-            if step > 1:
-                st.blocks = children(st.blocks, f[keep], m[keep], st, step, grid, keys,
-                                     settings.lipschitz)
+            if step > 2:
+                st.blocks, deep_kids = children(st.blocks, f[keep], m[keep], st, step, grid,
+                                                keys, settings.lipschitz)
+                deep.setdefault(step // 2, []).append(deep_kids)
+            elif step == 2:
+                parents.append((f[keep], m[keep]))
         stats["levels"].append({"step": step, "blocks": n_blocks, "kept": n_kept,
                                 "network_evals": stats["n_network_evals"] - evals0,
                                 "seconds": time.perf_counter() - t0})
-        if step == 1:
+        if step == 2:
+            t0 = time.perf_counter()
+            evals0 = stats["n_network_evals"]
+            level = {"step": 1}
+            n_cells = finest_cells(field_, states, parents, settings.lipschitz, level)
+            drop_deep()
+            level.update(blocks=n_cells, kept=sum(len(st.blocks) for st in states),
+                         network_evals=stats["n_network_evals"] - evals0,
+                         seconds=time.perf_counter() - t0)
+            stats["levels"].append(level)
+        if step <= 2:
             break
         step //= 2
 

@@ -4,7 +4,7 @@ A `PointStore` holds, for one GC at one grid (resolution, bound), the points whe
 looked at: sorted int64 keys (see `ngc_gen.extract.sparse.Keys`), the SDF value f (float32,
 +inf outside the GC) and the inside measure m (float32, <= 1 inside, inf where the cover balls
 ruled the point out). Queries and insertions come sorted, so both are sequential passes
-(`np.searchsorted` with sorted needles; a stable sort of two sorted runs is a merge).
+(a galloping search from the previous hit; a merge; numba kernels).
 
 `FieldCache` keeps stores keyed by the caller's GC key (the GC's parameters and code: whatever
 changes the GC's field must change its key) at a (resolution, bound). After an edit only GCs with
@@ -18,6 +18,7 @@ from collections import OrderedDict
 from typing import Hashable
 
 import numpy as np
+from numba import njit
 
 
 def sorted_unique(a: np.ndarray) -> np.ndarray:
@@ -27,6 +28,53 @@ def sorted_unique(a: np.ndarray) -> np.ndarray:
     if len(s) == 0:
         return s
     return s[np.concatenate([[True], s[1:] != s[:-1]])]
+
+
+@njit(cache=True)
+def _find_sorted(hay, needles, out):
+    """out[i] = index of needles[i] in hay, -1 if absent; both sorted, so each search gallops
+    on from the previous hit: O(m log(n / m)) for m needles in n keys."""
+    n = hay.shape[0]
+    lo = 0
+    for i in range(needles.shape[0]):
+        x = needles[i]
+        if lo < n and hay[lo] < x:
+            step, prev = 1, lo
+            hi = lo + 1
+            while hi < n and hay[hi] < x:
+                prev = hi
+                step *= 2
+                hi = prev + step
+            a, b = prev + 1, min(hi, n)
+            while a < b:
+                mid = (a + b) // 2
+                if hay[mid] < x:
+                    a = mid + 1
+                else:
+                    b = mid
+            lo = a
+        out[i] = lo if lo < n and hay[lo] == x else -1
+
+
+def find_sorted(hay: np.ndarray, needles: np.ndarray) -> np.ndarray:
+    """Sorted int64 keys `hay`, sorted `needles` -> (m,) int64 index of each needle in hay, -1
+    where absent."""
+    out = np.empty(len(needles), dtype=np.int64)
+    _find_sorted(np.ascontiguousarray(hay), np.ascontiguousarray(needles), out)
+    return out
+
+
+@njit(cache=True)
+def _merge(ak, af, am, bk, bf, bm, ok, of, om):
+    i = j = 0
+    na, nb = ak.shape[0], bk.shape[0]
+    for k in range(na + nb):
+        if j >= nb or (i < na and ak[i] < bk[j]):
+            ok[k], of[k], om[k] = ak[i], af[i], am[i]
+            i += 1
+        else:
+            ok[k], of[k], om[k] = bk[j], bf[j], bm[j]
+            j += 1
 
 
 class PointStore:
@@ -46,20 +94,22 @@ class PointStore:
         m = np.full(len(keys), np.nan, dtype=np.float32)
         if len(self.keys) == 0:
             return np.zeros(len(keys), dtype=bool), f, m
-        pos = np.minimum(np.searchsorted(self.keys, keys), len(self.keys) - 1)
-        found = self.keys[pos] == keys
+        pos = find_sorted(self.keys, keys)
+        found = pos >= 0
         f[found], m[found] = self.f[pos[found]], self.m[pos[found]]
         return found, f, m
 
     def add(self, keys: np.ndarray, f: np.ndarray, m: np.ndarray) -> None:
-        """Add sorted keys not yet in the store."""
+        """Add sorted keys not yet in the store (a merge: one pass over both)."""
         if len(keys) == 0:
             return
-        k = np.concatenate([self.keys, keys])
-        order = np.argsort(k, kind="stable")
-        self.keys = k[order]
-        self.f = np.concatenate([self.f, f.astype(np.float32)])[order]
-        self.m = np.concatenate([self.m, m.astype(np.float32)])[order]
+        n = len(self.keys) + len(keys)
+        k, fo, mo = (np.empty(n, dtype=np.int64), np.empty(n, dtype=np.float32),
+                     np.empty(n, dtype=np.float32))
+        _merge(self.keys, self.f, self.m, np.ascontiguousarray(keys, dtype=np.int64),
+               np.ascontiguousarray(f, dtype=np.float32),
+               np.ascontiguousarray(m, dtype=np.float32), k, fo, mo)
+        self.keys, self.f, self.m = k, fo, mo
 
     @property
     def nbytes(self) -> int:

@@ -7,13 +7,13 @@ Per point, in float64 whatever the input dtype (DESIGN.md section 2):
 2. cull (optional): a point outside every coarse cover ball is outside the GC, so it skips the
    rest (`RelativeTables.cover_radius` says why the balls enclose the GC);
 3. Newton on f(s) = |C(s) - q|^2 / 2 from the seed, kept within two dense segments each side,
-   until the step stops changing s: the seed is O(h^2) close, so two or three steps reach
+   until a step moves s by at most NEWTON_TOL: the seed is O(h^2) close, so two steps reach
    rounding. Where f'' <= 0 (q past the centre of curvature) it takes a Gauss-Newton step;
 4. frame, twist, radii and caps at the foot point as `GeneralizedCylinder` defines them.
 
 A torch implementation of the same steps would run ~60 small kernels per chunk of points, each
 a pass over memory; fused, a point costs ~100 ns on one core. Results match the float64
-definition to rounding (round trip < 1e-12 on points inside).
+definition to rounding (round trip ~1e-15 on points inside, float64).
 """
 from __future__ import annotations
 
@@ -26,6 +26,14 @@ import torch
 from numba import njit, prange
 
 NEWTON_MAX_STEPS = 8
+# stop once a step moves s by at most this: Newton converges quadratically from the O(h^2) seed,
+# so after a step of 1e-7 s is within ~C 1e-14 of the root (C = |f'''| / 2|f''|, O(1)): two
+# steps for most points. Waiting for an exactly zero step instead ended in rounding ping-pong
+# for a third of the points (8 steps)
+NEWTON_TOL = 1e-7
+# the kernels may fuse a * b + c into one rounding (FMA): a few percent; per point the same
+# compiled code runs whatever the batch, so results stay reproducible
+FASTMATH = {"contract"}
 
 
 class RelativeTables(NamedTuple):
@@ -76,7 +84,7 @@ def coarse_cover(poly_x: np.ndarray, fine_radius: np.ndarray, coarse: np.ndarray
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=FASTMATH)
 def _piece(s, breaks):
     """Index of the polynomial piece holding s (clamped)."""
     P = breaks.shape[0] - 1
@@ -92,7 +100,7 @@ def _piece(s, breaks):
     return lo
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=FASTMATH)
 def _curve(s, breaks, coef):
     """C(s), C'(s), C''(s) by Horner's rule on the piece holding s; 9 floats."""
     i = _piece(s, breaks)
@@ -116,7 +124,7 @@ def _curve(s, breaks, coef):
     return cx, cy, cz, dx, dy, dz, ex, ey, ez
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=FASTMATH)
 def _interp(x, xp, fp):
     """np.interp (clamped) for increasing xp."""
     n = xp.shape[0]
@@ -135,7 +143,7 @@ def _interp(x, xp, fp):
     return fp[lo] * (1.0 - w) + fp[hi] * w
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=FASTMATH)
 def _uniform_cell(x, M):
     """Cell index and weight of x in linspace(0, 1, M + 1), clamped."""
     xs = min(max(x, 0.0), 1.0) * M
@@ -143,7 +151,7 @@ def _uniform_cell(x, M):
     return i, xs - i
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=FASTMATH)
 def _dist2(qx, qy, qz, x, k):
     ax = qx - x[k, 0]
     ay = qy - x[k, 1]
@@ -151,7 +159,7 @@ def _dist2(qx, qy, qz, x, k):
     return ax * ax + ay * ay + az * az
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=FASTMATH)
 def _segment(qx, qy, qz, x, ps, a):
     """Closest point of segment (x[a], x[a+1]) to q: (parameter s, squared distance)."""
     abx = x[a + 1, 0] - x[a, 0]
@@ -166,9 +174,10 @@ def _segment(qx, qy, qz, x, ps, a):
     return ps[a] + lam * (ps[a + 1] - ps[a]), ex * ex + ey * ey + ez * ez
 
 
-@njit(cache=True, parallel=True)
-def _relative_kernel(q, out, measure, cull, breaks, coef, poly_x, poly_s, coarse, cover, arc_t,
-                     rep_arc, rep_t, frame_r, key_t, key_r, key_w, twisted, cap0, cap1):
+@njit(cache=True, parallel=True, fastmath=FASTMATH)
+def _relative_kernel(q, out, measure, cull, breaks, coef, poly_x, poly_s, coarse, coarse_x,
+                     cover2, arc_t, rep_arc, rep_t, frame_r, key_t, key_r, key_w, twisted, cap0,
+                     cap1):
     n = q.shape[0]
     K = poly_x.shape[0] - 1
     Kc = coarse.shape[0] - 1
@@ -180,11 +189,10 @@ def _relative_kernel(q, out, measure, cull, breaks, coef, poly_x, poly_s, coarse
         # 1-2. nearest coarse vertex, cover test
         best_c, best_d, covered = 0, np.inf, False
         for c in range(Kc + 1):
-            d = _dist2(qx, qy, qz, poly_x, coarse[c])
+            d = _dist2(qx, qy, qz, coarse_x, c)
             if d < best_d:
                 best_d, best_c = d, c
-            if d <= cover[c] * cover[c]:
-                covered = True
+            covered |= d <= cover2[c]
         if cull and not covered:
             out[i, 0] = out[i, 1] = out[i, 2] = np.nan
             measure[i] = np.inf
@@ -215,7 +223,7 @@ def _relative_kernel(q, out, measure, cull, breaks, coef, poly_x, poly_s, coarse
             if not H > 1e-3 * gn:
                 H = gn
             s_new = min(max(s - g / H, lo), hi)
-            done = s_new == s
+            done = abs(s_new - s) <= NEWTON_TOL
             s = s_new
             if done:
                 break
@@ -264,7 +272,7 @@ def _relative_kernel(q, out, measure, cull, breaks, coef, poly_x, poly_s, coarse
         measure[i] = e * e + a_ * a_ + b_ * b_
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, fastmath=FASTMATH)
 def _near_cover_kernel(p, pad, poly_x, coarse, cover, out):
     for i in prange(p.shape[0]):
         hit = False
@@ -277,26 +285,34 @@ def _near_cover_kernel(p, pad, poly_x, coarse, cover, out):
 
 
 def _threads() -> None:
-    """Follow the process's torch thread count (set by the app layer), within numba's pool."""
-    numba.set_num_threads(max(1, min(torch.get_num_threads(), numba.config.NUMBA_NUM_THREADS)))
+    """Follow the process's torch thread count (set by the app layer), within numba's pool.
+    Starting numba's OpenMP pool resets the OpenMP runtime it shares with torch to all cores,
+    so the app's count is put back (measured: torch 1 thread -> 2 after the first call)."""
+    n = torch.get_num_threads()
+    numba.set_num_threads(max(1, min(n, numba.config.NUMBA_NUM_THREADS)))
+    if torch.get_num_threads() != n:
+        torch.set_num_threads(n)
 
 
 def relative_coordinates(tables: RelativeTables, q: np.ndarray, cull: bool = False
                          ) -> tuple[np.ndarray, np.ndarray]:
-    """q (N, 3) -> (rel (N, 3) float64, measure (N,) float64); float64 throughout (one
-    compiled signature; the input copy costs a few ms per million points).
+    """q (N, 3) float32 or float64 (read as it is: no copy) -> (rel (N, 3) float64, measure (N,)
+    float64); float64 arithmetic throughout.
 
     measure = max(|u| - 1, 0)^2 + a^2 + b^2 (<= 1 inside). With `cull`, points outside the
     cover balls get rel NaN and measure inf without the closest-point solve."""
-    q = np.ascontiguousarray(q, dtype=np.float64)
-    out = np.empty_like(q)
+    if q.dtype not in (np.float32, np.float64):
+        q = q.astype(np.float64)
+    q = np.ascontiguousarray(q)
+    out = np.empty(q.shape, dtype=np.float64)
     measure = np.empty(len(q), dtype=np.float64)
     if len(q):
         _threads()
         T = tables
         _relative_kernel(q, out, measure, bool(cull), T.breaks, T.coef, T.poly_x, T.poly_s,
-                         T.coarse, T.cover, T.arc_t, T.rep_arc, T.rep_t, T.frame_r, T.key_t,
-                         T.key_r, T.key_w, bool(T.twisted), float(T.caps[0]), float(T.caps[1]))
+                         T.coarse, np.ascontiguousarray(T.poly_x[T.coarse]), T.cover ** 2,
+                         T.arc_t, T.rep_arc, T.rep_t, T.frame_r, T.key_t, T.key_r, T.key_w,
+                         bool(T.twisted), float(T.caps[0]), float(T.caps[1]))
     return out, measure
 
 

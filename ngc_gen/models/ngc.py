@@ -18,6 +18,14 @@ from .encoding import PositionalEncoding
 from .mlp import mlp
 
 
+#: rows per block of `NGCDecoder.sdf_rows` without a gradient (activations of a block ~2 MB)
+ROWS_BLOCK = 4096
+#: blocks are zero-padded to a multiple of this many rows: BLAS and the vectorised elementwise
+#: kernels treat a ragged tail (and tiny matrices) with other code, whose rounding differs, so
+#: without it a row's value would depend on where it fell in its call
+ROWS_ALIGN = 16
+
+
 class NGCDecoder(nn.Module):
     """Shared network for every GC of every shape; the per-GC code selects the part.
     `config`: the sizes, as a checkpoint records them."""
@@ -56,11 +64,29 @@ class NGCDecoder(nn.Module):
         `forward(codes[gc_index], rel)` up to float rounding, without a code per row.
 
         The end features and g's first (linear) layer are computed once per GC: W f(t) + b =
-        (W f0 + b) + t (W f1 - W f0), so a row only gathers two vectors and lerps them."""
+        (W f0 + b) + t (W f1 - W f0), so a row only gathers two vectors and lerps them. Without
+        a gradient the rows go through in blocks of ROWS_BLOCK, whose activations stay in the
+        CPU's cache (measured ~1.4x the throughput of one 65k-row pass), each padded to a
+        multiple of ROWS_ALIGN rows, so a row's value does not depend on which rows share its
+        call (sparse and reference extraction, incremental and full, give equal values)."""
         f0, f1 = self.ends(codes).chunk(2, dim=-1)
         first = self.g[0]
         a0 = first(f0)
         da = first(f1) - a0
+        if torch.is_grad_enabled():
+            return self._rows(a0, da, gc_index, rel)
+        out = torch.empty(len(rel), dtype=rel.dtype, device=rel.device)
+        for s in range(0, len(rel), ROWS_BLOCK):
+            g, r = gc_index[s:s + ROWS_BLOCK], rel[s:s + ROWS_BLOCK]
+            pad = -len(r) % ROWS_ALIGN
+            if pad:
+                g = torch.cat([g, g.new_zeros(pad)])
+                r = torch.cat([r, r.new_zeros(pad, 3)])
+            out[s:s + ROWS_BLOCK] = self._rows(a0, da, g, r)[:len(r) - pad]
+        return out
+
+    def _rows(self, a0: torch.Tensor, da: torch.Tensor, gc_index: torch.Tensor,
+              rel: torch.Tensor) -> torch.Tensor:
         t = ((rel[:, 0] + 1.0) * 0.5).clamp(0.0, 1.0)[:, None]
         pre = torch.addcmul(a0[gc_index], t, da[gc_index])
         feats = _run(self.g[1:], pre)
