@@ -16,6 +16,7 @@ from .branch_gc import branch_gc, resample, split_curved
 from .branches import Branch, branch_graph
 from .coverage import grow_to_cover
 from .gc_names import gc_names
+from .protrusions import half_thickness, protrusion_branches
 from .proxy import closed_proxy
 from .sampling import sample_surface
 from .errors import DataError
@@ -92,7 +93,7 @@ def _split_owner(pieces: list[Branch], piece_of: list[np.ndarray], owner: np.nda
 
 def skeleton_gcs(mesh: trimesh.Trimesh, max_gcs: int = 24, min_branch_length: float = 2.0,
                  margin: float = 0.05, resolution: int = 96, skeleton: str = "auto",
-                 n_keys: int = 5, samples: int = 20000, seed: int = 0
+                 n_keys: int = 5, samples: int = 20000, seed: int = 0, protrusions: bool = True
                  ) -> tuple[list[GeneralizedCylinder], dict]:
     """GCs for a (normalised) mesh and what was found on the way: {backend, n_branches,
     n_components}. Arguments as in conf/annotate/default.yaml."""
@@ -101,12 +102,24 @@ def skeleton_gcs(mesh: trimesh.Trimesh, max_gcs: int = 24, min_branch_length: fl
                         fix=f"use one of {', '.join(BACKENDS)}")
     V, F = np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces, dtype=np.int64)
     rng = np.random.default_rng(seed)
-    surface = np.concatenate([V, sample_surface(V, F, samples, rng)[0]])
+    pts, nrm = sample_surface(V, F, samples, rng)
+    surface = np.concatenate([V, pts])
     proxy = closed_proxy(V, F, resolution=resolution, seed=seed)
     sk = proxy_skeleton(proxy, backend=skeleton)
     radius = np.maximum(local_thickness(sk.nodes, surface), proxy.h)
     branches = branch_graph(sk.nodes, sk.edges, radius, min_branch_length, max_gcs)
     rooted, nodes, node_owner = _rooted(branches)
+    if protrusions and len(rooted) < max_gcs:  # thin parts the skeleton merged into a body
+        node_r = np.maximum(local_thickness(nodes, surface), proxy.h)
+        comp = np.array([b.component for b in branches])[node_owner]
+        normals = np.concatenate([np.asarray(mesh.vertex_normals, dtype=np.float64), nrm])
+        width = half_thickness(surface, normals, proxy.inside, proxy.origin, proxy.h)
+        extra = protrusion_branches(surface, nodes, node_r, comp, link=2.0 * proxy.h, width=width,
+                                    min_length=min_branch_length, max_new=max_gcs - len(rooted))
+        for b in extra:
+            nodes = np.concatenate([nodes, b.points])
+            node_owner = np.concatenate([node_owner, np.full(len(b.points), len(rooted))])
+            rooted.append(b)
     owner = node_owner[cKDTree(nodes).query(surface, k=1)[1]]
     pieces, piece_of = [], []  # a branch too curved for one cubic is split, its points too
     for i, b in enumerate(rooted):
@@ -123,5 +136,6 @@ def skeleton_gcs(mesh: trimesh.Trimesh, max_gcs: int = 24, min_branch_length: fl
     names = gc_names(curves, volumes, [b.component for b in pieces])
     named = sorted((GeneralizedCylinder.from_dict({**g.to_dict(), "name": nm}) for g, nm in zip(gcs, names)),
                    key=lambda g: (g.name != "trunk", g.name))
-    info = {"backend": sk.backend, "n_branches": len(branches), "n_components": len(proxy.components)}
+    info = {"backend": sk.backend, "n_branches": len(branches), "n_components": len(proxy.components),
+            "n_protrusions": len(rooted) - len(branches)}
     return named, info
