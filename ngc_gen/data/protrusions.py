@@ -25,6 +25,8 @@ from .branches import Branch
 FAR = 1.5           # a sample is far from the skeleton past this x the node's thickness
 THIN = 2.5          # ... and past this x the surface's own half-thickness there
 MIN_SHARE = 0.002   # a cluster needs at least this share of the surface samples
+THINNER = 0.5       # a protrusion is at most this x as thick as the body it grows from
+ALONG = 0.77        # |cos| of the angle to the branch above which a cluster is its own end
 N_SLICES = 6        # polyline nodes along a protrusion (slice centroids)
 
 
@@ -50,15 +52,19 @@ def half_thickness(points: np.ndarray, normals: np.ndarray, inside: np.ndarray, 
 
 def protrusion_branches(surface: np.ndarray, nodes: np.ndarray, radius: np.ndarray,
                         node_component: np.ndarray, link: float, width: np.ndarray,
-                        min_length: float = 1.0, far: float = FAR, thin: float = THIN,
-                        max_new: int = 8) -> list[Branch]:
+                        tangent: np.ndarray | None = None, body: np.ndarray | None = None,
+                        min_length: float = 1.0, far: float = FAR,
+                        thin: float = THIN, max_new: int = 8) -> list[Branch]:
     """New branches for the thin parts no skeleton node reaches.
 
     surface (S, 3) samples; nodes (M, 3) skeleton samples with radius (M,) (local thickness)
     and node_component (M,) (the skeleton piece each belongs to); link: samples closer than
-    this are one cluster; width (S,): the surface's half-thickness at each sample. At most ``max_new`` branches, the largest clusters first."""
-    tree = cKDTree(nodes)
-    d, j = tree.query(surface, k=1)
+    this are one cluster; width (S,): the surface's half-thickness at each sample; tip (M,)
+    bool: nodes near a branch's free end, where a cluster is that branch's own unreached tip
+    (its GC's cap grows over it), not a new part; body (M,): the thickness of the body each
+    node belongs to (default: radius), which a protrusion must be thinner than. Clusters are taken largest first, and the
+    far samples are measured again against each new branch (one thin part, one branch). At most ``max_new`` branches, the largest clusters first."""
+    d, j = cKDTree(nodes).query(surface, k=1)
     is_far = (d > far * radius[j]) & (d > thin * width)
     idx = np.flatnonzero(is_far)
     if len(idx) < max(3, MIN_SHARE * len(surface)):
@@ -72,12 +78,22 @@ def protrusion_branches(surface: np.ndarray, nodes: np.ndarray, radius: np.ndarr
     for c in np.argsort(-sizes, kind="stable"):
         if sizes[c] < MIN_SHARE * len(surface) or len(out) >= max_new:
             break
-        q = surface[idx[label == c]]
-        ratio = d[idx[label == c]] / radius[j[idx[label == c]]]
-        anchor = int(j[idx[label == c]][np.argmin(ratio)])  # where the cluster meets the body
+        mine = idx[label == c]
+        if out:  # samples a new branch already reaches are no longer far
+            added = np.concatenate([b.points for b in out])
+            dn = cKDTree(added).query(surface[mine], k=1)[0]
+            mine = mine[~((dn < d[mine]) & (dn <= thin * width[mine]))]
+            if len(mine) < MIN_SHARE * len(surface):
+                continue
+        q = surface[mine]
+        ratio = d[mine] / radius[j[mine]]
+        anchor = int(j[mine][np.argmin(ratio)])  # where the cluster meets the body
         a, r_a = nodes[anchor], radius[anchor]
-        tip = q[np.argmax(np.linalg.norm(q - a, axis=1))]
-        axis = (tip - a) / max(np.linalg.norm(tip - a), 1e-12)
+        r_body = radius[anchor] if body is None else body[anchor]
+        far_pt = q[np.argmax(np.linalg.norm(q - a, axis=1))]
+        axis = (far_pt - a) / max(np.linalg.norm(far_pt - a), 1e-12)
+        if tangent is not None and abs(float(axis @ tangent[anchor])) > ALONG:
+            continue
         s = (q - a) @ axis
         edges = np.linspace(max(float(s.min()), r_a), float(s.max()), N_SLICES + 1)
         which = np.clip(np.searchsorted(edges, s, side="right") - 1, 0, N_SLICES - 1)
@@ -85,15 +101,15 @@ def protrusion_branches(surface: np.ndarray, nodes: np.ndarray, radius: np.ndarr
         keep = counts > 0
         cent = np.stack([np.bincount(which, weights=q[:, k], minlength=N_SLICES) for k in range(3)], 1)
         cent = cent[keep] / counts[keep, None]
-        # from the anchor's surface (the body's own radius along the axis) to the tip
+        # from the anchor's surface (the body's own radius along the axis) to the far end
         start = a + axis * 0.9 * r_a
-        pts = np.concatenate([start[None], cent[cent @ axis - a @ axis > 0.9 * r_a], tip[None]])
+        pts = np.concatenate([start[None], cent[cent @ axis - a @ axis > 0.9 * r_a], far_pt[None]])
         if len(pts) < 3:
             continue
         rad = np.maximum(surf_tree.query(pts, k=1)[0], 0.25 * link)
         own = float(np.median(rad))
         length = float(np.linalg.norm(np.diff(pts, axis=0), axis=1).sum())
-        if length < min_length * own:
+        if length < min_length * own or own > THINNER * r_body:  # too short, or the body's own end
             continue
         out.append(Branch(pts, rad, (False, False), int(node_component[anchor])))
     return out

@@ -33,8 +33,9 @@ def _exit_index(radius: np.ndarray) -> int:
     return int(np.argmax(radius <= 1.25 * own))
 
 
-def _rooted(branches: list[Branch]) -> tuple[list[Branch], np.ndarray, np.ndarray]:
-    """Branches with their roots trimmed, and the skeleton samples (M, 3) with their owner (M,).
+def _rooted(branches: list[Branch]) -> tuple[list[Branch], np.ndarray, np.ndarray, list[Branch]]:
+    """Branches with their roots trimmed, the skeleton samples (M, 3) with their owner (M,), and
+    the untrimmed resampled branches (whose points, concatenated, are those samples).
 
     At a junction, every branch but the thickest starts inside the thickest one's body; the
     samples up to where it leaves that body belong to the thickest branch (a torso's surface
@@ -45,7 +46,7 @@ def _rooted(branches: list[Branch]) -> tuple[list[Branch], np.ndarray, np.ndarra
         for side in (0, -1):
             if b.junction[side]:
                 ends.setdefault(tuple(np.round(b.points[side], 9)), []).append((float(b.radius.mean()), -i))
-    samples, owner, out = [], [], []
+    samples, owner, out, full = [], [], [], []
     for i, b in enumerate(branches):
         P, R = b.points, b.radius
         if len(P) > 1:
@@ -73,7 +74,14 @@ def _rooted(branches: list[Branch]) -> tuple[list[Branch], np.ndarray, np.ndarra
         samples.append(P)
         owner.append(lab)
         out.append(Branch(P[lo:hi], R[lo:hi], b.junction, b.component))
-    return out, np.concatenate(samples), np.concatenate(owner)
+        full.append(Branch(P, R, b.junction, b.component))
+    return out, np.concatenate(samples), np.concatenate(owner), full
+
+
+def _tangent(P: np.ndarray) -> np.ndarray:
+    """(P, 3) unit tangent of a polyline (P, 3) at each point."""
+    t = np.gradient(P, axis=0) if len(P) > 1 else np.zeros_like(P)
+    return t / np.maximum(np.linalg.norm(t, axis=1, keepdims=True), 1e-12)
 
 
 def _split_owner(pieces: list[Branch], piece_of: list[np.ndarray], owner: np.ndarray,
@@ -108,13 +116,17 @@ def skeleton_gcs(mesh: trimesh.Trimesh, max_gcs: int = 24, min_branch_length: fl
     sk = proxy_skeleton(proxy, backend=skeleton)
     radius = np.maximum(local_thickness(sk.nodes, surface), proxy.h)
     branches = branch_graph(sk.nodes, sk.edges, radius, min_branch_length, max_gcs)
-    rooted, nodes, node_owner = _rooted(branches)
+    rooted, nodes, node_owner, branches_full = _rooted(branches)
+    n_skeleton = len(rooted)
     if protrusions and len(rooted) < max_gcs:  # thin parts the skeleton merged into a body
         node_r = np.maximum(local_thickness(nodes, surface), proxy.h)
         comp = np.array([b.component for b in branches])[node_owner]
         normals = np.concatenate([np.asarray(mesh.vertex_normals, dtype=np.float64), nrm])
         width = half_thickness(surface, normals, proxy.inside, proxy.origin, proxy.h)
         extra = protrusion_branches(surface, nodes, node_r, comp, link=2.0 * proxy.h, width=width,
+                                    tangent=np.concatenate([_tangent(b.points) for b in branches_full]),
+                                    body=np.array([np.median(node_r[node_owner == i])
+                                                   for i in range(len(rooted))])[node_owner],
                                     min_length=min_branch_length, max_new=max_gcs - len(rooted))
         for b in extra:
             nodes = np.concatenate([nodes, b.points])
@@ -123,7 +135,7 @@ def skeleton_gcs(mesh: trimesh.Trimesh, max_gcs: int = 24, min_branch_length: fl
     owner = node_owner[cKDTree(nodes).query(surface, k=1)[1]]
     pieces, piece_of = [], []  # a branch too curved for one cubic is split, its points too
     for i, b in enumerate(rooted):
-        parts = split_curved(b, CURVE_TOLERANCE) if len(rooted) + 1 <= max_gcs else [b]
+        parts = split_curved(b, CURVE_TOLERANCE) if len(rooted) + 1 <= max_gcs and i < n_skeleton else [b]
         piece_of.append(np.arange(len(pieces), len(pieces) + len(parts)))
         pieces += parts
     owner = _split_owner(pieces, piece_of, owner, surface)
