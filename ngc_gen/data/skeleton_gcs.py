@@ -16,6 +16,7 @@ from .branch_gc import branch_gc, resample, split_curved
 from .branches import Branch, branch_graph
 from .coverage import grow_to_cover
 from .gc_names import gc_names
+from .protrusions import THINNER as protrusion_thinner
 from .protrusions import half_thickness, protrusion_branches
 from .proxy import closed_proxy
 from .sampling import sample_surface
@@ -118,21 +119,27 @@ def skeleton_gcs(mesh: trimesh.Trimesh, max_gcs: int = 24, min_branch_length: fl
     branches = branch_graph(sk.nodes, sk.edges, radius, min_branch_length, max_gcs)
     rooted, nodes, node_owner, branches_full = _rooted(branches)
     n_skeleton = len(rooted)
+    owner = node_owner[cKDTree(nodes).query(surface, k=1)[1]]
     if protrusions and len(rooted) < max_gcs:  # thin parts the skeleton merged into a body
         node_r = np.maximum(local_thickness(nodes, surface), proxy.h)
         comp = np.array([b.component for b in branches])[node_owner]
+        body = np.array([np.median(node_r[node_owner == i]) for i in range(len(rooted))])
         normals = np.concatenate([np.asarray(mesh.vertex_normals, dtype=np.float64), nrm])
         width = half_thickness(surface, normals, proxy.inside, proxy.origin, proxy.h)
         extra = protrusion_branches(surface, nodes, node_r, comp, link=2.0 * proxy.h, width=width,
                                     tangent=np.concatenate([_tangent(b.points) for b in branches_full]),
-                                    body=np.array([np.median(node_r[node_owner == i])
-                                                   for i in range(len(rooted))])[node_owner],
-                                    min_length=min_branch_length, max_new=max_gcs - len(rooted))
-        for b in extra:
-            nodes = np.concatenate([nodes, b.points])
-            node_owner = np.concatenate([node_owner, np.full(len(b.points), len(rooted))])
-            rooted.append(b)
-    owner = node_owner[cKDTree(nodes).query(surface, k=1)[1]]
+                                    body=body[node_owner], min_length=min_branch_length,
+                                    max_new=max_gcs - len(rooted))
+        if extra:
+            new_nodes = np.concatenate([b.points for b in extra])
+            new_owner = np.concatenate([np.full(len(b.points), len(rooted) + k) for k, b in enumerate(extra)])
+            rooted += extra
+            d_new, k_new = cKDTree(new_nodes).query(surface, k=1)
+            d_old = cKDTree(nodes).query(surface, k=1)[0]
+            # a protrusion holds the samples nearer its axis than the body's and thin like it
+            # (its root's surface on the body, as thick as the body, stays the body's)
+            mine = (d_new < d_old) & (width <= protrusion_thinner * body[owner])
+            owner = np.where(mine, new_owner[k_new], owner)
     pieces, piece_of = [], []  # a branch too curved for one cubic is split, its points too
     for i, b in enumerate(rooted):
         parts = split_curved(b, CURVE_TOLERANCE) if len(rooted) + 1 <= max_gcs and i < n_skeleton else [b]
