@@ -27,6 +27,7 @@ THIN = 2.5          # ... and past this x the surface's own half-thickness there
 MIN_SHARE = 0.002   # a cluster needs at least this share of the surface samples
 THINNER = 0.5       # a protrusion is at most this x as thick as the body it grows from
 ALONG = 0.77        # |cos| of the angle to the branch above which a cluster is its own end
+ROOT = 0.6          # a protrusion starts this x the body's thickness from its anchor (inside the body)
 N_SLICES = 6        # polyline nodes along a protrusion (slice centroids)
 
 
@@ -102,8 +103,8 @@ def protrusion_branches(surface: np.ndarray, nodes: np.ndarray, radius: np.ndarr
         cent = np.stack([np.bincount(which, weights=q[:, k], minlength=N_SLICES) for k in range(3)], 1)
         cent = cent[keep] / counts[keep, None]
         # from the anchor's surface (the body's own radius along the axis) to the far end
-        start = a + axis * 0.9 * r_a
-        pts = np.concatenate([start[None], cent[cent @ axis - a @ axis > 0.9 * r_a], far_pt[None]])
+        start = a + axis * ROOT * r_a
+        pts = np.concatenate([start[None], cent[cent @ axis - a @ axis > ROOT * r_a], far_pt[None]])
         if len(pts) < 3:
             continue
         rad = np.maximum(surf_tree.query(pts, k=1)[0], 0.25 * link)
