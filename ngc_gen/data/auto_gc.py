@@ -141,6 +141,7 @@ class AutoGCSettings:
     n_keys: int = 5
     samples: int = 20000
     seed: int = 0
+    protrusions: bool = True
 
     def __post_init__(self):
         checks = {"method": self.method in METHODS, "max_gcs": self.max_gcs >= 1,

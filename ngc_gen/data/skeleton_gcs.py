@@ -16,6 +16,8 @@ from .branch_gc import branch_gc, resample, split_curved
 from .branches import Branch, branch_graph
 from .coverage import grow_to_cover
 from .gc_names import gc_names
+from .protrusions import THINNER as protrusion_thinner
+from .protrusions import half_thickness, protrusion_branches
 from .proxy import closed_proxy
 from .sampling import sample_surface
 from .errors import DataError
@@ -32,8 +34,9 @@ def _exit_index(radius: np.ndarray) -> int:
     return int(np.argmax(radius <= 1.25 * own))
 
 
-def _rooted(branches: list[Branch]) -> tuple[list[Branch], np.ndarray, np.ndarray]:
-    """Branches with their roots trimmed, and the skeleton samples (M, 3) with their owner (M,).
+def _rooted(branches: list[Branch]) -> tuple[list[Branch], np.ndarray, np.ndarray, list[Branch]]:
+    """Branches with their roots trimmed, the skeleton samples (M, 3) with their owner (M,), and
+    the untrimmed resampled branches (whose points, concatenated, are those samples).
 
     At a junction, every branch but the thickest starts inside the thickest one's body; the
     samples up to where it leaves that body belong to the thickest branch (a torso's surface
@@ -44,7 +47,7 @@ def _rooted(branches: list[Branch]) -> tuple[list[Branch], np.ndarray, np.ndarra
         for side in (0, -1):
             if b.junction[side]:
                 ends.setdefault(tuple(np.round(b.points[side], 9)), []).append((float(b.radius.mean()), -i))
-    samples, owner, out = [], [], []
+    samples, owner, out, full = [], [], [], []
     for i, b in enumerate(branches):
         P, R = b.points, b.radius
         if len(P) > 1:
@@ -72,7 +75,14 @@ def _rooted(branches: list[Branch]) -> tuple[list[Branch], np.ndarray, np.ndarra
         samples.append(P)
         owner.append(lab)
         out.append(Branch(P[lo:hi], R[lo:hi], b.junction, b.component))
-    return out, np.concatenate(samples), np.concatenate(owner)
+        full.append(Branch(P, R, b.junction, b.component))
+    return out, np.concatenate(samples), np.concatenate(owner), full
+
+
+def _tangent(P: np.ndarray) -> np.ndarray:
+    """(P, 3) unit tangent of a polyline (P, 3) at each point."""
+    t = np.gradient(P, axis=0) if len(P) > 1 else np.zeros_like(P)
+    return t / np.maximum(np.linalg.norm(t, axis=1, keepdims=True), 1e-12)
 
 
 def _split_owner(pieces: list[Branch], piece_of: list[np.ndarray], owner: np.ndarray,
@@ -92,7 +102,7 @@ def _split_owner(pieces: list[Branch], piece_of: list[np.ndarray], owner: np.nda
 
 def skeleton_gcs(mesh: trimesh.Trimesh, max_gcs: int = 24, min_branch_length: float = 2.0,
                  margin: float = 0.05, resolution: int = 96, skeleton: str = "auto",
-                 n_keys: int = 5, samples: int = 20000, seed: int = 0
+                 n_keys: int = 5, samples: int = 20000, seed: int = 0, protrusions: bool = True
                  ) -> tuple[list[GeneralizedCylinder], dict]:
     """GCs for a (normalised) mesh and what was found on the way: {backend, n_branches,
     n_components}. Arguments as in conf/annotate/default.yaml."""
@@ -101,16 +111,38 @@ def skeleton_gcs(mesh: trimesh.Trimesh, max_gcs: int = 24, min_branch_length: fl
                         fix=f"use one of {', '.join(BACKENDS)}")
     V, F = np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces, dtype=np.int64)
     rng = np.random.default_rng(seed)
-    surface = np.concatenate([V, sample_surface(V, F, samples, rng)[0]])
+    pts, nrm = sample_surface(V, F, samples, rng)
+    surface = np.concatenate([V, pts])
     proxy = closed_proxy(V, F, resolution=resolution, seed=seed)
     sk = proxy_skeleton(proxy, backend=skeleton)
     radius = np.maximum(local_thickness(sk.nodes, surface), proxy.h)
     branches = branch_graph(sk.nodes, sk.edges, radius, min_branch_length, max_gcs)
-    rooted, nodes, node_owner = _rooted(branches)
+    rooted, nodes, node_owner, branches_full = _rooted(branches)
+    n_skeleton = len(rooted)
     owner = node_owner[cKDTree(nodes).query(surface, k=1)[1]]
+    if protrusions and len(rooted) < max_gcs:  # thin parts the skeleton merged into a body
+        node_r = np.maximum(local_thickness(nodes, surface), proxy.h)
+        comp = np.array([b.component for b in branches])[node_owner]
+        body = np.array([np.median(node_r[node_owner == i]) for i in range(len(rooted))])
+        normals = np.concatenate([np.asarray(mesh.vertex_normals, dtype=np.float64), nrm])
+        width = half_thickness(surface, normals, proxy.inside, proxy.origin, proxy.h)
+        extra = protrusion_branches(surface, nodes, node_r, comp, link=2.0 * proxy.h, width=width,
+                                    tangent=np.concatenate([_tangent(b.points) for b in branches_full]),
+                                    body=body[node_owner], min_length=min_branch_length,
+                                    max_new=max_gcs - len(rooted))
+        if extra:
+            new_nodes = np.concatenate([b.points for b in extra])
+            new_owner = np.concatenate([np.full(len(b.points), len(rooted) + k) for k, b in enumerate(extra)])
+            rooted += extra
+            d_new, k_new = cKDTree(new_nodes).query(surface, k=1)
+            d_old = cKDTree(nodes).query(surface, k=1)[0]
+            # a protrusion holds the samples nearer its axis than the body's and thin like it
+            # (its root's surface on the body, as thick as the body, stays the body's)
+            mine = (d_new < d_old) & (width <= protrusion_thinner * body[owner])
+            owner = np.where(mine, new_owner[k_new], owner)
     pieces, piece_of = [], []  # a branch too curved for one cubic is split, its points too
     for i, b in enumerate(rooted):
-        parts = split_curved(b, CURVE_TOLERANCE) if len(rooted) + 1 <= max_gcs else [b]
+        parts = split_curved(b, CURVE_TOLERANCE) if len(rooted) + 1 <= max_gcs and i < n_skeleton else [b]
         piece_of.append(np.arange(len(pieces), len(pieces) + len(parts)))
         pieces += parts
     owner = _split_owner(pieces, piece_of, owner, surface)
@@ -123,5 +155,6 @@ def skeleton_gcs(mesh: trimesh.Trimesh, max_gcs: int = 24, min_branch_length: fl
     names = gc_names(curves, volumes, [b.component for b in pieces])
     named = sorted((GeneralizedCylinder.from_dict({**g.to_dict(), "name": nm}) for g, nm in zip(gcs, names)),
                    key=lambda g: (g.name != "trunk", g.name))
-    info = {"backend": sk.backend, "n_branches": len(branches), "n_components": len(proxy.components)}
+    info = {"backend": sk.backend, "n_branches": len(branches), "n_components": len(proxy.components),
+            "n_protrusions": len(rooted) - len(branches)}
     return named, info
