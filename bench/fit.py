@@ -251,15 +251,15 @@ def main():
         args.methods = []
     else:
         res.update(steps=args.steps, batch_size=args.batch_size, resolution=args.resolution)
-    extra = list(args.set) + ([f"data.parts.1.limit={args.limit}"] if args.limit else [])
     for method in args.methods:
+        extra = list(args.set) if method.startswith("ngc") else []
+        if args.limit:  # fitbench_1gc wraps fitbench as `base`
+            extra.append(f"data.{'base.' * (method == 'ngc_1gc')}parts.1.limit={args.limit}")
         load0 = os.getloadavg()
-        metrics = run(method, args.steps, args.resolution, args.batch_size, run_root,
-                      extra if method.startswith("ngc") else
-                      ([f"data.parts.1.limit={args.limit}"] if args.limit else []))
+        metrics = run(method, args.steps, args.resolution, args.batch_size, run_root, extra)
         res["methods"][method] = method_summary(metrics)
         res["methods"][method]["load"] = [round(x, 2) for x in load0 + os.getloadavg()]
-        res["methods"][method]["overrides"] = extra if method.startswith("ngc") else []
+        res["methods"][method]["overrides"] = extra
         res["per_shape"][method] = metrics["shapes"]
         res["shapes"] = list(metrics["shapes"])
         if method == "ngc" and args.tag is None:
