@@ -234,9 +234,15 @@ def main():
     ap.add_argument("--tag", default=None, help="screening: runs and results in bench/runs/fit/TAG")
     ap.add_argument("--set", nargs="*", default=[], help="extra overrides for the NGC methods")
     ap.add_argument("--limit", type=int, default=None, help="screening: only N creatures")
+    ap.add_argument("--threads", type=int, default=None,
+                    help="torch CPU threads (default: all cores; 1 is faster on a busy machine)")
     ap.add_argument("--deepsdf-long", type=int, default=None, metavar="STEPS")
     ap.add_argument("--score-only", action="store_true", help="--deepsdf-long: score, no training")
     args = ap.parse_args()
+    if args.threads:
+        import torch
+
+        torch.set_num_threads(args.threads)
     out = ROOT / "bench/results" if args.tag is None else ROOT / "bench/runs/fit" / args.tag
     run_root = ROOT / "bench/runs/fit" if args.tag is None else out
     old = out / "fit.json"
@@ -250,7 +256,8 @@ def main():
         res["deepsdf_long"]["load"] = [round(x, 2) for x in load0 + os.getloadavg()]
         args.methods = []
     else:
-        res.update(steps=args.steps, batch_size=args.batch_size, resolution=args.resolution)
+        res.update(steps=args.steps, batch_size=args.batch_size, resolution=args.resolution,
+                   threads=args.threads)
     for method in args.methods:
         extra = list(args.set) if method.startswith("ngc") else []
         if args.limit:  # fitbench_1gc wraps fitbench as `base`
