@@ -2,17 +2,32 @@
 the same shapes with the same number of steps, batch size and samples per shape.
 
     python bench/fit.py [--steps 1500] [--resolution 128]
+    python bench/fit.py --tag pe4 --set model.decoder.pe_frequencies=4 --methods ngc --limit 3
+    python bench/fit.py --deepsdf-long 20000      # DeepSDF's recipe, long (resumable)
 
-Writes bench/results/fit.json ({methods: {ngc, ngc_1gc, deepsdf: {cd, hd, emd, train_s}},
-shapes, ...}) and bench/results/fit.md (the README table). Also checks on the fitted NGC that
-the extractor's GC prefilter is exact (identical grids with and without it) and records both
-evaluation counts. Runs go to bench/runs/fit/<method>.
+Writes bench/results/fit.json ({methods: {ngc, ngc_1gc, deepsdf: {cd, hd, emd, nc, fscore,
+fragments, gt_fragments, train_s, load}}, shapes, ...}; nc = mean normal consistency, fscore =
+mean F-score@0.01, fragments = components under 1% of the faces summed over the shapes, load =
+os.getloadavg() before and after training) and bench/results/fit.md (the README table). Also
+checks on the fitted NGC that the extractor's GC prefilter is exact (identical grids with and
+without it) and records both evaluation counts. Runs go to bench/runs/fit/<method> and start
+fresh.
+
+Screening (ablations): `--tag NAME` writes runs and results to bench/runs/fit/NAME/ instead,
+`--set` adds overrides to the NGC methods, `--limit N` keeps N of the 6 creatures.
+
+`--deepsdf-long STEPS`: the fair baseline, model=deepsdf (DeepSDF's own recipe: 8 x 512, latent
+skip at 4, clamp 0.1, lr 5e-4 / 1e-3 halved every quarter of the steps) on DeepSDF's sampling,
+same batch. It resumes bench/runs/fit/deepsdf_long (kill it any time; rerun to continue;
+`--score-only` scores what is there), keeps checkpoints at the NGC run's training time, and
+writes `deepsdf_long` = {cd, nc, fscore, steps, train_s, at_ngc_time: {...}} into fit.json.
 """
 from __future__ import annotations
 
 import argparse
 import json
 import os
+import shutil
 import sys
 import time
 from pathlib import Path
@@ -32,17 +47,77 @@ METHODS = {  # name -> (data config, model config, extra overrides)
 }
 
 
-def run(method: str, steps: int, resolution: int, batch_size: int) -> dict:
+def fit_config(method: str, steps: int, resolution: int, batch_size: int, run_dir: Path,
+               extra: list[str] = ()):
     from ngc_gen.app.config import compose_config
-    from ngc_gen.app.fit import run_fit
 
-    data, model, extra = METHODS[method]
-    run_dir = ROOT / "bench/runs/fit" / method
-    cfg = compose_config(overrides=[
+    data, model, own = METHODS[method]
+    return compose_config(overrides=[
         "stage=fit", f"data={data}", f"model={model}", f"trainer.max_steps={steps}",
         f"extract.resolution={resolution}", f"batch_size={batch_size}", f"run_dir={run_dir}",
-        "trainer.enable_progress_bar=false", "logger=csv", *extra])
-    return run_fit(cfg)
+        "trainer.enable_progress_bar=false", "logger=csv", *own, *extra])
+
+
+def run(method: str, steps: int, resolution: int, batch_size: int, run_root: Path,
+        extra: list[str] = ()) -> dict:
+    """A fresh fit run of one method in run_root/<method> (an earlier one is removed)."""
+    from ngc_gen.app.fit import run_fit
+
+    run_dir = run_root / method
+    if run_dir.exists():
+        shutil.rmtree(run_dir)
+    return run_fit(fit_config(method, steps, resolution, batch_size, run_dir, list(extra)))
+
+
+def score_checkpoint(cfg, checkpoint: Path, out_dir: Path) -> dict:
+    """Mesh and score every shape of a fit checkpoint (the fit stage's own scoring)."""
+    import torch
+
+    from ngc_gen.app.fit import reconstruct
+    from ngc_gen.app.prepare import prepare_dataset
+    from ngc_gen.lit.checkpoint import load_autodecoder
+
+    prepared = prepare_dataset(cfg)
+    module = load_autodecoder(checkpoint).eval()
+    gt = {s.name: (s.mesh_vertices, s.mesh_faces) for s in prepared}
+    with torch.no_grad():
+        return reconstruct(module, out_dir, gt, resolution=cfg.extract.resolution,
+                           bound=cfg.extract.bound, chunk=cfg.extract.chunk,
+                           seed=cfg.metrics_seed)
+
+
+def deepsdf_long(steps: int, resolution: int, batch_size: int, ngc_seconds: float,
+                 score_only: bool = False) -> dict:
+    """DeepSDF's own recipe (model=deepsdf) trained for `steps`, resumable; its numbers at the
+    end (or where it was stopped) and at `ngc_seconds` of training (the NGC run's time)."""
+    import torch
+
+    from ngc_gen.app.fit import run_fit
+
+    run_dir = ROOT / "bench/runs/fit/deepsdf_long"
+    mark = round(ngc_seconds)
+    cfg = fit_config("deepsdf", steps, resolution, batch_size, run_dir, [
+        "model=deepsdf", "callbacks.checkpoint.every_n_train_steps=100",
+        "+callbacks.clock._target_=ngc_gen.app.training.TrainClock",
+        f"+callbacks.clock.dirpath={run_dir}", f"+callbacks.clock.marks=[{mark}]"])
+    last = run_dir / "checkpoints/last.ckpt"
+    if score_only:
+        metrics = score_checkpoint(cfg, last, run_dir / "meshes")
+    else:
+        metrics = run_fit(cfg)
+    state = torch.load(last, map_location="cpu", weights_only=True)
+    clock = next(v for k, v in state["callbacks"].items() if "TrainClock" in k)
+    out = method_summary({**metrics, "train_s": clock["seconds"],
+                          "steps": int(state["global_step"])})
+    out.update(max_steps=steps, clock_csv=str((run_dir / "clock.csv").relative_to(ROOT)))
+    early = run_dir / f"at_{mark:g}s.ckpt"
+    if early.exists():
+        e = torch.load(early, map_location="cpu", weights_only=True)
+        m = score_checkpoint(cfg, early, run_dir / f"meshes_at_{mark:g}s")
+        ec = next(v for k, v in e["callbacks"].items() if "TrainClock" in k)
+        out["at_ngc_time"] = method_summary({**m, "train_s": ec["seconds"],
+                                             "steps": int(e["global_step"])})
+    return out
 
 
 def prefilter_check(checkpoint: str, resolution: int) -> dict:
@@ -71,7 +146,7 @@ def prefilter_check(checkpoint: str, resolution: int) -> dict:
     return out
 
 
-def picture(res: dict, path: Path, max_shapes: int = 4) -> None:
+def picture(res: dict, path: Path, run_root: Path, max_shapes: int = 4) -> None:
     """bench/results/fit.png: per shape, ground truth beside each method's mesh."""
     import trimesh
 
@@ -83,24 +158,40 @@ def picture(res: dict, path: Path, max_shapes: int = 4) -> None:
     for shape in res["shapes"][:max_shapes]:
         prep = load_prepared(ROOT / ".cache/prepared/fitbench" / f"{shape}.npz")
         row = [trimesh.Trimesh(prep.mesh_vertices, prep.mesh_faces, process=False)]
-        row += [trimesh.load(ROOT / "bench/runs/fit" / m / "meshes" / f"{shape}.ply", process=False)
+        row += [trimesh.load(run_root / m / "meshes" / f"{shape}.ply", process=False)
+                if (run_root / m / "meshes" / f"{shape}.ply").exists() else None
                 for m in methods]
         rows.append(row)
     render_grid(rows, path, labels=res["shapes"][:max_shapes],
                 col_titles=["ground truth"] + [LABELS[m] for m in methods], cell=(300, 240))
 
 
+def gt_fragments(res: dict):
+    counts = {m.get("gt_fragments") for m in res["methods"].values()} - {None}
+    return counts.pop() if len(counts) == 1 else "-"
+
+
 LABELS = {"ngc": "NGC, multi-GC", "ngc_1gc": "NGC, one GC", "deepsdf": "DeepSDF"}
 
 
 def markdown(res: dict) -> str:
-    lines = ["| method | CD (x1e-4) | HD | EMD | train time (s) |", "|---|---|---|---|---|"]
+    lines = ["| method | CD (x1e-4) | HD | EMD | NC | F@0.01 | fragments | train time (s) |",
+             "|---|---|---|---|---|---|---|---|"]
     for name, label in LABELS.items():
         if name not in res["methods"]:
             continue
         m = res["methods"][name]
         lines.append(f"| {label} | {m['cd'] * 1e4:.2f} | {m['hd']:.4f} | {m['emd']:.4f} | "
-                     f"{m['train_s']:.0f} |")
+                     f"{m.get('nc', float('nan')):.3f} | {m.get('fscore', float('nan')):.3f} | "
+                     f"{m.get('fragments', '-')} | {m['train_s']:.0f} |")
+    long = res.get("deepsdf_long")
+    if long:
+        for label, m in ((f"DeepSDF, own recipe, at NGC's time", long.get("at_ngc_time")),
+                         (f"DeepSDF, own recipe, {long['steps']} steps", long)):
+            if m:
+                lines.append(f"| {label} | {m['cd'] * 1e4:.2f} | {m['hd']:.4f} | "
+                             f"{m['emd']:.4f} | {m['nc']:.3f} | {m['fscore']:.3f} | "
+                             f"{m['fragments']} | {m['train_s']:.0f} |")
     r = (res["methods"]["ngc"]["cd"] / res["methods"]["deepsdf"]["cd"]
          if {"ngc", "deepsdf"} <= set(res["methods"]) else float("nan"))
     lines.append("")
@@ -109,8 +200,28 @@ def markdown(res: dict) -> str:
                  f"(~47k parameters each), meshes at {res['resolution']}^3. NGC CD / DeepSDF CD "
                  f"= {r:.2f} (paper: 0.53). CD: 30k points each way, squared distances, means "
                  f"summed (DeepSDF); HD: symmetric Hausdorff; EMD: exact assignment on 2048 "
-                 f"points, mean distance.")
+                 f"points, mean distance; NC: normal consistency; F@0.01: F-score at 0.01; "
+                 f"fragments: connected components under 1% of the faces, summed over the "
+                 f"shapes (ground truth: {gt_fragments(res)}).")
+    if long and "ngc" in res["methods"]:
+        lines.append("")
+        lines.append(f"DeepSDF, own recipe: 8 x 512, latent skip at 4, clamp 0.1, lr 5e-4 "
+                     f"(codes 1e-3) halved every quarter of {long['max_steps']} steps, same "
+                     f"batch; stopped at step {long['steps']}. NGC CD / its CD = "
+                     f"{res['methods']['ngc']['cd'] / long['cd']:.2f} (paper: 0.53).")
+
     return "\n".join(lines) + "\n"
+
+
+def method_summary(metrics: dict) -> dict:
+    """A fit run's metrics.json -> the bench's numbers of one method."""
+    mean, per = metrics["mean"], metrics["shapes"].values()
+    out = {k: mean[k] for k in ("cd", "hd", "emd")}
+    out.update(nc=mean["normal_consistency"], fscore=mean["fscore"],
+               fragments=int(sum(p["fragments"] for p in per)),
+               gt_fragments=int(sum(p["gt_fragments"] for p in per)),
+               train_s=metrics["train_s"], steps=metrics["steps"])
+    return out
 
 
 def main():
@@ -120,27 +231,52 @@ def main():
     ap.add_argument("--resolution", type=int, default=128)
     ap.add_argument("--check-resolution", type=int, default=64)
     ap.add_argument("--methods", nargs="+", default=list(METHODS))
+    ap.add_argument("--tag", default=None, help="screening: runs and results in bench/runs/fit/TAG")
+    ap.add_argument("--set", nargs="*", default=[], help="extra overrides for the NGC methods")
+    ap.add_argument("--limit", type=int, default=None, help="screening: only N creatures")
+    ap.add_argument("--threads", type=int, default=None,
+                    help="torch CPU threads (default: all cores; 1 is faster on a busy machine)")
+    ap.add_argument("--deepsdf-long", type=int, default=None, metavar="STEPS")
+    ap.add_argument("--score-only", action="store_true", help="--deepsdf-long: score, no training")
     args = ap.parse_args()
-    old = ROOT / "bench/results/fit.json"
+    if args.threads:
+        import torch
+
+        torch.set_num_threads(args.threads)
+    out = ROOT / "bench/results" if args.tag is None else ROOT / "bench/runs/fit" / args.tag
+    run_root = ROOT / "bench/runs/fit" if args.tag is None else out
+    old = out / "fit.json"
     res = {"methods": {}, "per_shape": {}}
-    if set(args.methods) != set(METHODS) and old.exists():  # rerun some methods, keep the rest
-        res = json.loads(old.read_text())
-    res.update(steps=args.steps, batch_size=args.batch_size, resolution=args.resolution)
+    if (set(args.methods) != set(METHODS) or args.deepsdf_long) and old.exists():
+        res = json.loads(old.read_text())  # rerun some methods, keep the rest
+    if args.deepsdf_long:
+        load0 = os.getloadavg()
+        res["deepsdf_long"] = deepsdf_long(args.deepsdf_long, args.resolution, args.batch_size,
+                                           res["methods"]["ngc"]["train_s"], args.score_only)
+        res["deepsdf_long"]["load"] = [round(x, 2) for x in load0 + os.getloadavg()]
+        args.methods = []
+    else:
+        res.update(steps=args.steps, batch_size=args.batch_size, resolution=args.resolution,
+                   threads=args.threads)
     for method in args.methods:
-        metrics = run(method, args.steps, args.resolution, args.batch_size)
-        res["methods"][method] = {k: metrics["mean"][k] for k in ("cd", "hd", "emd")}
-        res["methods"][method]["train_s"] = metrics["train_s"]
+        extra = list(args.set) if method.startswith("ngc") else []
+        if args.limit:  # fitbench_1gc wraps fitbench as `base`
+            extra.append(f"data.{'base.' * (method == 'ngc_1gc')}parts.1.limit={args.limit}")
+        load0 = os.getloadavg()
+        metrics = run(method, args.steps, args.resolution, args.batch_size, run_root, extra)
+        res["methods"][method] = method_summary(metrics)
+        res["methods"][method]["load"] = [round(x, 2) for x in load0 + os.getloadavg()]
+        res["methods"][method]["overrides"] = extra
         res["per_shape"][method] = metrics["shapes"]
         res["shapes"] = list(metrics["shapes"])
-        if method == "ngc":
+        if method == "ngc" and args.tag is None:
             res["prefilter"] = prefilter_check(metrics["checkpoint"], args.check_resolution)
-    out = ROOT / "bench/results"
     out.mkdir(parents=True, exist_ok=True)
     for name, text in (("fit.json", json.dumps(res, indent=2)), ("fit.md", markdown(res))):
         tmp = out / (name + ".tmp")
         tmp.write_text(text)
         os.replace(tmp, out / name)
-    picture(res, out / "fit.png")
+    picture(res, out / "fit.png", run_root)
     print(markdown(res))
     if "prefilter" in res:
         p = res["prefilter"]

@@ -116,14 +116,16 @@ def render_comparison(gt: dict, run_dir: Path, gcs: dict | None = None, up="auto
 
 
 def print_metrics(metrics: dict) -> None:
-    cols = ("cd", "hd", "emd", "cd_l1", "fscore", "normal_consistency", "watertight")
+    cols = ("cd", "hd", "emd", "cd_l1", "fscore", "normal_consistency", "fragments",
+            "watertight")
     w = {c: max(12, len(c) + 2) for c in cols}
     print(f"\n{'shape':20s}" + "".join(f"{c:>{w[c]}s}" for c in cols))
     for name, m in {**metrics["shapes"], "mean": metrics["mean"]}.items():
         vals = "".join(f"{m.get(c, float('nan')):{w[c]}.3g}" for c in cols[:-1])
         print(f"{name:20s}{vals}{str(m.get('watertight', '')):>12s}")
     print("cd: DeepSDF Chamfer (30k points each way, squared, summed means); hd: Hausdorff; "
-          "emd: exact assignment on 2048 points; fscore@0.01")
+          "emd: exact assignment on 2048 points; fscore@0.01; fragments: components under 1% "
+          "of the faces")
 
 
 def reconstruct(module, out_dir: Path, gt: dict, resolution: int = 256, bound: float = 1.0,

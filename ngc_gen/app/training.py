@@ -166,6 +166,49 @@ class StartStep(Callback):
         self.step = int(trainer.global_step)
 
 
+class TrainClock(Callback):
+    """Training wall time summed over resumed segments (it travels in the checkpoints), a row
+    (step, seconds, loss) every `every` steps in <dirpath>/clock.csv, and a checkpoint
+    <dirpath>/at_<s>s.ckpt the first time the total passes each of `marks` seconds: a long run
+    can be scored at the wall time of a shorter one."""
+
+    def __init__(self, dirpath: str, marks=(), every: int = 25, metric: str = "train/loss"):
+        self.dirpath, self.marks = Path(dirpath), sorted(float(m) for m in marks)
+        self.every, self.metric = max(1, int(every)), metric
+        self.base, self.done = 0.0, []
+        self._t0 = None
+
+    @property
+    def seconds(self) -> float:
+        return self.base + (time.perf_counter() - self._t0 if self._t0 is not None else 0.0)
+
+    def state_dict(self) -> dict:
+        return {"seconds": self.seconds, "done": list(self.done)}
+
+    def load_state_dict(self, state: dict) -> None:
+        self.base, self.done = float(state["seconds"]), list(state["done"])
+
+    def on_train_start(self, trainer, pl_module) -> None:
+        self._t0 = time.perf_counter()
+
+    def on_train_end(self, trainer, pl_module) -> None:
+        self.base, self._t0 = self.seconds, None
+
+    def on_train_batch_end(self, trainer, pl_module, outputs, batch, batch_idx) -> None:
+        if not trainer.is_global_zero:
+            return
+        step, t = int(trainer.global_step), self.seconds
+        if step % self.every == 0:
+            loss = trainer.callback_metrics.get(self.metric)
+            self.dirpath.mkdir(parents=True, exist_ok=True)
+            with open(self.dirpath / "clock.csv", "a") as f:
+                f.write(f"{step},{t:.2f},{float(loss) if loss is not None else float('nan'):.6g}\n")
+        for m in self.marks:
+            if t >= m and m not in self.done:
+                self.done.append(m)
+                trainer.save_checkpoint(self.dirpath / f"at_{m:g}s.ckpt")
+
+
 def build_trainer(cfg: DictConfig, run_dir: Path, extra_callbacks=(), resume_step: int = 0):
     """The Lightning trainer of `cfg.trainer` with `cfg.callbacks` and `cfg.logger`;
     checkpoints are written atomically, and a resumed run's CSV log keeps its earlier rows."""

@@ -19,6 +19,9 @@ Conventions (distances in the meshes' own units, i.e. the normalised frame of th
   ``cd`` between two samplings of one surface is not 0 (~1e-4 at 30k points, and one face more
   or less moves every later sample), ``mesh_chamfer`` of equal surfaces is 0. It compares two
   extractions of one field (sparse vs reference), not a reconstruction with its ground truth.
+- ``fragments`` / ``gt_fragments``: connected components (faces joined through shared vertices,
+  coincident vertices merged) with fewer than ``fragment_fraction`` (default 1%) of the mesh's
+  faces: the stray bits a fit leaves that the distances average away.
 
 Both meshes are sampled with the same seed (see ``sampling``), so all numbers are deterministic.
 """
@@ -168,14 +171,33 @@ def mesh_chamfer(a: trimesh.Trimesh, b: trimesh.Trimesh, n: int = 30_000, seed: 
     return total
 
 
+def component_sizes(mesh: trimesh.Trimesh) -> np.ndarray:
+    """Face count of each connected component (faces joined through shared vertices; vertices at
+    the same position count as one, so an unmerged triangle soup is not split), largest first."""
+    faces = np.asarray(mesh.faces, dtype=np.int64)
+    if len(faces) == 0:
+        return np.zeros(0, dtype=np.int64)
+    _, vid = np.unique(np.asarray(mesh.vertices), axis=0, return_inverse=True)
+    f = vid.reshape(-1)[faces]
+    edges = np.concatenate([f[:, [0, 1]], f[:, [1, 2]]])
+    labels = trimesh.graph.connected_component_labels(edges, node_count=int(vid.max()) + 1)
+    return np.sort(np.bincount(labels[f[:, 0]]))[::-1]
+
+
+def fragments(mesh: trimesh.Trimesh, fraction: float = 0.01) -> int:
+    """Number of connected components with fewer than `fraction` of the mesh's faces."""
+    sizes = component_sizes(mesh)
+    return int((sizes < fraction * sizes.sum()).sum())
+
+
 def reconstruction_metrics(pred_mesh: trimesh.Trimesh, gt_mesh: trimesh.Trimesh, seed: int = 0,
                            n_chamfer: int = 30_000, n_emd: int = 2048,
-                           fscore_tau: float = 0.01) -> dict:
+                           fscore_tau: float = 0.01, fragment_fraction: float = 0.01) -> dict:
     """All fitting metrics of pred_mesh against gt_mesh (conventions in the module docstring).
 
-    Keys: cd, hd, emd, cd_l1, fscore, normal_consistency (pred vs gt), volume, area, watertight
-    (pred), gt_volume, gt_area, gt_watertight, empty. Volumes are trimesh's ``mesh.volume`` and are
-    meaningful only when the mesh is watertight (see the ``watertight`` flags).
+    Keys: cd, hd, emd, cd_l1, fscore, normal_consistency (pred vs gt), volume, area, watertight,
+    fragments (pred), gt_volume, gt_area, gt_watertight, gt_fragments, empty. Volumes are
+    trimesh's ``mesh.volume`` and are meaningful only when the mesh is watertight (see the ``watertight`` flags).
     An empty prediction (no faces / zero area) does not raise: distances are inf,
     fscore 0.0, normal_consistency nan, volume and area 0.0, and ``empty`` is True.
     An empty ground truth raises ValueError. Plain Python floats throughout.
@@ -183,11 +205,12 @@ def reconstruction_metrics(pred_mesh: trimesh.Trimesh, gt_mesh: trimesh.Trimesh,
     if is_empty(gt_mesh):
         raise ValueError("ground-truth mesh is empty (no faces or zero area)")
     out = {"gt_volume": float(gt_mesh.volume), "gt_area": float(gt_mesh.area),
-           "gt_watertight": bool(gt_mesh.is_watertight)}
+           "gt_watertight": bool(gt_mesh.is_watertight),
+           "gt_fragments": fragments(gt_mesh, fragment_fraction)}
     if is_empty(pred_mesh):
         inf = math.inf
         out.update(cd=inf, hd=inf, emd=inf, cd_l1=inf, fscore=0.0, normal_consistency=math.nan,
-                   volume=0.0, area=0.0, watertight=False, empty=True)
+                   volume=0.0, area=0.0, watertight=False, fragments=0, empty=True)
         return out
     p, pn = sample_surface(pred_mesh, n_chamfer, seed)
     g, gn = sample_surface(gt_mesh, n_chamfer, seed)
@@ -203,6 +226,7 @@ def reconstruction_metrics(pred_mesh: trimesh.Trimesh, gt_mesh: trimesh.Trimesh,
         normal_consistency=float(0.5 * (np.abs(np.einsum("nd,nd->n", pn, gn[i_pg])).mean()
                                         + np.abs(np.einsum("nd,nd->n", gn, pn[i_gp])).mean())),
         volume=float(pred_mesh.volume), area=float(pred_mesh.area),
-        watertight=bool(pred_mesh.is_watertight), empty=False,
+        watertight=bool(pred_mesh.is_watertight),
+        fragments=fragments(pred_mesh, fragment_fraction), empty=False,
     )
     return out

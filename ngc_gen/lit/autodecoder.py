@@ -3,7 +3,8 @@
 loss = mean |F(z_id, x) - sdf| (optionally both clamped to +-clamp) + code_reg * mean ||z||^2
 (paper: 1e-4). Phase two (paper): from `codes_only_from` x max_steps the decoder's learning
 rate is zero and only the codes move (an lr switch rather than requires_grad, so it is
-resume- and DDP-safe).
+resume- and DDP-safe). An optional `scheduler` (ngc_gen.lit.schedules, `_partial_: true`)
+scales both learning rates per step (DeepSDF: halved at fixed intervals).
 """
 from __future__ import annotations
 
@@ -19,19 +20,22 @@ CHECKPOINT_KIND = "ngc_gen.autodecoder"
 class AutoDecoder(L.LightningModule):
     """`decoder`: an NGCDecoder or DeepSDFDecoder (built from conf/model's `_target_`), or its
     sizes with `kind` (a checkpoint's record: hparams keep kind and sizes); `optimizer`: a
-    partial optimiser (Adam if None) given [decoder group, codes group]. Defaults are those of
+    partial optimiser (Adam if None) given [decoder group, codes group]; `scheduler`: a partial
+    LR scheduler given (optimizer, total_steps=trainer.max_steps), or None (constant learning
+    rates). Defaults are those of
     conf/model/small.yaml, the default `model` (tests/app/test_config.py keeps them equal)."""
 
     def __init__(self, decoder: nn.Module | dict, n_codes: int, kind: str | None = None,
                  lr: float = 1e-3, code_lr: float = 1e-3, code_reg: float = 1e-4,
                  clamp: float | None = None, codes_only_from: float = 0.8,
-                 code_init_std: float = 0.01, optimizer=None, meta: dict | None = None,
-                 checkpoint_kind: str = CHECKPOINT_KIND):
+                 code_init_std: float = 0.01, optimizer=None, scheduler=None,
+                 meta: dict | None = None, checkpoint_kind: str = CHECKPOINT_KIND):
         super().__init__()
-        self.save_hyperparameters(ignore=["decoder", "optimizer"])
+        self.save_hyperparameters(ignore=["decoder", "optimizer", "scheduler"])
         self.decoder, kind = decoder_and_kind(decoder, kind)
         self.hparams.update(kind=kind, decoder=dict(self.decoder.config))
         self.make_optimizer = optimizer_factory(optimizer)
+        self.make_scheduler = scheduler
         self.codes = nn.Embedding(n_codes, self.decoder.code_dim)
         nn.init.normal_(self.codes.weight, 0.0, code_init_std)
 
@@ -48,8 +52,13 @@ class AutoDecoder(L.LightningModule):
             dm.set_epoch(self.current_epoch)
 
     def on_train_batch_start(self, batch, batch_idx) -> None:
+        """Phase two: the decoder's lr is 0 for this step (a scheduler, stepped after each
+        optimizer step, sets its own value again; without one the lr is the constant lr)."""
         opt = self.optimizers(use_pl_optimizer=False)
-        opt.param_groups[0]["lr"] = 0.0 if self.codes_only() else self.hparams.lr
+        if self.codes_only():
+            opt.param_groups[0]["lr"] = 0.0
+        elif self.make_scheduler is None:
+            opt.param_groups[0]["lr"] = self.hparams.lr
 
     def training_step(self, batch, batch_idx):
         ids, coords, target = batch
@@ -69,7 +78,11 @@ class AutoDecoder(L.LightningModule):
         return self.hparams.kind
 
     def configure_optimizers(self):
-        return self.make_optimizer([
+        opt = self.make_optimizer([
             {"params": self.decoder.parameters(), "lr": self.hparams.lr},
             {"params": self.codes.parameters(), "lr": self.hparams.code_lr},
         ])
+        if self.make_scheduler is None:
+            return opt
+        sched = self.make_scheduler(opt, total_steps=max(1, self.trainer.max_steps))
+        return {"optimizer": opt, "lr_scheduler": {"scheduler": sched, "interval": "step"}}

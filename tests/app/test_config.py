@@ -85,11 +85,12 @@ def assert_module_carries(module, node: dict, runner: tuple = ()) -> None:
         if k.startswith("_") or k in runner:
             continue
         if isinstance(v, dict) and "_target_" in v:
-            built = getattr(module, {"optimizer": "make_optimizer"}.get(k, k), None)
+            built = getattr(module, {"optimizer": "make_optimizer",
+                                      "scheduler": "make_scheduler"}.get(k, k), None)
             sizes = {kk: vv for kk, vv in v.items() if not kk.startswith("_")}
             if v.get("_partial_"):  # a factory: the recorded keyword arguments are the YAML's
                 cls = hydra.utils.get_class(v["_target_"])
-                if k == "optimizer":
+                if k in ("optimizer", "scheduler"):
                     assert built.func is cls and plain(built.keywords) == plain(sizes), k
                 else:
                     assert module.hparams[k] == sizes, k
@@ -97,6 +98,8 @@ def assert_module_carries(module, node: dict, runner: tuple = ()) -> None:
                 net = built if built is not None else getattr(module, "ngc")
                 assert type(net) is hydra.utils.get_class(v["_target_"]), k
                 assert net.config == sizes and module.hparams[k] == sizes, k
+        elif k == "scheduler":  # null: constant learning rates
+            assert v is None and module.make_scheduler is None
         else:
             assert module.hparams[k] == v, (k, module.hparams[k], v)
 
@@ -116,6 +119,19 @@ def test_every_option_builds_with_the_yaml_values(group, option, tmp_path):
         module = instantiate_group(cfg.model, n_codes=3, meta={"shapes": []})
         assert module.codes.weight.shape[0] == 3
         assert_module_carries(module, node)
+        if node.get("scheduler"):  # the scheduler the run steps: the YAML's values, its lr factors
+            opt = module.make_optimizer([{"params": module.decoder.parameters(), "lr": 1.0},
+                                         {"params": module.codes.parameters(), "lr": 2.0}])
+            sched = module.make_scheduler(opt, total_steps=100)
+            assert_carries(sched, {"total_steps": 100, **node["scheduler"]}, f"model={option}")
+            lrs = []
+            for _ in range(100):
+                lrs.append([g["lr"] for g in opt.param_groups])
+                opt.step()
+                sched.step()
+            if option == "deepsdf":  # halved every quarter of the steps, both groups
+                assert lrs[0] == [1.0, 2.0] and lrs[24] == [1.0, 2.0] and lrs[25] == [0.5, 1.0]
+                assert lrs[99] == [0.125, 0.25]
     elif group == "shape_latent":
         module = instantiate_group(cfg.shape_latent, RUNNER_KEYS[group], n_shapes=2,
                                    template=tiny_template(), meta={})

@@ -156,3 +156,21 @@ def test_mesh_chamfer_is_zero_for_one_surface_and_sees_real_differences(sphere):
     bigger = sphere.copy()
     bigger.vertices *= 1.01                               # 0.01 apart: 2 x 1e-4 summed
     assert mesh_chamfer(bigger, sphere) == pytest.approx(2e-4, rel=0.05)
+
+
+def test_fragments_count_small_components_only(sphere):
+    from ngc_gen.eval import component_sizes, fragments
+
+    speck = trimesh.creation.icosphere(subdivisions=0, radius=0.01)  # 20 faces, under 1% of the 10300
+    twin = sphere.copy().apply_translation([3, 0, 0])
+    parts = [sphere, twin] + [speck.copy().apply_translation([0, 0, 2 + i]) for i in range(3)]
+    mesh = trimesh.util.concatenate(parts)
+    assert list(component_sizes(mesh)) == [len(sphere.faces)] * 2 + [20] * 3
+    assert fragments(mesh) == 3 and fragments(mesh, fraction=0.001) == 0
+    assert fragments(trimesh.util.concatenate([sphere, twin])) == 0  # two big parts are no bits
+    # a triangle soup (every face with its own vertices) is one piece, not one per face
+    soup = trimesh.Trimesh(sphere.vertices[sphere.faces].reshape(-1, 3),
+                           np.arange(3 * len(sphere.faces)).reshape(-1, 3), process=False)
+    assert fragments(soup) == 0 and list(component_sizes(soup)) == [len(sphere.faces)]
+    m = reconstruction_metrics(mesh, sphere, seed=0, n_chamfer=2000, n_emd=64)
+    assert m["fragments"] == 3 and m["gt_fragments"] == 0
