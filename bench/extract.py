@@ -12,12 +12,19 @@ absent). Per shape and resolution R (grid over [-1, 1]^3):
 - prefiltered: the network at the grid points inside each GC (the previous default path).
 - sparse: the default multi-level path (`ngc_gen.extract`), timed after a warm-up run.
 - cd_sparse_vs_prefiltered: Chamfer distance between the two meshes, DeepSDF convention (30k
-  surface samples each way, squared distances, mean each way, summed).
+  surface samples each way, squared, mean each way, summed) against the other mesh's surface
+  (`ngc_gen.eval.mesh_chamfer`: 0 for equal surfaces); cd_deepsdf_samples the same with the
+  other mesh's samples, whose noise moves with every face (cd_deepsdf_noise_floor: two
+  samplings of the prefiltered mesh, seeds 0 and 1); faces_differing: faces of either mesh
+  the other lacks.
 - incremental_s / incremental_evals: a FieldCache re-extraction after one GC changed (a leg's
   radii, or the bar's, scaled by 1.1), against full_after_edit_s from scratch (resolutions up
   to --incremental-max-resolution).
-Wall times with --threads torch (and numba) threads; the 1-minute load average at start and end
-is recorded, since the machine may be shared. Writes bench/results/extract.json
+Wall times with --threads torch (and numba) threads, sparse also in CPU seconds of the process
+(sparse_cpu_s); the 1-minute load average at start and end and at each sparse timing is
+recorded, since the machine may be shared. decoder: the network's rows per second on random
+rows (wall with --threads, and per CPU second with one thread) in the same run, so
+sparse_network_floor_s = sparse_evals / rows per second is what the evaluations alone cost. Writes bench/results/extract.json
 ({machine, settings, cases: [{shape, resolution, dense_evals, prefiltered_evals, sparse_evals,
 dense_s, prefiltered_s, sparse_s, cd_sparse_vs_prefiltered, ...}], targets}).
 """
@@ -43,11 +50,47 @@ EDITED_GC = {"bar": "bar", "creature": "leg_fl", "ant": "leg_l1"}
 TARGET_R = 256
 
 
-def chamfer(a, b, n: int = 30000, seed: int = 0) -> float:
+def chamfer(a, b, n: int = 30000, seed: int = 0, seed_b: int | None = None) -> float:
     from ngc_gen.eval.fitting import chamfer as cd
     from ngc_gen.eval.sampling import sample_surface
 
-    return float(cd(sample_surface(a, n, seed)[0], sample_surface(b, n, seed)[0]))
+    return float(cd(sample_surface(a, n, seed)[0],
+                    sample_surface(b, n, seed if seed_b is None else seed_b)[0]))
+
+
+def faces_differing(a, b) -> int:
+    """Faces (as their three vertex positions) of either mesh that the other lacks."""
+    def keys(m):
+        v = np.ascontiguousarray(m.vertices[m.faces].reshape(len(m.faces), 9))
+        return v.view(np.dtype((np.void, 72))).ravel()
+    ka, kb = keys(a), keys(b)
+    return int((~np.isin(ka, kb)).sum() + (~np.isin(kb, ka)).sum())
+
+
+def decoder_rate(module, threads: int, n: int = 200_000) -> dict:
+    """Rows per second of NGCDecoder.sdf_rows on random rows of 10 GCs, in 65536-row calls
+    (the extractor's chunk): wall with `threads` threads, CPU seconds with one."""
+    import torch
+
+    dec, codes = module.decoder, module.codes.weight[:10].detach()
+    g = torch.randint(0, len(codes), (n,), generator=torch.Generator().manual_seed(0))
+    rel = torch.rand(n, 3, generator=torch.Generator().manual_seed(1)) * 2 - 1
+    out = {}
+    for key, th, clock in (("rows_per_s_wall", threads, time.perf_counter),
+                           ("rows_per_cpu_s_1_thread", 1, time.process_time)):
+        torch.set_num_threads(th)
+        with torch.inference_mode():
+            dec.sdf_rows(codes, g[:65536], rel[:65536])
+            best = float("inf")
+            for _ in range(3):
+                t0 = clock()
+                for s in range(0, n, 65536):
+                    dec.sdf_rows(codes, g[s:s + 65536], rel[s:s + 65536])
+                best = min(best, clock() - t0)
+        out[key] = n / best
+    torch.set_num_threads(threads)
+    out["load_avg_1min"] = os.getloadavg()[0]
+    return out
 
 
 def timed(fn):
@@ -68,7 +111,8 @@ def scaled(gc, factor: float):
 
 
 def run_shape(label: str, module, resolutions, dense_max_evals: float, rate_resolution: int,
-              incremental_max: int) -> list[dict]:
+              incremental_max: int, decoder: dict, repeats: int) -> list[dict]:
+    from ngc_gen.eval import mesh_chamfer
     from ngc_gen.extract import FieldCache, extract_mesh
     from ngc_gen.shape import Shape, recorded_gcs
 
@@ -97,18 +141,35 @@ def run_shape(label: str, module, resolutions, dense_max_evals: float, rate_reso
         pre, s = timed(lambda: extract_mesh(gcs, fn, R, method="prefiltered"))
         case.update(prefiltered_evals=pre.stats["n_network_evals"], prefiltered_s=s)
         extract_mesh(gcs, fn, R)                                           # warm-up
-        sp, s = timed(lambda: extract_mesh(gcs, fn, R))
+        runs = []
+        for _ in range(repeats):        # best of `repeats`: the machine may be shared
+            load = os.getloadavg()[0]
+            c0 = time.process_time()
+            sp, s = timed(lambda: extract_mesh(gcs, fn, R))
+            runs.append((s, time.process_time() - c0, load, sp))
+        s, cpu, load, sp = min(runs, key=lambda r: r[0])
         st = sp.stats
-        case.update(sparse_evals=st["n_network_evals"], sparse_s=s,
+        other = s - st["seconds_network"] - st["seconds_geometry"] - st["seconds_marching"]
+        case.update(sparse_evals=st["n_network_evals"], sparse_s=s, sparse_cpu_s=cpu,
+                    sparse_load_avg_1min=load,
                     sparse_seconds_network=st["seconds_network"],
                     sparse_seconds_geometry=st["seconds_geometry"],
                     sparse_seconds_marching=st["seconds_marching"],
+                    sparse_seconds_other=other,
+                    sparse_seconds_completion=st["seconds_completion"],
+                    sparse_seconds_repair=st["seconds_repair"],
+                    sparse_relative=st["n_relative"],
+                    sparse_network_floor_s=st["n_network_evals"] / decoder["rows_per_s_wall"],
                     sparse_levels=st["levels"], sparse_repair_rounds=st["repair_rounds"],
+                    sparse_completion_evals=st["completion_network_evals"],
                     sparse_active_cells=st["n_active_cells"],
                     faces_sparse=len(sp.mesh.faces), faces_prefiltered=len(pre.mesh.faces),
+                    faces_differing=faces_differing(sp.mesh, pre.mesh),
                     identical_mesh=bool(np.array_equal(sp.mesh.vertices, pre.mesh.vertices)
                                         and np.array_equal(sp.mesh.faces, pre.mesh.faces)),
-                    cd_sparse_vs_prefiltered=chamfer(sp.mesh, pre.mesh))
+                    cd_sparse_vs_prefiltered=mesh_chamfer(sp.mesh, pre.mesh),
+                    cd_deepsdf_samples=chamfer(sp.mesh, pre.mesh),
+                    cd_deepsdf_noise_floor=chamfer(pre.mesh, pre.mesh, seed_b=1))
         case["sparse_over_dense_evals"] = case["sparse_evals"] / case["dense_evals"]
         cases.append(case)
         if R > incremental_max:
@@ -141,9 +202,13 @@ def print_case(case: dict) -> None:
           f"(1/{1 / case['sparse_over_dense_evals']:.0f} of dense) | s: dense "
           f"{case['dense_s'] if case['dense_s'] is not None else float('nan'):7.1f}"
           f"{'*' if case['dense_s_extrapolated'] else ' '} prefiltered "
-          f"{case['prefiltered_s']:6.2f} sparse {case['sparse_s']:6.2f} | CD "
-          f"{case['cd_sparse_vs_prefiltered']:.1e} identical {case['identical_mesh']} | "
-          f"{edit}", flush=True)
+          f"{case['prefiltered_s']:6.2f} sparse {case['sparse_s']:6.2f} (cpu "
+          f"{case['sparse_cpu_s']:.2f}, load {case['sparse_load_avg_1min']:.1f}; network "
+          f"{case['sparse_seconds_network']:.2f} geometry {case['sparse_seconds_geometry']:.2f} "
+          f"marching {case['sparse_seconds_marching']:.2f} other "
+          f"{case['sparse_seconds_other']:.2f}; evals alone {case['sparse_network_floor_s']:.2f})"
+          f" | CD {case['cd_sparse_vs_prefiltered']:.1e} ({case['faces_differing']} faces "
+          f"differ; identical {case['identical_mesh']}) | {edit}", flush=True)
 
 
 def main():
@@ -157,6 +222,7 @@ def main():
     ap.add_argument("--incremental-max-resolution", type=int, default=256)
     ap.add_argument("--threads", type=int, default=os.cpu_count() or 1)
     ap.add_argument("--steps", type=int, default=1500, help="fit steps (bench/deform.py's fit)")
+    ap.add_argument("--repeats", type=int, default=2, help="sparse timings per case (best kept)")
     ap.add_argument("--out", type=Path, default=ROOT / "bench/results/extract.json")
     args = ap.parse_args()
 
@@ -171,19 +237,28 @@ def main():
     load0 = os.getloadavg()[0]
     fit = fitted(args.steps, refit=False)
     module = load_autodecoder(fit["checkpoint"])
+    decoder = decoder_rate(module, args.threads)
+    print(f"decoder: {decoder['rows_per_s_wall']:,.0f} rows/s wall ({args.threads} threads), "
+          f"{decoder['rows_per_cpu_s_1_thread']:,.0f} rows per CPU second (1 thread), load "
+          f"{decoder['load_avg_1min']:.1f}", flush=True)
     cases = []
     for label in args.shapes:
         cases += run_shape(label, module, args.resolutions, args.dense_max_evals,
-                           args.dense_rate_resolution, args.incremental_max_resolution)
+                           args.dense_rate_resolution, args.incremental_max_resolution, decoder,
+                           args.repeats)
     at = {c["shape"]: c for c in cases if c["resolution"] == TARGET_R}
     res = {
         "machine": {"cpus": os.cpu_count(), "threads": args.threads,
+                    "omp_wait_policy": os.environ.get("OMP_WAIT_POLICY"),
                     "python": platform.python_version(), "torch": torch.__version__,
                     "load_avg_1min_at_start": load0, "load_avg_1min_at_end": os.getloadavg()[0]},
+        "decoder": decoder,
         "settings": {"bound": 1.0, "checkpoint": fit["checkpoint"], "fit_steps": fit["steps"],
                      "sparse": dataclasses.asdict(SparseSettings()),
-                     "dense_max_evals": args.dense_max_evals,
-                     "chamfer": "DeepSDF: 30k samples each way, squared, means summed",
+                     "dense_max_evals": args.dense_max_evals, "repeats": args.repeats,
+                     "chamfer": "DeepSDF convention (30k samples each way, squared, means "
+                                "summed) against the other mesh's surface (mesh_chamfer); "
+                                "cd_deepsdf_samples: against its samples",
                      "dense_s_extrapolated": "dense_s = measured seconds per evaluation of the "
                                              "same shape x dense_evals"},
         "cases": cases,
@@ -191,6 +266,9 @@ def main():
                     "sparse_evals_le_dense_over_30": {k: c["sparse_evals"] * 30 <= c["dense_evals"]
                                                       for k, c in at.items()},
                     "cd_lt_1e-6": {k: c["cd_sparse_vs_prefiltered"] < 1e-6 for k, c in at.items()},
+                    "cd_lt_1e-6_at_128_and_256": {
+                        f"{c['shape']}@{c['resolution']}": c["cd_sparse_vs_prefiltered"] < 1e-6
+                        for c in cases if c["resolution"] in (128, 256)},
                     "creature_sparse_s_le_1": (at["creature"]["sparse_s"] <= 1.0
                                                if "creature" in at else None)},
     }

@@ -84,6 +84,7 @@ def bench_relcoords(n=1_000_000):
         gc.to_relative(q)
         walls.append(time.perf_counter() - t0)
     wall_all = min(walls)
+    load_wall = os.getloadavg()[0]
     torch.set_num_threads(1)
     qt = torch.from_numpy(q)
     base = best_of(lambda: polyline_relative(gc, qt), repeats=1)
@@ -98,6 +99,7 @@ def bench_relcoords(n=1_000_000):
                                         .numpy()) - inside).max())
     return {"relcoords_points_per_s": n / ours, "relcoords_s_per_1M": ours,
             "relcoords_points_per_s_wall_all_cores": n / wall_all,
+            "load_avg_1min_at_wall_timing": load_wall,
             "polyline_points_per_s": n / base, "speedup_vs_polyline": base / ours,
             "roundtrip_err_newton": err_ours, "roundtrip_err_newton_float32": err_32,
             "roundtrip_err_polyline": err_poly}
@@ -137,6 +139,7 @@ def _time_prepare(shapes, settings, prepare_shape):
 def main():
     torch.set_num_threads(1)  # one thread, CPU seconds: robust to other jobs on the machine
     res = {"machine": {"cpus": os.cpu_count(), "torch_threads": torch.get_num_threads(),
+                       "omp_wait_policy": os.environ.get("OMP_WAIT_POLICY"),
                        "python": platform.python_version(), "torch": torch.__version__,
                        "load_avg_1min_at_start": os.getloadavg()[0]}}
     res.update(bench_relcoords())

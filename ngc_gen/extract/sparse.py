@@ -13,12 +13,19 @@ of blocks to single cells, keeping a block while it may hold a boundary point of
   values of f_i reach the band [-cD, tau_i + cD] (D the block diagonal, c the Lipschitz margin:
   a learned SDF is only roughly 1-Lipschitz), or some corner has f_i <= tau_i + cD while the
   GC's own boundary may cross the block (a corner outside it, or a corner within cD of it by
-  the estimate (1 - sqrt(measure)) r_min);
-* at single cells the test is exact: a corner in N_i and a corner outside it.
+  the estimate (1 - sqrt(measure)) r_min); with all eight corners known, the band is cD / 2
+  when every corner agrees (each point of a block is within D / 2 of its nearest corner);
+* a block some GC j rules out as deep (inside GC j with f_j < 0 throughout) is dropped for
+  every GC: the field, a minimum or smooth minimum never above f_j, is negative there;
+* the last level (cells) is exact: a corner in N_i and a corner outside it. Its new points are
+  first settled from the corners of their block of side 2 where all of those corners agree
+  (`finest_cells`, `settle`); only what is left is evaluated.
 
 The cells kept by any GC are the active cells; F is completed at their corners with every GC
 that contains them (values a GC's own refinement did not visit) and folded in GC order, so the
-values equal those of the dense path, and `cells_mesh` gives the same triangles.
+values equal those of the dense path, and `cells_mesh` gives the same triangles. Where a fitted
+field is steeper than the margin a piece can be dropped; `close_surface` regrows every surface
+component refinement touched, and only isolated pieces (single-voxel floaters) can be missed.
 
 Point keys: index (i, j, k) on a lattice padded past R - 1 (coarse blocks may reach beyond the
 grid; their outer corners are ordinary points past the bound) -> (i Q + j) Q + k, Q = 2R.
