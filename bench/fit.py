@@ -286,9 +286,12 @@ def main():
     if args.deepsdf_long:
         load0 = os.getloadavg()
         ngc_s = res["methods"].get("ngc", {}).get("train_s", 42.0)
-        res["deepsdf_long"] = deepsdf_long(args.deepsdf_long, args.resolution, args.batch_size,
-                                           ngc_s, run_root, args.score_only)
-        res["deepsdf_long"]["load"] = [round(x, 2) for x in load0 + os.getloadavg()]
+        long = deepsdf_long(args.deepsdf_long, args.resolution, args.batch_size, ngc_s, run_root,
+                            args.score_only)
+        long["load"] = [round(x, 2) for x in load0 + os.getloadavg()]
+        if old.exists():  # the other methods may have been rerun meanwhile (a long run)
+            res = json.loads(old.read_text())
+        res["deepsdf_long"] = long
         args.methods = []
     else:
         res.update(steps=args.steps, batch_size=args.batch_size, resolution=args.resolution,
