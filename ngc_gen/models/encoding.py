@@ -8,7 +8,11 @@ from torch import nn
 class PositionalEncoding(nn.Module):
     """x (..., D) -> [x, sin(2^k pi x_d), cos(2^k pi x_d)]_{d<D, k<F_d}: D + 2 sum(F_d) dims (39 for
     D=3, F=6). `frequencies`: one count for every coordinate, or a count per coordinate (NGC:
-    [u, a, b], e.g. fewer bands along the axis than across it)."""
+    [u, a, b], e.g. fewer bands along the axis than across it).
+
+    `alpha` (coarse-to-fine training, BARF): band k is weighted by (1 - cos(pi clamp(alpha - k,
+    0, 1))) / 2, so only bands below alpha are on; None (the default, and after training) = all
+    bands at full weight."""
 
     def __init__(self, in_dim: int = 3, frequencies: int | list[int] = 6):
         super().__init__()
@@ -23,6 +27,7 @@ class PositionalEncoding(nn.Module):
         keep = torch.tensor([k < f for f in per for k in range(n)], dtype=torch.bool)
         self.register_buffer("keep", torch.nonzero(keep)[:, 0], persistent=False)
         self.select = not bool(keep.all())
+        self.alpha: float | None = None
 
     @property
     def out_dim(self) -> int:
@@ -34,4 +39,11 @@ class PositionalEncoding(nn.Module):
         xs = (x[..., None] * self.scales).flatten(-2)
         if self.select:
             xs = xs[..., self.keep]
-        return torch.cat([x, torch.sin(xs), torch.cos(xs)], -1)
+        s, c = torch.sin(xs), torch.cos(xs)
+        if self.alpha is not None:
+            k = torch.arange(len(self.scales), dtype=x.dtype, device=x.device)
+            w = 0.5 * (1 - torch.cos(math.pi * (self.alpha - k).clamp(0, 1)))
+            w = w.repeat(self.in_dim)
+            w = w[self.keep] if self.select else w
+            s, c = s * w, c * w
+        return torch.cat([x, s, c], -1)
