@@ -52,7 +52,8 @@ def run_fit(cfg: DictConfig) -> dict:
     run_dir = start_run(cfg)
     L.seed_everything(cfg.seed, workers=True, verbose=False)
     kind = model_kind(cfg)
-    dm = PreparedDataModule(prepared, mode=kind, batch_size=cfg.batch_size, seed=cfg.seed)
+    dm = PreparedDataModule(prepared, mode=kind, batch_size=cfg.batch_size, seed=cfg.seed,
+                            code_balance=cfg.code_balance)
     module = build_module(cfg, dm.n_codes, shapes_meta(prepared, kind))
     trainer, train_s, start_step = train(cfg, run_dir, module, datamodule=dm)
     if trainer.global_rank != 0:
@@ -129,9 +130,10 @@ def print_metrics(metrics: dict) -> None:
 
 
 def reconstruct(module, out_dir: Path, gt: dict, resolution: int = 256, bound: float = 1.0,
-                chunk: int = 65536, seed: int = 0) -> dict:
+                chunk: int = 65536, seed: int = 0, **mesh_kwargs) -> dict:
     """Extract every shape into out_dir/<name>.ply and score it against its ground truth
-    gt[name] = (vertices, faces) in the normalised frame. Returns {shapes, mean}."""
+    gt[name] = (vertices, faces) in the normalised frame. Returns {shapes, mean}.
+    mesh_kwargs go to `autodecoder_mesh` (e.g. coarse_step for a DeepSDF module)."""
     from ngc_gen.eval import reconstruction_metrics
     from ngc_gen.shape import autodecoder_mesh
 
@@ -140,7 +142,7 @@ def reconstruct(module, out_dir: Path, gt: dict, resolution: int = 256, bound: f
     per = {}
     shapes = module.hparams.meta["shapes"]
     for i, meta in enumerate(tqdm(shapes, desc="extract", unit="shape", disable=len(shapes) < 2)):
-        res = autodecoder_mesh(module, i, resolution, bound, chunk)
+        res = autodecoder_mesh(module, i, resolution, bound, chunk, **mesh_kwargs)
         atomic_write(out_dir / f"{meta['name']}.ply",
                      lambda f, m=res.mesh: f.write(m.export(file_type="ply")))
         V, F = gt[meta["name"]]

@@ -35,18 +35,33 @@ def training_rows(shapes: list[PreparedShape], mode: str):
             torch.from_numpy(np.concatenate(sdf).astype(np.float32)), offset)
 
 
+def code_balance_weights(ids: torch.Tensor, balance: float) -> torch.Tensor | None:
+    """Row weights n_c^-balance, n_c = the rows of the row's code (GC or shape): 0 leaves every
+    row equally likely (None), 1 gives every code the same share of a batch, so a thin part
+    (few samples) is seen as often as the torso."""
+    if balance == 0:
+        return None
+    counts = torch.bincount(ids).double()
+    return counts[ids] ** (-float(balance))
+
+
 class ShuffledBatches(Dataset):
     """Item i = batch i of this epoch's permutation of all rows (whole batches per item:
-    per-row indexing through a DataLoader would dominate the step time on CPU)."""
+    per-row indexing through a DataLoader would dominate the step time on CPU). With row
+    `weights`, an epoch draws as many rows with replacement, in proportion to them."""
 
-    def __init__(self, ids, coords, sdf, batch_size: int, seed: int = 0):
+    def __init__(self, ids, coords, sdf, batch_size: int, seed: int = 0, weights=None):
         self.ids, self.coords, self.sdf = ids, coords, sdf
-        self.batch_size, self.seed = batch_size, seed
+        self.batch_size, self.seed, self.weights = batch_size, seed, weights
         self.set_epoch(0)
 
     def set_epoch(self, epoch: int) -> None:
         g = torch.Generator().manual_seed(self.seed * 100_003 + epoch)
-        self.perm = torch.randperm(len(self.ids), generator=g)
+        if self.weights is None:
+            self.perm = torch.randperm(len(self.ids), generator=g)
+        else:
+            self.perm = torch.multinomial(self.weights, len(self.ids), replacement=True,
+                                          generator=g)
 
     def __len__(self) -> int:
         return max(1, len(self.ids) // self.batch_size)
@@ -58,11 +73,12 @@ class ShuffledBatches(Dataset):
 
 class PreparedDataModule(L.LightningDataModule):
     def __init__(self, shapes: list[PreparedShape], mode: str = "ngc", batch_size: int = 8192,
-                 seed: int = 0):
+                 seed: int = 0, code_balance: float = 0.0):
         super().__init__()
         self.shapes, self.mode = shapes, mode
         ids, coords, sdf, self.n_codes = training_rows(shapes, mode)
-        self.train_set = ShuffledBatches(ids, coords, sdf, batch_size, seed)
+        self.train_set = ShuffledBatches(ids, coords, sdf, batch_size, seed,
+                                         code_balance_weights(ids, code_balance))
 
     def set_epoch(self, epoch: int) -> None:
         self.train_set.set_epoch(epoch)

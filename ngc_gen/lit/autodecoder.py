@@ -22,13 +22,15 @@ class AutoDecoder(L.LightningModule):
     sizes with `kind` (a checkpoint's record: hparams keep kind and sizes); `optimizer`: a
     partial optimiser (Adam if None) given [decoder group, codes group]; `scheduler`: a partial
     LR scheduler given (optimizer, total_steps=trainer.max_steps), or None (constant learning
-    rates). Defaults are those of
+    rates); `pe_anneal` > 0: the NGC decoder's encoding bands open one after the other over that
+    fraction of the steps (coarse-to-fine), all open afterwards. Defaults are those of
     conf/model/small.yaml, the default `model` (tests/app/test_config.py keeps them equal)."""
 
     def __init__(self, decoder: nn.Module | dict, n_codes: int, kind: str | None = None,
                  lr: float = 1e-3, code_lr: float = 1e-3, code_reg: float = 1e-4,
                  clamp: float | None = None, codes_only_from: float = 0.8,
-                 code_init_std: float = 0.01, optimizer=None, scheduler=None,
+                 code_init_std: float = 0.01, pe_anneal: float = 0.0, optimizer=None,
+                 scheduler=None,
                  meta: dict | None = None, checkpoint_kind: str = CHECKPOINT_KIND):
         super().__init__()
         self.save_hyperparameters(ignore=["decoder", "optimizer", "scheduler"])
@@ -60,8 +62,19 @@ class AutoDecoder(L.LightningModule):
         elif self.make_scheduler is None:
             opt.param_groups[0]["lr"] = self.hparams.lr
 
+    def on_train_end(self) -> None:
+        self._set_bands(None)
+
+    def _set_bands(self, alpha) -> None:
+        pe = getattr(self.decoder, "pe", None)
+        if pe is not None:
+            pe.alpha = alpha
+
     def training_step(self, batch, batch_idx):
         ids, coords, target = batch
+        if self.hparams.pe_anneal > 0 and self._trainer is not None:  # coarse-to-fine bands
+            done = self.global_step / (self.hparams.pe_anneal * max(1, self.trainer.max_steps))
+            self._set_bands(None if done >= 1 else done * len(self.decoder.pe.scales))
         z = self.codes(ids)
         pred = self.decoder(z, coords)
         c = self.hparams.clamp

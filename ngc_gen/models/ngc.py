@@ -33,7 +33,7 @@ class NGCDecoder(nn.Module):
     kind = "ngc"
 
     def __init__(self, code_dim: int, feature_dim: int, g_hidden: int, g_layers: int,
-                 h_hidden: int, h_layers: int, pe_frequencies: int):
+                 h_hidden: int, h_layers: int, pe_frequencies: int | list[int]):
         super().__init__()
         self.config = dict(code_dim=code_dim, feature_dim=feature_dim, g_hidden=g_hidden,
                            g_layers=g_layers, h_hidden=h_hidden, h_layers=h_layers,

@@ -43,7 +43,8 @@ def load_shapes(ckpt) -> dict[str, Shape]:
 def autodecoder_mesh(module, index: int, resolution: int = 256, bound: float = 1.0,
                      chunk: int = 65536, gcs: list[GeneralizedCylinder] | None = None, **kwargs):
     """ExtractionResult of shape `index` of a trained AutoDecoder: an NGC shape through `Shape`
-    (`gcs` overrides its GCs), a DeepSDF shape (one world-space code) densely over the box."""
+    (`gcs` overrides its GCs), a DeepSDF shape (one world-space code) over the box (densely, or
+    coarse-to-fine with kwargs `coarse_step`, `lipschitz`: `extract_world_mesh`)."""
     meta = module.hparams.meta["shapes"][index]
     codes = module.codes.weight[meta["code_offset"]:meta["code_offset"] + meta["n_codes"]]
     if module.hparams.kind == "deepsdf":
@@ -52,7 +53,7 @@ def autodecoder_mesh(module, index: int, resolution: int = 256, bound: float = 1
         code = codes[0].detach()
         with torch.no_grad():
             return extract_world_mesh(lambda x: module.decoder(code.expand(len(x), -1), x),
-                                      resolution, bound, chunk=chunk)
+                                      resolution, bound, chunk=chunk, **kwargs)
     shape = Shape(gcs if gcs is not None else recorded_gcs(meta), codes.detach().clone(),
                   module.decoder, name=meta["name"])
     return shape.mesh(resolution, bound, chunk=chunk, **kwargs)
