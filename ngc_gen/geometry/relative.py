@@ -291,7 +291,7 @@ def _threads() -> None:
     n = torch.get_num_threads()
     numba.set_num_threads(max(1, min(n, numba.config.NUMBA_NUM_THREADS)))
     if torch.get_num_threads() != n:
-        torch.set_num_threads(n)
+        torch.set_num_threads(n)  # puts back the caller's count
 
 
 def relative_coordinates(tables: RelativeTables, q: np.ndarray, cull: bool = False
