@@ -42,7 +42,8 @@ class PrepareSettings:
     """How many samples of which kind; every field is part of the cache key.
 
     n_samples: training samples per shape; surface_fraction of them are near-surface
-    (surface point + normal * N(0, offset_std)), the rest uniform in the GC union
+    (surface point + normal * N(0, offset_std); a list of stds: equal shares of each, as
+    DeepSDF's two), the rest uniform in the GC union
     (volume_region="gcs", what NGC trains on) or in the box [-1, 1]^3 (volume_region="box",
     DeepSDF's own sampling: a world-space SDF must learn the empty space too).
     coverage_samples exact surface points measure coverage; below min_coverage preparation stops.
@@ -50,17 +51,20 @@ class PrepareSettings:
 
     n_samples: int = 100_000
     surface_fraction: float = 0.7
-    offset_std: float = 0.01
+    offset_std: float | tuple[float, ...] = 0.01
     coverage_samples: int = 100_000
     min_coverage: float = 0.999
     seed: int = 0
     volume_region: str = "gcs"
 
     def __post_init__(self):
+        if isinstance(self.offset_std, (list, tuple)):
+            object.__setattr__(self, "offset_std", tuple(float(s) for s in self.offset_std))
+        stds = self.offset_std if isinstance(self.offset_std, tuple) else (self.offset_std,)
         checks = {
             "n_samples": self.n_samples >= 1,
             "surface_fraction": 0.0 <= self.surface_fraction <= 1.0,
-            "offset_std": self.offset_std >= 0.0,
+            "offset_std": len(stds) > 0 and min(stds) >= 0.0,
             "coverage_samples": self.coverage_samples >= 1,
             "min_coverage": 0.0 <= self.min_coverage <= 1.0,
             "volume_region": self.volume_region in ("gcs", "box"),
@@ -240,7 +244,11 @@ def compute_prepared(ann: Annotation, settings: PrepareSettings, key: str = "") 
 
     n_surface = int(round(settings.n_samples * settings.surface_fraction))
     surf, normals = sample_surface(V, F, n_surface, rng)
-    surf += normals * rng.normal(0.0, settings.offset_std, size=(n_surface, 1))
+    if isinstance(settings.offset_std, tuple):  # a mixture: sample i gets std i mod k
+        stds = np.asarray(settings.offset_std)[np.arange(n_surface) % len(settings.offset_std)]
+        surf += normals * (rng.normal(0.0, 1.0, size=(n_surface, 1)) * stds[:, None])
+    else:
+        surf += normals * rng.normal(0.0, settings.offset_std, size=(n_surface, 1))
     if settings.volume_region == "box":
         vol = rng.uniform(-1.0, 1.0, (settings.n_samples - n_surface, 3))
         vp, vg, vr = gc_membership(vol, gcs)
