@@ -8,10 +8,10 @@ from ngc_gen.eval.fitting import (chamfer, chamfer_l1, component_sizes, emd, fra
                                   hausdorff, mesh_chamfer, normal_consistency,
                                   point_mesh_distance, reconstruction_metrics)
 from ngc_gen.eval.generation import generation_metrics, metrics_from_distances, pairwise_chamfer
-from ngc_gen.eval.sampling import sample_point_clouds, sample_surface
+from ngc_gen.eval.sampling import sample_boundary, sample_point_clouds, sample_surface
 
 __all__ = [
-    "sample_surface", "sample_point_clouds",
+    "sample_surface", "sample_boundary", "sample_point_clouds",
     "reconstruction_metrics", "chamfer", "chamfer_l1", "hausdorff", "emd", "fscore",
     "normal_consistency", "mesh_chamfer", "point_mesh_distance", "fragments", "component_sizes",
     "volume_area_change",

@@ -24,6 +24,9 @@ Conventions (distances in the meshes' own units, i.e. the normalised frame of th
   faces: the stray bits a fit leaves that the distances average away.
 
 Both meshes are sampled with the same seed (see ``sampling``), so all numbers are deterministic.
+The samples of ``reconstruction_metrics`` lie on the boundary of the solid each mesh bounds
+(``sample_boundary``): faces of a closed piece inside another piece are not part of any surface
+a signed distance field can have, so they are not scored.
 """
 
 from __future__ import annotations
@@ -36,7 +39,7 @@ from scipy.optimize import linear_sum_assignment
 from scipy.spatial import cKDTree
 from scipy.spatial.distance import cdist
 
-from ngc_gen.eval.sampling import is_empty, sample_surface
+from ngc_gen.eval.sampling import is_empty, sample_boundary
 
 
 def _check_points(p: np.ndarray, name: str) -> np.ndarray:
@@ -212,15 +215,16 @@ def reconstruction_metrics(pred_mesh: trimesh.Trimesh, gt_mesh: trimesh.Trimesh,
         out.update(cd=inf, hd=inf, emd=inf, cd_l1=inf, fscore=0.0, normal_consistency=math.nan,
                    volume=0.0, area=0.0, watertight=False, fragments=0, empty=True)
         return out
-    p, pn = sample_surface(pred_mesh, n_chamfer, seed)
-    g, gn = sample_surface(gt_mesh, n_chamfer, seed)
+    p, pn = sample_boundary(pred_mesh, n_chamfer, seed)
+    g, gn = sample_boundary(gt_mesh, n_chamfer, seed)
     d_pg, i_pg = nearest(p, g)
     d_gp, i_gp = nearest(g, p)
     prec, rec = float(np.mean(d_pg < fscore_tau)), float(np.mean(d_gp < fscore_tau))
     out.update(
         cd=float(np.mean(d_pg ** 2) + np.mean(d_gp ** 2)),
         hd=float(max(d_pg.max(), d_gp.max())),
-        emd=emd(sample_surface(pred_mesh, n_emd, seed)[0], sample_surface(gt_mesh, n_emd, seed)[0]),
+        emd=emd(sample_boundary(pred_mesh, n_emd, seed)[0],
+                sample_boundary(gt_mesh, n_emd, seed)[0]),
         cd_l1=float(0.5 * (d_pg.mean() + d_gp.mean())),
         fscore=0.0 if prec + rec == 0.0 else 2.0 * prec * rec / (prec + rec),
         normal_consistency=float(0.5 * (np.abs(np.einsum("nd,nd->n", pn, gn[i_pg])).mean()

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from typing import Sequence
 
+import igl
 import numpy as np
 import trimesh
 
@@ -29,6 +30,43 @@ def sample_surface(mesh: trimesh.Trimesh, n: int, seed: int) -> tuple[np.ndarray
     points, face = trimesh.sample.sample_surface(mesh, int(n), seed=int(seed))
     normals = np.asarray(mesh.face_normals, dtype=np.float64)[face]
     return np.asarray(points, dtype=np.float64), normals
+
+
+def sample_boundary(mesh: trimesh.Trimesh, n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """``sample_surface`` restricted to the boundary of the solid the mesh bounds.
+
+    A watertight mesh made of intersecting closed pieces (the creatures, the ant) has faces
+    inside other pieces. No signed distance field has them, so a fit cannot match their samples
+    (measured: they cap creature_0000's F-score at 0.888 with the exact SDF meshed at 128^3).
+    A sample is on the boundary when one side of its face is outside the solid: the mesh's
+    generalised winding number (libigl's fast winding number) a hair off the face, on either
+    side, is below 1/2 in magnitude. On a face inside another piece both sides are inside
+    (|w| >= 1). On the face itself w is 0 or 1 by rounding, hence the offset. Meshes that are
+    not watertight, and meshes with no inner faces, give exactly ``sample_surface``; otherwise
+    the first n boundary points of a larger deterministic sampling.
+    """
+    points, normals = sample_surface(mesh, n, seed)
+    if not mesh.is_watertight:
+        return points, normals
+    V = np.ascontiguousarray(mesh.vertices, dtype=np.float64)
+    F = np.ascontiguousarray(mesh.faces, dtype=np.int64)
+    eps = 1e-4 * float(np.linalg.norm(np.ptp(V, axis=0)))
+
+    def on_boundary(p, nrm):
+        w = igl.fast_winding_number(V, F, np.concatenate([p + eps * nrm, p - eps * nrm]))
+        return np.minimum(np.abs(w[:len(p)]), np.abs(w[len(p):])) < 0.5
+
+    keep = on_boundary(points, normals)
+    m = int(n)
+    while keep.sum() < n:
+        if not keep.any():
+            raise ValueError("no surface sample has the outside on either side: the mesh "
+                             "bounds no solid")
+        m = int(np.ceil(m * 1.1 * n / keep.sum())) + 64
+        points, normals = sample_surface(mesh, m, seed)
+        keep = on_boundary(points, normals)
+    idx = np.flatnonzero(keep)[:n]
+    return points[idx], normals[idx]
 
 
 def sample_point_clouds(meshes: Sequence[trimesh.Trimesh], n: int = 2048, seed: int = 0

@@ -174,3 +174,46 @@ def test_fragments_count_small_components_only(sphere):
     assert fragments(soup) == 0 and list(component_sizes(soup)) == [len(sphere.faces)]
     m = reconstruction_metrics(mesh, sphere, seed=0, n_chamfer=2000, n_emd=64)
     assert m["fragments"] == 3 and m["gt_fragments"] == 0
+
+
+def _two_spheres():
+    """Spheres of radius 0.3 at x = -+0.15, concatenated: watertight, a quarter of each inside
+    the other (the size of a part in the normalised frame, where F@0.01 means something)."""
+    a = trimesh.creation.icosphere(subdivisions=4, radius=0.3).apply_translation([-0.15, 0, 0])
+    b = trimesh.creation.icosphere(subdivisions=4, radius=0.3).apply_translation([0.15, 0, 0])
+    return a, b, trimesh.util.concatenate([a, b])
+
+
+def test_sample_boundary_drops_faces_inside_other_pieces():
+    from ngc_gen.eval import sample_boundary
+
+    a, b, union = _two_spheres()
+    assert union.is_watertight
+    p, n = sample_boundary(union, 4000, seed=1)
+    assert p.shape == (4000, 3) and n.shape == (4000, 3)
+    # every sample is outside the other sphere (up to the polyhedron's sag), i.e. on the boundary
+    inside_other = (np.linalg.norm(p - [-0.15, 0, 0], axis=1) < 0.297) & (
+        np.linalg.norm(p - [0.15, 0, 0], axis=1) < 0.297)
+    assert not inside_other.any()
+    # nothing to drop: exactly sample_surface
+    single = trimesh.creation.icosphere(subdivisions=3)
+    assert np.array_equal(sample_boundary(single, 500, 2)[0], sample_surface(single, 500, 2)[0])
+    p2, _ = sample_boundary(union, 4000, seed=1)
+    assert np.array_equal(p, p2)
+
+
+def test_union_of_pieces_scored_on_its_boundary():
+    # the union's own boundary (faces outside the other sphere) against the two overlapping
+    # spheres: a perfect fit of the solid scores as one, not as a fit missing the inner caps
+    a, b, union = _two_spheres()
+    keep_a = np.linalg.norm(a.triangles_center - [0.15, 0, 0], axis=1) > 0.3
+    keep_b = np.linalg.norm(b.triangles_center - [-0.15, 0, 0], axis=1) > 0.3
+    outer = trimesh.util.concatenate([a.submesh([np.flatnonzero(keep_a)], append=True),
+                                      b.submesh([np.flatnonzero(keep_b)], append=True)])
+    m = reconstruction_metrics(outer, union, seed=0, n_emd=256)
+    assert m["fscore"] > 0.99 and m["normal_consistency"] > 0.99 and m["cd"] < 1e-4
+    # the same mesh scored against samples that include the inner caps loses ~1/4 recall
+    g, _ = sample_surface(union, 30_000, 0)
+    p, _ = sample_surface(outer, 30_000, 0)
+    from ngc_gen.eval import fscore
+    assert fscore(p, g) < 0.9
