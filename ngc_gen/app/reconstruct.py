@@ -7,10 +7,13 @@ checkpoints/last.ckpt is a fit checkpoint of the new shapes (`edit.py run=<this 
 A shape-latent run: one latent per new shape is optimised with the shape decoder and the NGC
 decoder frozen (the shapes' annotations must follow the model's GC template); the shapes keep
 their own GCs (the codes were fitted in those frames; `reconstruct.gcs=decoded` meshes the
-latent's GCs instead); the run writes
-latents.pt (sample.py can interpolate from them: `latents=<this run>/latents.pt`) and
-shapes.ckpt (the decoded shapes, for edit.py). Both write meshes/<name>.ply and metrics.json
-(Chamfer etc. against the input meshes, as stage=fit does).
+latent's GCs instead), and with `reconstruct.refine_steps` > 0 the per-GC codes the latent
+decodes to are then fitted further, decoders still frozen (DeepSDF's code fit, started inside
+the model's latent space). The run writes latents.pt (sample.py can interpolate from them:
+`latents=<this run>/latents.pt`; the path starts at the latent's own shape, without the code
+refinement) and shapes.ckpt (the reconstructed shapes, refined codes and input GCs, for
+edit.py). Both kinds write meshes/<name>.ply and metrics.json (Chamfer etc. against the input
+meshes, as stage=fit does).
 """
 from __future__ import annotations
 
@@ -86,6 +89,45 @@ def _codes(cfg: DictConfig, path: Path) -> dict:
     return metrics
 
 
+def _refine_codes(cfg: DictConfig, module, prepared, run_dir: Path, meta: dict):
+    """reconstruct.refine_steps > 0: the per-GC codes the latents decode to, fitted further
+    with every network weight frozen (run_dir/refine). Returns (N, K, C) codes or None."""
+    import lightning as L
+
+    from ngc_gen.data.datamodule import PreparedDataModule, training_rows
+    from ngc_gen.lit.reconstruct import refine_codes_module
+
+    from .training import train
+
+    steps = int(cfg.reconstruct.refine_steps or 0)
+    if steps <= 0:
+        return None
+    cfg = cfg.copy()
+    with open_dict(cfg):
+        cfg.trainer.max_steps = steps
+    refine = refine_codes_module(module, module.latents.weight.detach(), meta,
+                                 code_lr=float(cfg.reconstruct.code_lr))
+    ids, coords, sdf, _ = training_rows(prepared, "ngc")
+    pick = torch.randperm(len(ids), generator=torch.Generator().manual_seed(0))[:65536]
+    rows = ids[pick], coords[pick], sdf[pick]
+    l1 = {"latent": _l1(lambda i, x: module.ngc(module.decode(module.latents.weight)[1].reshape(
+        -1, module.ngc.code_dim)[i], x), rows), "before": _l1(refine.sdf, rows)}
+    L.seed_everything(cfg.seed, workers=True, verbose=False)
+    dm = PreparedDataModule(prepared, mode="ngc", batch_size=cfg.batch_size, seed=cfg.seed)
+    train(cfg, run_dir / "refine", refine, datamodule=dm)
+    refine = refine.cpu().eval()
+    l1["after"] = _l1(refine.sdf, rows)
+    K = module.template.n_gcs
+    return refine.codes.weight.detach().cpu().reshape(len(prepared), K, -1).clone(), l1
+
+
+@torch.no_grad()
+def _l1(field, rows) -> float:
+    """Mean |f - sdf| (unclamped) of field(ids, coords) on fixed training rows."""
+    ids, coords, sdf = rows
+    return float((field(ids, coords).reshape(-1) - sdf).abs().mean())
+
+
 def _latents(cfg: DictConfig, path: Path) -> dict:
     import lightning as L
     import trimesh
@@ -131,6 +173,7 @@ def _latents(cfg: DictConfig, path: Path) -> dict:
     module = module.cpu().eval()
     last = run_dir / "checkpoints" / "last.ckpt"
     save_latents(run_dir / "latents.pt", module, last)
+    refined = _refine_codes(cfg, module, prepared, run_dir, meta) if gcs_from == "input" else None
     res = int(cfg.extract.resolution)
     per, written = {}, []
     with torch.no_grad():
@@ -138,6 +181,8 @@ def _latents(cfg: DictConfig, path: Path) -> dict:
         if gcs_from == "input":  # the codes were fitted in the input's GC frames: keep them
             shapes = [shape.replaced(gcs=recorded_gcs({"annotation_yaml": s.annotation_yaml}))
                       for shape, s in zip(shapes, prepared)]
+        if refined is not None:
+            shapes = [shape.replaced(codes=c) for shape, c in zip(shapes, refined[0])]
         for shape, s in zip(shapes, prepared):
             mesh = shape.mesh(res, float(cfg.extract.bound), chunk=auto_chunk(res),
                               progress=False).mesh
@@ -153,7 +198,8 @@ def _latents(cfg: DictConfig, path: Path) -> dict:
     keys = [k for k, v in next(iter(per.values())).items() if not isinstance(v, bool)]
     mean = {k: float(sum(p[k] for p in per.values()) / len(per)) for k in keys}
     metrics = {"shapes": per, "mean": mean, "into": str(path), "kind": "shape_latent",
-               "gcs": gcs_from,
+               "gcs": gcs_from, "refine_steps": 0 if refined is None else
+               int(cfg.reconstruct.refine_steps), "refine_l1": refined and refined[1],
                "steps": int(trained.trainer.global_step), "train_s": trained.seconds,
                "checkpoint": str(last), "latents": str(run_dir / "latents.pt"),
                "edit_checkpoint": str(run_dir / "shapes.ckpt"), "resolution": res}

@@ -48,3 +48,21 @@ def latent_only_module(trained: ShapeLatentModule, vectors, meta: dict, latent_l
     with torch.no_grad():  # start from the mean training latent: a shape the decoder knows
         module.latents.weight.copy_(trained.latents.weight.mean(0).expand_as(module.latents.weight))
     return module
+
+
+def refine_codes_module(trained: ShapeLatentModule, latents: torch.Tensor, meta: dict,
+                        code_lr: float) -> AutoDecoder:
+    """Codes-only AutoDecoder on `trained`'s NGC decoder (frozen) whose codes start at the ones
+    `latents` (N, D) decode to, in the fit's code order (shape i, GC k -> code i K + k). It
+    fits what the latent space cannot express; the latents stay as they are."""
+    hp = trained.hparams
+    with torch.no_grad():
+        _, codes = trained.decode(latents)
+    module = AutoDecoder(kind="ngc", decoder=dict(trained.ngc.config),
+                         n_codes=codes.shape[0] * codes.shape[1], lr=0.0, code_lr=float(code_lr),
+                         code_reg=0.0, clamp=hp.clamp, codes_only_from=0.0, meta=meta)
+    module.decoder.load_state_dict(trained.ngc.state_dict())
+    module.decoder.requires_grad_(False)
+    with torch.no_grad():
+        module.codes.weight.copy_(codes.reshape(-1, codes.shape[-1]))
+    return module

@@ -209,7 +209,8 @@ def test_edit_runs_unchanged_on_a_generated_shape(runs, tmp_path):
 
 def test_reconstruct_a_held_out_creature_and_interpolate_to_a_generated_one(runs, tmp_path):
     """stage=reconstruct into the shape-latent run: one latent for the held-out creature (the
-    decoders frozen); sample.py interpolates from it to a generated shape by name."""
+    decoders frozen), then its codes refined; sample.py interpolates from it to a generated
+    shape by name."""
     from ngc_gen.app.stages import run_stage
 
     base = runs["sl"].parent
@@ -220,8 +221,14 @@ def test_reconstruct_a_held_out_creature_and_interpolate_to_a_generated_one(runs
               "trainer.enable_progress_bar=false"]
     metrics = run_stage(compose_config(overrides=[
         "stage=reconstruct", f"run={runs['sl']}", *common, "data.split=test",
-        "reconstruct.max_steps=40", f"extract.resolution={RES}", f"run_dir={out}"]))
+        "reconstruct.max_steps=40", "reconstruct.refine_steps=20", f"extract.resolution={RES}",
+        f"run_dir={out}"]))
     held_out = json.loads((base / "data/split.json").read_text())["test"]
+    # the code refinement starts at the latent's own codes (same field, same code order) and
+    # fits the shape better
+    l1 = metrics["refine_l1"]
+    assert l1["before"] == pytest.approx(l1["latent"], rel=1e-5)
+    assert l1["after"] < 0.99 * l1["before"]
     lat = torch.load(out / "latents.pt", weights_only=True)
     assert lat["names"] == held_out and lat["latents"].shape == (1, 16)
     assert set(metrics["shapes"]) == set(held_out) and (out / "shapes.ckpt").is_file()
