@@ -289,14 +289,15 @@ def markdown(res: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def rescore(run_dir: Path) -> dict:
-    """Score a finished fit run again (its own config and last checkpoint) and rewrite its
-    metrics.json: for metric changes, without training again."""
+def rescore(run_dir: Path, resolution: int) -> dict:
+    """Score a finished fit run again (its own config and last checkpoint, meshes at
+    `resolution`) and rewrite its metrics.json: for metric changes, without training again."""
     from omegaconf import OmegaConf
 
     metrics_path = run_dir / "metrics.json"
     metrics = json.loads(metrics_path.read_text())
     cfg = OmegaConf.load(run_dir / "config.yaml")
+    cfg.extract.resolution = int(resolution)
     checkpoint = run_dir / "checkpoints/last.ckpt"
     metrics.update(score_checkpoint(cfg, checkpoint, run_dir / "meshes"), checkpoint=str(checkpoint))
     tmp = metrics_path.with_suffix(".tmp")
@@ -355,15 +356,16 @@ def main():
         res["deepsdf_long"] = long
         args.methods = []
     else:
-        res.update(steps=args.steps, batch_size=args.batch_size, resolution=args.resolution,
-                   threads=args.threads)
+        res.update(resolution=args.resolution)
+        if not args.rescore:
+            res.update(steps=args.steps, batch_size=args.batch_size, threads=args.threads)
     for method in args.methods:
         extra = list(args.set) if method.startswith("ngc") else []
         if args.limit:  # fitbench_1gc wraps fitbench as `base`
             extra.append(f"data.{'base.' * (method == 'ngc_1gc')}parts.1.limit={args.limit}")
         load0 = os.getloadavg()
         if args.rescore:
-            metrics = rescore(run_root / method)
+            metrics = rescore(run_root / method, args.resolution)
             load0 = tuple(res["methods"].get(method, {}).get("load", load0)[:3])
         else:
             metrics = run(method, args.steps, args.resolution, args.batch_size, run_root, extra)

@@ -106,7 +106,7 @@ def write_edit_checkpoint(path: Path, ngc, shapes: list[WrittenShape], source: s
                       "annotation_yaml": annotation_yaml(s.name, str(Path(s.mesh).resolve()),
                                                          s.gcs, s.bound)})
         offset += len(s.codes)
-    module = AutoDecoder(kind="ngc", decoder=dict(ngc.config), n_codes=max(offset, 1),
+    module = AutoDecoder(kind="ngc", decoder=dict(ngc.config), n_codes=max(offset, 1), lr=0.0,
                          meta={"shapes": metas, "source": source})
     with torch.no_grad():
         module.decoder.load_state_dict(ngc.state_dict())

@@ -24,10 +24,11 @@ class AutoDecoder(L.LightningModule):
     LR scheduler given (optimizer, total_steps=trainer.max_steps), or None (constant learning
     rates); `pe_anneal` > 0: the NGC decoder's encoding bands open one after the other over that
     fraction of the steps (coarse-to-fine), all open afterwards. Defaults are those of
-    conf/model/small.yaml, the default `model` (tests/app/test_config.py keeps them equal)."""
+    conf/model/small.yaml, the default `model` (tests/app/test_config.py keeps them equal);
+    `lr` has none: the presets differ (small 1e-2, paper 1e-4, DeepSDF 1e-3 / 5e-4)."""
 
-    def __init__(self, decoder: nn.Module | dict, n_codes: int, kind: str | None = None,
-                 lr: float = 1e-3, code_lr: float = 1e-3, code_reg: float = 1e-4,
+    def __init__(self, decoder: nn.Module | dict, n_codes: int, lr: float,
+                 kind: str | None = None, code_lr: float = 1e-3, code_reg: float = 1e-4,
                  clamp: float | None = None, codes_only_from: float = 0.8,
                  code_init_std: float = 0.01, pe_anneal: float = 0.0, optimizer=None,
                  scheduler=None,

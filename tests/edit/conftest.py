@@ -70,7 +70,7 @@ def make_module(seed: int = 0, shapes=("one", "two")) -> AutoDecoder:
         metas.append({"name": name, "code_offset": off, "n_codes": len(GC_DICTS),
                       "annotation_yaml": yaml.safe_dump(ann, sort_keys=False)})
         off += len(GC_DICTS)
-    module = AutoDecoder(kind="ngc", decoder=dict(SIZES), n_codes=off, code_init_std=1.0,
+    module = AutoDecoder(kind="ngc", decoder=dict(SIZES), n_codes=off, lr=0.0, code_init_std=1.0,
                          meta={"shapes": metas})
     tube_decoder_(module.decoder)
     return module.eval()

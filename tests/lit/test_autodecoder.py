@@ -31,7 +31,7 @@ def fit(steps: int, **kwargs) -> tuple[AutoDecoder, Record]:
     n = 2048
     data = TensorDataset(torch.randint(0, 3, (n,), generator=g), torch.rand(n, 3, generator=g),
                          torch.rand(n, generator=g) - 0.5)
-    module = AutoDecoder(NGCDecoder(**SIZES), n_codes=3, **kwargs)
+    module = AutoDecoder(NGCDecoder(**SIZES), n_codes=3, **{"lr": 1e-3, **kwargs})
     rec = Record()
     L.Trainer(max_steps=steps, logger=False, enable_checkpointing=False,
               enable_progress_bar=False, enable_model_summary=False, callbacks=[rec]).fit(

@@ -136,7 +136,7 @@ def test_ngc_decoder_can_start_from_a_fit_checkpoint(prepared, tmp_path):
 
     module = make_module(prepared)
     for decoder, ok in ((decoder_sizes("small"), True), (decoder_sizes("paper"), False)):
-        fit = AutoDecoder(kind="ngc", decoder=decoder, n_codes=4)
+        fit = AutoDecoder(kind="ngc", decoder=decoder, n_codes=4, lr=1e-3)
         path = tmp_path / "fit.ckpt"
         torch.save({"hyper_parameters": dict(fit.hparams), "state_dict": fit.state_dict()}, path)
         if ok:
