@@ -322,7 +322,7 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--steps", type=int, default=1500)
     ap.add_argument("--batch-size", type=int, default=8192)
-    ap.add_argument("--resolution", type=int, default=128)
+    ap.add_argument("--resolution", type=int, default=256)
     ap.add_argument("--check-resolution", type=int, default=64)
     ap.add_argument("--methods", nargs="+", default=list(METHODS))
     ap.add_argument("--tag", default=None, help="screening: runs and results in bench/runs/fit/TAG")
@@ -364,14 +364,15 @@ def main():
         if args.limit:  # fitbench_1gc wraps fitbench as `base`
             extra.append(f"data.{'base.' * (method == 'ngc_1gc')}parts.1.limit={args.limit}")
         load0 = os.getloadavg()
-        if args.rescore:
+        if args.rescore:  # the training's own record stays: load and overrides
             metrics = rescore(run_root / method, args.resolution)
-            load0 = tuple(res["methods"].get(method, {}).get("load", load0)[:3])
+            kept = {k: res["methods"].get(method, {}).get(k) for k in ("load", "overrides")}
+            res["methods"][method] = {**method_summary(metrics), **kept}
         else:
             metrics = run(method, args.steps, args.resolution, args.batch_size, run_root, extra)
-        res["methods"][method] = method_summary(metrics)
-        res["methods"][method]["load"] = [round(x, 2) for x in load0 + os.getloadavg()]
-        res["methods"][method]["overrides"] = extra
+            res["methods"][method] = method_summary(metrics)
+            res["methods"][method]["load"] = [round(x, 2) for x in load0 + os.getloadavg()]
+            res["methods"][method]["overrides"] = extra
         res["per_shape"][method] = metrics["shapes"]
         res["shapes"] = list(metrics["shapes"])
         if method == "ngc" and args.tag is None:

@@ -3,6 +3,7 @@
     python bench/fit.py --tag lr1e2 --methods ngc --threads 1 --set model.lr=1e-2   # one screen
     python bench/fit.py --tag lr1e2 --methods ngc --rescore                         # new metrics
     python bench/fit_ablation.py [TAG ...]                                          # the table
+    python bench/fit_ablation.py --picture baseline lr1e2   # fit_before_after.png, one camera
 
 Reads bench/runs/fit/<tag>/fit.json (every tag, or those given; `baseline` is the default
 recipe) and bench/results/fit.json's ceiling, and writes bench/results/fit_ablation.json
@@ -54,28 +55,60 @@ def collect(tags: list[str]) -> dict:
 
 
 def markdown(res: dict) -> str:
-    lines = ["| run | overrides | CD x1e-4 | NC | F@0.01 | fragments | HD | train_s | load |",
-             "|---|---|---|---|---|---|---|---|---|"]
+    lines = ["| run | overrides | grid | CD x1e-4 | NC | F@0.01 | fragments | HD | train_s | load |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
     c = res.get("ceiling")
     if c:
         m = c["mean"]
-        lines.append(f"| ceiling (exact SDF at {c['resolution']}^3) | | {m['cd'] * 1e4:.2f} | "
+        lines.append(f"| ceiling (exact SDF) | | {c['resolution']} | {m['cd'] * 1e4:.2f} | "
                      f"{m['nc']:.3f} | {m['fscore']:.3f} | {m['fragments']} | {m['hd']:.4f} | "
                      "| |")
     order = sorted(res["runs"].items(), key=lambda kv: (kv[0] != "baseline", -kv[1]["nc"]))
     for tag, r in order:
         load = r.get("load") or []
         load_s = f"{load[0]:.1f}-{load[3]:.1f}" if len(load) >= 4 else ""
-        lines.append(f"| {tag} | {' '.join(r.get('overrides') or [])} | {r['cd'] * 1e4:.2f} | "
+        lines.append(f"| {tag} | {' '.join(r.get('overrides') or [])} | {r['resolution']} | "
+                     f"{r['cd'] * 1e4:.2f} | "
                      f"{r['nc']:.3f} | {r['fscore']:.3f} | {r['fragments']} | {r['hd']:.4f} | "
                      f"{r['train_s']:.0f} | {load_s} |")
     return "\n".join(lines)
 
 
+def run_meshes(tag: str) -> Path:
+    """The meshes of a screening tag, or of the default bench run (`baseline`: bench/results'
+    own NGC run, bench/runs/fit/ngc)."""
+    d = RUNS / tag / "ngc" / "meshes"
+    return d if d.is_dir() else RUNS / "ngc" / "meshes"
+
+
+def picture(before: str, after: str, shapes: list[str], path: Path) -> None:
+    """Per shape: ground truth, `before`'s and `after`'s meshes under one camera and one scale
+    (render_grid frame="row"), so bumps and stripes compare at the same size."""
+    import trimesh
+
+    from ngc_gen.data.prepare import load_prepared
+    from ngc_gen.viz import render_grid
+
+    rows = []
+    for shape in shapes:
+        prep = load_prepared(ROOT / ".cache/prepared/fitbench" / f"{shape}.npz")
+        rows.append([trimesh.Trimesh(prep.mesh_vertices, prep.mesh_faces, process=False)] +
+                    [trimesh.load(run_meshes(t) / f"{shape}.ply", process=False)
+                     for t in (before, after)])
+    render_grid(rows, path, labels=shapes, col_titles=["ground truth", before, after],
+                cell=(360, 300), frame="row")
+    print(f"saved {path}")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("tags", nargs="*")
+    ap.add_argument("--picture", nargs=2, metavar=("BEFORE", "AFTER"),
+                    help="render two runs' meshes side by side (bench/results/fit_before_after.png)")
+    ap.add_argument("--shapes", nargs="+", default=["ant", "creature_0000", "creature_0005"])
     args = ap.parse_args()
+    if args.picture:
+        return picture(*args.picture, args.shapes, OUT / "fit_before_after.png")
     res = {"runs": collect(args.tags)}
     fit = OUT / "fit.json"
     if fit.exists():

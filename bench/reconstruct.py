@@ -7,12 +7,14 @@ into the creature shape-latent model lands within 2x of the CD of the same shape
   preset, 1500 steps), the held-out creatures fitted with their own codes and a trained decoder;
 - reconstructed: `train.py experiment=generate stage=reconstruct run=<shape-latent run>
   data.split=test`: one latent per held-out creature, every network weight frozen (the run the
-  generation bench trains on the 48 training creatures; `--shape-latent-run` to use another), its
-  shapes meshed with their own GCs (reconstruct.gcs=input, the default) and, for comparison, with
-  the GCs the latent decodes to (reconstruct.gcs=decoded).
+  generation bench trains on the 48 training creatures; `--shape-latent-run` to use another),
+  then the per-GC codes it decodes to refined (reconstruct.refine_steps, decoders still frozen),
+  meshed with the shapes' own GCs (reconstruct.gcs=input); for comparison the latent alone
+  (refine_steps=0), and the latent alone with the GCs it decodes to (reconstruct.gcs=decoded).
 Both meshed at the same resolution and scored with the same Chamfer (30k points each way,
 squared, means summed). Writes bench/results/reconstruct.json {shapes, direct, reconstructed,
-reconstructed_decoded_gcs, ratio, ratio_decoded_gcs, settings}.
+reconstructed_latent_only, reconstructed_decoded_gcs, ratio, ratio_latent_only,
+ratio_decoded_gcs, settings}.
 """
 from __future__ import annotations
 
@@ -46,16 +48,25 @@ def direct(args) -> dict:
         "stage=fit", "model=small", f"trainer.max_steps={args.fit_steps}", f"run_dir={out}"]))
 
 
-def reconstructed(args, gcs: str) -> dict:
+# result key -> (run name, overrides): the default (latent, then its codes refined, the input's
+# GCs), the latent alone, and the latent alone meshed with the GCs it decodes to
+VARIANTS = {
+    "reconstructed": ("reconstruct_refined", ["reconstruct.gcs=input"]),
+    "reconstructed_latent_only": ("reconstruct_input", ["reconstruct.gcs=input",
+                                                        "reconstruct.refine_steps=0"]),
+    "reconstructed_decoded_gcs": ("reconstruct_decoded", ["reconstruct.gcs=decoded"]),
+}
+
+
+def reconstructed(args, name: str, overrides: list[str]) -> dict:
     from ngc_gen.app.config import compose_config
     from ngc_gen.app.stages import run_stage
 
-    out = RUNS / f"reconstruct_{gcs}"
+    out = RUNS / name
     if args.reuse and (out / "metrics.json").is_file():
         return json.loads((out / "metrics.json").read_text())
     return run_stage(compose_config(overrides=["experiment=generate"] + common(args) + [
-        "stage=reconstruct", f"run={args.shape_latent_run}", f"reconstruct.gcs={gcs}",
-        f"run_dir={out}"]))
+        "stage=reconstruct", f"run={args.shape_latent_run}", *overrides, f"run_dir={out}"]))
 
 
 def main():
@@ -79,19 +90,20 @@ def main():
         d = direct(args)
         res["direct"] = {n: m["cd"] for n, m in d["shapes"].items()}
     if args.only in (None, "reconstruct"):
-        for gcs in ("input", "decoded"):
-            r = reconstructed(args, gcs)
-            key = "reconstructed" if gcs == "input" else "reconstructed_decoded_gcs"
+        for key, (name, overrides) in VARIANTS.items():
+            r = reconstructed(args, name, overrides)
             res[key] = {n: m["cd"] for n, m in r["shapes"].items()}
             res[f"{key}_steps"] = r.get("steps")
+            res[f"{key}_refine_steps"] = r.get("refine_steps", 0)
     path = ROOT / "bench/results/reconstruct.json"
     if args.only and path.exists():  # keep the other half of an earlier run
         res = {**json.loads(path.read_text()), **res}
     if {"direct", "reconstructed"} <= set(res):
         names = sorted(res["direct"])
         res["shapes"] = names
-        for key, out in (("reconstructed", "ratio"), ("reconstructed_decoded_gcs",
-                                                      "ratio_decoded_gcs")):
+        for key, out in (("reconstructed", "ratio"), ("reconstructed_latent_only",
+                                                      "ratio_latent_only"),
+                         ("reconstructed_decoded_gcs", "ratio_decoded_gcs")):
             if key in res:
                 ratios = [res[key][n] / res["direct"][n] for n in names]
                 res[out] = {"per_shape": dict(zip(names, ratios)),
@@ -102,7 +114,7 @@ def main():
                        "load_avg_1min_at_start": load0, "load_avg_1min_at_end":
                            os.getloadavg()[0], "seconds": time.perf_counter() - t0}
     atomic_write_text(path, json.dumps(res, indent=2))
-    for key in ("ratio", "ratio_decoded_gcs"):
+    for key in ("ratio", "ratio_latent_only", "ratio_decoded_gcs"):
         if key in res:
             print(f"{key}: CD reconstructed / CD direct fit, mean {res[key]['mean']:.2f}, "
                   f"max {res[key]['max']:.2f} over {len(res['shapes'])} held-out creatures")
