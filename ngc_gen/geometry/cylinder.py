@@ -23,8 +23,8 @@ from .curves import Curve, curve_from_dict
 from .errors import GeometryError
 from .frames import FrameField
 from .interp import interp
-from .relative import (RelativeTables, coarse_cover, coarse_indices, near_cover,
-                       relative_coordinates)
+from .relative import (RelativeTables, coarse_convex, coarse_cover, coarse_indices,
+                       near_cover, relative_coordinates)
 
 GC_KEYS = {"name", "curve", "up", "keys", "caps", "reparam"}
 COVER_SAMPLES = 16   # radius samples per polyline segment when sizing the cover balls
@@ -253,8 +253,12 @@ class GeneralizedCylinder:
             rep = (np.zeros(0), np.zeros(0)) if self.reparam is None else self.reparam
             self._tables = RelativeTables(
                 breaks=breaks, coef=np.ascontiguousarray(coef), poly_x=np.ascontiguousarray(x),
-                poly_s=self.polyline.s.numpy().copy(), coarse=coarse,
+                poly_s=self.polyline.s.numpy().copy(),
+                poly_d=np.ascontiguousarray(self.curve.evaluate(self.polyline.s)[1].numpy()),
+                coarse=coarse,
                 cover=coarse_cover(x, self.cover_radii(), coarse),
+                convex=coarse_convex(self.curvature_samples(), coarse, self.segments,
+                                     self.length),
                 arc_t=self.arc.t_table.numpy().copy(), rep_arc=np.ascontiguousarray(rep[1]),
                 rep_t=np.ascontiguousarray(rep[0]),
                 frame_r=np.ascontiguousarray(self.frame_field.r_table.numpy()),
@@ -262,6 +266,12 @@ class GeneralizedCylinder:
                 key_w=self._key_w.numpy().copy(), twisted=self._twisted,
                 caps=np.asarray(self.caps, dtype=np.float64))
         return self._tables
+
+    def curvature_samples(self) -> np.ndarray:
+        """(K COVER_SAMPLES + 1,) curvature |C' x C''| / |C'|^3 at uniform arc length."""
+        ta = torch.linspace(0.0, 1.0, self.segments * COVER_SAMPLES + 1, dtype=torch.float64)
+        _, d1, d2 = self.curve.evaluate(self.arc.s_of_t(ta))
+        return (torch.linalg.cross(d1, d2).norm(dim=1) / d1.norm(dim=1) ** 3).numpy()
 
     def cover_radii(self) -> np.ndarray:
         """(K+1,) radii of balls around the polyline vertices whose union holds the GC.
@@ -300,7 +310,7 @@ class GeneralizedCylinder:
         """points (N, 3) -> (N, 3) [u, a, b]; u in [-2, 2] for points inside."""
         q, back = as_numpy(points)
         check_points(q)
-        return back(relative_coordinates(self.tables, q)[0])
+        return back(relative_coordinates(self.tables, q, dtype=q.dtype, with_measure=False)[0])
 
     def relative_inside(self, points, cull: bool = True):
         """points (N, 3) -> (rel (N, 3), measure (N,) float64) with measure =
@@ -309,7 +319,7 @@ class GeneralizedCylinder:
         as without). rel comes back in the caller's type/dtype, measure as a numpy array."""
         q, back = as_numpy(points)
         check_points(q)
-        rel, measure = relative_coordinates(self.tables, q, cull=cull)
+        rel, measure = relative_coordinates(self.tables, q, cull=cull, dtype=q.dtype)
         return back(rel), measure
 
     def near(self, points, pad: float) -> np.ndarray:

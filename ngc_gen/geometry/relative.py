@@ -2,18 +2,26 @@
 
 Per point, in float64 whatever the input dtype (DESIGN.md section 2):
 1. seed: the nearest vertex of a coarse polyline (every `stride`-th vertex of the dense one),
-   then the nearest dense vertex between that vertex's two coarse neighbours, then the closest
-   point on the two dense segments around it: about 2 sqrt(K) candidates instead of K;
+   then the nearest dense vertex between that vertex's two coarse neighbours. Where q is close
+   enough to the coarse vertex for |C(t) - q|^2 to be convex over that window
+   (`RelativeTables.convex`, from a curvature bound) the distances fall, then rise, and a descent
+   from the coarse vertex finds that vertex in ~3 steps; elsewhere all 2 stride + 1 are scanned.
+   The seed is the root of f' = (C - q).C' interpolated between that vertex and its neighbour
+   (tabled C'): O(h^2) close, no curve evaluation;
 2. cull (optional): a point outside every coarse cover ball is outside the GC, so it skips the
-   rest (`RelativeTables.cover_radius` says why the balls enclose the GC);
+   rest (`GeneralizedCylinder.cover_radii` says why the balls enclose the GC);
 3. Newton on f(s) = |C(s) - q|^2 / 2 from the seed, kept within two dense segments each side,
-   until a step moves s by at most NEWTON_TOL: the seed is O(h^2) close, so two steps reach
-   rounding. Where f'' <= 0 (q past the centre of curvature) it takes a Gauss-Newton step;
-4. frame, twist, radii and caps at the foot point as `GeneralizedCylinder` defines them.
+   until a step moves s by at most NEWTON_TOL: two steps reach rounding for ~90% of points, one
+   for the rest. Where f'' <= 0 (q past the centre of curvature) it takes a Gauss-Newton step.
+   C and C' at the foot come from the last evaluation by Taylor (no extra evaluation);
+4. frame, twist, radii and caps at the foot point as `GeneralizedCylinder` defines them: one
+   key-cell search for twist and radii, reciprocals instead of divisions where they are
+   constants, sin and cos of the twist by fdlibm's polynomials (a third of libm's cost).
 
 A torch implementation of the same steps would run ~60 small kernels per chunk of points, each
-a pass over memory; fused, a point costs ~100 ns on one core. Results match the float64
-definition to rounding (round trip ~1e-15 on points inside, float64).
+a pass over memory; fused, a point costs ~160 ns on one core (bench/geometry.py), about a third
+each for the seed, Newton and the rest. Results match the float64 definition to rounding (round
+trip ~1e-14 on points inside, float64); rel is written in the caller's dtype directly.
 """
 from __future__ import annotations
 
@@ -41,9 +49,12 @@ class RelativeTables(NamedTuple):
 
     breaks (P+1,), coef (P, D+1, 3): the curve as P polynomial pieces on its own parameter s,
       coef[i, k] the power-basis coefficient of (s - breaks[i])^k.
-    poly_x (K+1, 3), poly_s (K+1,): dense polyline vertices C(s_k) and their parameters.
+    poly_x (K+1, 3), poly_s (K+1,), poly_d (K+1, 3): dense polyline vertices C(s_k), their
+      parameters and the derivatives C'(s_k).
     coarse (Kc+1,) int64: indices of the coarse vertices (0, stride, 2 stride, ..., K).
     cover (Kc+1,): radius of the ball around each coarse vertex; the balls enclose the GC.
+    convex (Kc+1,): within this distance of a coarse vertex, |C(s) - q|^2 is convex over the
+      arc between its coarse neighbours (0 where no such distance exists).
     arc_t (M+1,): normalised arc length at s = linspace(0, 1, M+1).
     rep_arc, rep_t: the reparameterisation (arc length -> network t) or empty arrays.
     frame_r (Q+1, 3): RMF reference vectors at s = linspace(0, 1, Q+1).
@@ -54,8 +65,10 @@ class RelativeTables(NamedTuple):
     coef: np.ndarray
     poly_x: np.ndarray
     poly_s: np.ndarray
+    poly_d: np.ndarray
     coarse: np.ndarray
     cover: np.ndarray
+    convex: np.ndarray
     arc_t: np.ndarray
     rep_arc: np.ndarray
     rep_t: np.ndarray
@@ -82,6 +95,28 @@ def coarse_cover(poly_x: np.ndarray, fine_radius: np.ndarray, coarse: np.ndarray
     out = np.zeros(len(coarse))
     np.maximum.at(out, owner, reach)
     return out
+
+
+def coarse_convex(kappa: np.ndarray, coarse: np.ndarray, segments: int, length: float
+                  ) -> np.ndarray:
+    """Distance rho_c from coarse vertex c within which f(t) = |C(t) - q|^2 / 2 is convex in arc
+    length t over the window between c's coarse neighbours.
+
+    There f'' = 1 - kappa (q - C).N >= 1 - kappa |q - C(t)| and |q - C(t)| <= |q - C(t_c)| + l_c,
+    l_c the arc length from c to the farther window end: f'' > 0 if |q - C(t_c)| < 1 / kappa_max
+    - l_c. kappa: curvature at n uniform arc-length samples per polyline segment (K n + 1 of
+    them); its window maximum is bounded by the largest sample plus the largest change between
+    neighbouring samples (kappa is smooth: the excess between samples is second order)."""
+    n = (len(kappa) - 1) // segments
+    slack = np.abs(np.diff(kappa)).max() if len(kappa) > 1 else 0.0
+    lo = coarse[np.maximum(np.arange(len(coarse)) - 1, 0)]
+    hi = coarse[np.minimum(np.arange(len(coarse)) + 1, len(coarse) - 1)]
+    kmax = np.array([kappa[a * n:b * n + 1].max() for a, b in zip(lo, hi)])
+    kmax = (kmax + slack) * (1 + 1e-6)
+    ell = length * np.maximum(coarse - lo, hi - coarse) / segments
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rho = 1.0 / kmax - ell * (1 + 1e-6)
+    return np.where(rho > 0, rho, 0.0)  # NaN (a cusp): 0, never convex
 
 
 @njit(cache=True, fastmath=FASTMATH)
@@ -152,6 +187,52 @@ def _uniform_cell(x, M):
 
 
 @njit(cache=True, fastmath=FASTMATH)
+def _key_cell(x, xp, inv_dx):
+    """Cell index and weight of x in the increasing xp (at least 2 entries), clamped; inv_dx the
+    reciprocal cell widths. One search serves twist and both radii."""
+    n = xp.shape[0]
+    if x <= xp[0]:
+        return 0, 0.0
+    if x >= xp[n - 1]:
+        return n - 2, 1.0
+    lo, hi = 0, n - 1
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if xp[mid] <= x:
+            lo = mid
+        else:
+            hi = mid
+    return lo, (x - xp[lo]) * inv_dx[lo]
+
+
+# fdlibm's kernel polynomials for sin and cos on [-pi/4, pi/4] (error < 1 ulp there) and the
+# two-part pi/2 of its argument reduction
+_S = (-1.66666666666666324348e-01, 8.33333333332248946124e-03, -1.98412698298579493134e-04,
+      2.75573137070700676789e-06, -2.50507602534068634195e-08, 1.58969099521155010221e-10)
+_C = (4.16666666666666019037e-02, -1.38888888888741095749e-03, 2.48015872894767294178e-05,
+      -2.75573143513906633035e-07, 2.08757232129817482790e-09, -1.13596475577881948265e-11)
+_PIO2_1, _PIO2_1T = 1.57079632673412561417e+00, 6.07710050650619224932e-11
+
+
+@njit(cache=True, fastmath=FASTMATH)
+def _sincos(x):
+    """(sin x, cos x) to about 1 ulp for |x| < 1e5 (twist angles): a third of libm's cost for
+    the pair."""
+    k = round(x * (2.0 / math.pi))
+    r = (x - k * _PIO2_1) - k * _PIO2_1T
+    z = r * r
+    sn = r + z * r * (_S[0] + z * (_S[1] + z * (_S[2] + z * (_S[3] + z * (_S[4] + z * _S[5])))))
+    hz = 0.5 * z
+    w = 1.0 - hz
+    cs = w + (((1.0 - w) - hz) + z * z * (_C[0] + z * (_C[1] + z * (_C[2] + z * (
+        _C[3] + z * (_C[4] + z * _C[5]))))))
+    m = int(k) & 3  # quadrant, without branches (the twist varies from point to point)
+    swap = (m & 1) == 1
+    return ((cs if swap else sn) * (1.0 - (m & 2)),
+            (sn if swap else cs) * (1.0 - ((m + 1) & 2)))
+
+
+@njit(cache=True, fastmath=FASTMATH)
 def _dist2(qx, qy, qz, x, k):
     ax = qx - x[k, 0]
     ay = qy - x[k, 1]
@@ -160,32 +241,24 @@ def _dist2(qx, qy, qz, x, k):
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def _segment(qx, qy, qz, x, ps, a):
-    """Closest point of segment (x[a], x[a+1]) to q: (parameter s, squared distance)."""
-    abx = x[a + 1, 0] - x[a, 0]
-    aby = x[a + 1, 1] - x[a, 1]
-    abz = x[a + 1, 2] - x[a, 2]
-    lam = ((qx - x[a, 0]) * abx + (qy - x[a, 1]) * aby + (qz - x[a, 2]) * abz) / (
-        abx * abx + aby * aby + abz * abz)
-    lam = min(max(lam, 0.0), 1.0)
-    ex = x[a, 0] + lam * abx - qx
-    ey = x[a, 1] + lam * aby - qy
-    ez = x[a, 2] + lam * abz - qz
-    return ps[a] + lam * (ps[a + 1] - ps[a]), ex * ex + ey * ey + ez * ez
+def _fprime(qx, qy, qz, x, dx, k):
+    """f'(s_k) = (C(s_k) - q).C'(s_k) at dense vertex k."""
+    return (x[k, 0] - qx) * dx[k, 0] + (x[k, 1] - qy) * dx[k, 1] + (x[k, 2] - qz) * dx[k, 2]
 
 
 @njit(cache=True, parallel=True, fastmath=FASTMATH)
-def _relative_kernel(q, out, measure, cull, breaks, coef, poly_x, poly_s, coarse, coarse_x,
-                     cover2, arc_t, rep_arc, rep_t, frame_r, key_t, key_r, key_w, twisted, cap0,
-                     cap1):
+def _relative_kernel(q, out, measure, cull, breaks, coef, poly_x, poly_s, poly_d, coarse,
+                     coarse_x, cover2, convex2, arc_t, rep_arc, rep_t, frame_r, key_t, key_dt,
+                     key_r, key_w, twisted, inv_cap0, inv_cap1):
     n = q.shape[0]
     K = poly_x.shape[0] - 1
     Kc = coarse.shape[0] - 1
     M = arc_t.shape[0] - 1
     Q = frame_r.shape[0] - 1
     nk = key_t.shape[0]
+    with_measure = measure.shape[0] > 0
     for i in prange(n):
-        qx, qy, qz = q[i, 0], q[i, 1], q[i, 2]
+        qx, qy, qz = float(q[i, 0]), float(q[i, 1]), float(q[i, 2])
         # 1-2. nearest coarse vertex, cover test
         best_c, best_d, covered = 0, np.inf, False
         for c in range(Kc + 1):
@@ -195,25 +268,48 @@ def _relative_kernel(q, out, measure, cull, breaks, coef, poly_x, poly_s, coarse
             covered |= d <= cover2[c]
         if cull and not covered:
             out[i, 0] = out[i, 1] = out[i, 2] = np.nan
-            measure[i] = np.inf
+            if with_measure:
+                measure[i] = np.inf
             continue
-        # nearest dense vertex between the coarse neighbours, then its two segments
+        # nearest dense vertex between the coarse neighbours
         k0 = coarse[max(best_c - 1, 0)]
         k1 = coarse[min(best_c + 1, Kc)]
-        k, best_d = k0, np.inf
-        for j in range(k0, k1 + 1):
-            d = _dist2(qx, qy, qz, poly_x, j)
-            if d < best_d:
-                best_d, k = d, j
-        a = min(max(k - 1, 0), K - 1)
-        s, d_a = _segment(qx, qy, qz, poly_x, poly_s, a)
-        a2 = min(a + 1, K - 1)
-        s2, d_b = _segment(qx, qy, qz, poly_x, poly_s, a2)
-        if d_b < d_a:
-            s = s2
+        if best_d < convex2[best_c]:
+            # f convex over the window: the vertex distances fall, then rise, so descent from
+            # the coarse vertex stops at their minimum (3 steps on average instead of 2 stride)
+            k = coarse[best_c]
+            if k < k1 and _dist2(qx, qy, qz, poly_x, k + 1) < best_d:
+                while k < k1:
+                    d = _dist2(qx, qy, qz, poly_x, k + 1)
+                    if d >= best_d:
+                        break
+                    best_d, k = d, k + 1
+            else:
+                while k > k0:
+                    d = _dist2(qx, qy, qz, poly_x, k - 1)
+                    if d >= best_d:
+                        break
+                    best_d, k = d, k - 1
+        else:
+            k, best_d = k0, np.inf
+            for j in range(k0, k1 + 1):
+                d = _dist2(qx, qy, qz, poly_x, j)
+                if d < best_d:
+                    best_d, k = d, j
+        # seed: the root of f' = (C - q).C' interpolated linearly between the vertex and its
+        # neighbour on the foot's side (f' known there from the tables: no curve evaluation)
+        gk = _fprime(qx, qy, qz, poly_x, poly_d, k)
+        j = min(k + 1, K) if gk < 0.0 else max(k - 1, 0)
+        den = gk - _fprime(qx, qy, qz, poly_x, poly_d, j)
+        lam = min(max(gk / den, 0.0), 1.0) if den != 0.0 else 0.0
+        s = poly_s[k] + lam * (poly_s[j] - poly_s[k])
         lo = poly_s[max(k - 2, 0)]
         hi = poly_s[min(k + 2, K)]
-        # 3. Newton on |C(s) - q|^2 / 2
+        # 3. Newton on |C(s) - q|^2 / 2. The last step moves s by at most NEWTON_TOL, so C, C'
+        # there follow from the last evaluation by Taylor: what is left out, step^2 |C'''| / 2
+        # in C', is of the order of the error that step leaves in s
+        step = 0.0
+        cx = cy = cz = dx = dy = dz = ex = ey = ez = 0.0
         for _ in range(NEWTON_MAX_STEPS):
             cx, cy, cz, dx, dy, dz, ex, ey, ez = _curve(s, breaks, coef)
             rx, ry, rz = cx - qx, cy - qy, cz - qz
@@ -223,12 +319,21 @@ def _relative_kernel(q, out, measure, cull, breaks, coef, poly_x, poly_s, coarse
             if not H > 1e-3 * gn:
                 H = gn
             s_new = min(max(s - g / H, lo), hi)
-            done = abs(s_new - s) <= NEWTON_TOL
+            step = s_new - s
             s = s_new
-            if done:
+            if abs(step) <= NEWTON_TOL:
                 break
+        if abs(step) <= NEWTON_TOL:
+            h2 = 0.5 * step
+            cx += step * (dx + h2 * ex)
+            cy += step * (dy + h2 * ey)
+            cz += step * (dz + h2 * ez)
+            dx += step * ex
+            dy += step * ey
+            dz += step * ez
+        else:  # not converged in NEWTON_MAX_STEPS
+            cx, cy, cz, dx, dy, dz, ex, ey, ez = _curve(s, breaks, coef)
         # 4. frame at the foot point
-        cx, cy, cz, dx, dy, dz, ex, ey, ez = _curve(s, breaks, coef)
         inv = 1.0 / math.sqrt(dx * dx + dy * dy + dz * dz)
         tx, ty, tz = dx * inv, dy * inv, dz * inv
         j, w = _uniform_cell(s, M)
@@ -244,32 +349,35 @@ def _relative_kernel(q, out, measure, cull, breaks, coef, poly_x, poly_s, coarse
         inv = 1.0 / math.sqrt(nx * nx + ny * ny + nz * nz)
         nx, ny, nz = nx * inv, ny * inv, nz * inv
         bx, by, bz = ty * nz - tz * ny, tz * nx - tx * nz, tx * ny - ty * nx
+        # twist and radii from one key cell
+        j, w, j1 = 0, 0.0, 0
+        if nk > 1:
+            j, w = _key_cell(t, key_t, key_dt)
+            j1 = j + 1
         if twisted:
-            ang = _interp(t, key_t, key_w)
-            co, si = math.cos(ang), math.sin(ang)
+            si, co = _sincos(key_w[j] * (1.0 - w) + key_w[j1] * w)
             nx, ny, nz, bx, by, bz = (co * nx + si * bx, co * ny + si * by, co * nz + si * bz,
                                       co * bx - si * nx, co * by - si * ny, co * bz - si * nz)
-        if nk == 1:
-            ry_, rz_ = key_r[0, 0], key_r[0, 1]
-        else:
-            ry_, rz_ = _interp(t, key_t, key_r[:, 0]), _interp(t, key_t, key_r[:, 1])
+        ry_ = key_r[j, 0] * (1.0 - w) + key_r[j1, 0] * w
+        rz_ = key_r[j, 1] * (1.0 - w) + key_r[j1, 1] * w
         # caps: past an end, distance along the end tangent and the offset across it
         px, py, pz = qx - cx, qy - cy, qz - cz
         along = px * tx + py * ty + pz * tz
         u = 2.0 * t - 1.0
         if s <= 0.0:
-            u = -1.0 + along / cap0
+            u = -1.0 + along * inv_cap0
             px, py, pz = px - along * tx, py - along * ty, pz - along * tz
         elif s >= 1.0:
-            u = 1.0 + along / cap1
+            u = 1.0 + along * inv_cap1
             px, py, pz = px - along * tx, py - along * ty, pz - along * tz
         a_ = (px * nx + py * ny + pz * nz) / ry_
         b_ = (px * bx + py * by + pz * bz) / rz_
         out[i, 0] = u
         out[i, 1] = a_
         out[i, 2] = b_
-        e = max(abs(u) - 1.0, 0.0)
-        measure[i] = e * e + a_ * a_ + b_ * b_
+        if with_measure:
+            e = max(abs(u) - 1.0, 0.0)
+            measure[i] = e * e + a_ * a_ + b_ * b_
 
 
 @njit(cache=True, parallel=True, fastmath=FASTMATH)
@@ -294,25 +402,29 @@ def _threads() -> None:
         torch.set_num_threads(n)  # puts back the caller's count
 
 
-def relative_coordinates(tables: RelativeTables, q: np.ndarray, cull: bool = False
+def relative_coordinates(tables: RelativeTables, q: np.ndarray, cull: bool = False,
+                         dtype=np.float64, with_measure: bool = True
                          ) -> tuple[np.ndarray, np.ndarray]:
-    """q (N, 3) float32 or float64 (read as it is: no copy) -> (rel (N, 3) float64, measure (N,)
-    float64); float64 arithmetic throughout.
+    """q (N, 3) float32 or float64 (read as it is: no copy) -> (rel (N, 3) `dtype`, measure
+    (N,) float64); float64 arithmetic throughout, rel rounded to `dtype` as it is written.
 
-    measure = max(|u| - 1, 0)^2 + a^2 + b^2 (<= 1 inside). With `cull`, points outside the
-    cover balls get rel NaN and measure inf without the closest-point solve."""
+    measure = max(|u| - 1, 0)^2 + a^2 + b^2 (<= 1 inside); empty without `with_measure`.
+    With `cull`, points outside the cover balls get rel NaN and measure inf without the
+    closest-point solve."""
     if q.dtype not in (np.float32, np.float64):
         q = q.astype(np.float64)
     q = np.ascontiguousarray(q)
-    out = np.empty(q.shape, dtype=np.float64)
-    measure = np.empty(len(q), dtype=np.float64)
+    out = np.empty(q.shape, dtype=dtype)
+    measure = np.empty(len(q) if with_measure else 0, dtype=np.float64)
     if len(q):
         _threads()
         T = tables
+        key_dt = 1.0 / np.diff(T.key_t) if len(T.key_t) > 1 else np.ones(1)
         _relative_kernel(q, out, measure, bool(cull), T.breaks, T.coef, T.poly_x, T.poly_s,
-                         T.coarse, np.ascontiguousarray(T.poly_x[T.coarse]), T.cover ** 2,
-                         T.arc_t, T.rep_arc, T.rep_t, T.frame_r, T.key_t, T.key_r, T.key_w,
-                         bool(T.twisted), float(T.caps[0]), float(T.caps[1]))
+                         T.poly_d, T.coarse, np.ascontiguousarray(T.poly_x[T.coarse]),
+                         T.cover ** 2, T.convex ** 2, T.arc_t, T.rep_arc, T.rep_t, T.frame_r,
+                         T.key_t, key_dt, T.key_r, T.key_w, bool(T.twisted),
+                         1.0 / float(T.caps[0]), 1.0 / float(T.caps[1]))
     return out, measure
 
 

@@ -179,3 +179,50 @@ def test_reparam_round_trip_and_serialisation(rng):
     d["reparam"] = {"t": [0.0, 0.6, 0.5, 1.0], "arc": [0.0, 0.2, 0.6, 1.0]}
     with pytest.raises(GeometryError, match="reparam"):
         GeneralizedCylinder.from_dict(d)
+
+
+# a U turn and a spiral-like bend; radii x 1.2 stay inside the radius of curvature (0.375,
+# 0.281) and away from the other parts of the curve
+CURVED = [([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], 0.3),
+          ([[0, 0, 0], [1.5, 0, 0], [1.5, 1.2, 0], [0.0, 1.2, 0.0], [0, 0.3, 0.3]], 0.15)]
+
+
+@pytest.mark.parametrize("points, r", CURVED)
+def test_strongly_curved_gc_finds_the_nearest_foot_point(rng, points, r):
+    """Inside and just outside a tight bend the foot point is the nearest curve point (the
+    vertex descent and the seed must not stop at another local minimum)."""
+    gc = GeneralizedCylinder.from_dict({"name": "bend", "curve": {"type": "bezier",
+                                        "points": points}, "keys": [{"t": 0, "radii": [r, r]}]})
+    rel = inside_rel_samples(rng, 20_000)
+    rel = rel[np.abs(rel[:, 0]) < 1] * [1, 1.2, 1.2]
+    q = gc.to_world(rel)
+    rel2 = gc.to_relative(q)
+    foot = gc.to_world(np.stack([rel2[:, 0], 0 * rel2[:, 0], 0 * rel2[:, 0]], 1))
+    dense = gc.curve.evaluate(torch.linspace(0, 1, 400_001, dtype=torch.float64))[0].numpy()
+    from scipy.spatial import cKDTree
+    brute, _ = cKDTree(dense).query(q)
+    ours = np.linalg.norm(q - foot, axis=1)
+    assert np.all(ours <= brute + 1e-7)
+    assert np.all(brute - ours < 1e-5)
+
+
+@pytest.mark.parametrize("points, r", CURVED)
+def test_convex_radius_makes_the_window_convex(rng, points, r):
+    """Within `convex[c]` of coarse vertex c, |C(t) - q|^2 is convex over the arc between c's
+    coarse neighbours (what lets the kernel descend instead of scanning the window)."""
+    gc = GeneralizedCylinder.from_dict({"name": "bend", "curve": {"type": "bezier",
+                                        "points": points}, "keys": [{"t": 0, "radii": [r, r]}]})
+    T = gc.tables
+    K, co = gc.segments, T.coarse
+    assert np.all(T.convex > 0)
+    for c in range(len(co)):
+        a, b = co[max(c - 1, 0)], co[min(c + 1, len(co) - 1)]
+        t = torch.linspace(a / K, b / K, 401, dtype=torch.float64)
+        C, d1, d2 = (x.numpy() for x in gc.curve.evaluate(gc.arc.s_of_t(t)))
+        n2 = (d1 * d1).sum(1, keepdims=True)
+        Ctt = (d2 - (d2 * d1).sum(1, keepdims=True) * d1 / n2) / n2  # kappa N
+        d = rng.normal(size=(200, 3))
+        d /= np.linalg.norm(d, axis=1, keepdims=True)
+        q = T.poly_x[co[c]] + T.convex[c] * rng.uniform(0.9, 1.0, (200, 1)) * d
+        ftt = 1 + ((C[None] - q[:, None]) * Ctt[None]).sum(-1)  # f'' in arc length
+        assert np.all(ftt > 0)
