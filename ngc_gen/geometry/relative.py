@@ -160,6 +160,19 @@ def _curve(s, breaks, coef):
 
 
 @njit(cache=True, fastmath=FASTMATH)
+def _bisect(x, xp):
+    """lo with xp[lo] <= x < xp[lo + 1], for xp[0] < x < xp[-1] (increasing xp)."""
+    lo, hi = 0, xp.shape[0] - 1
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if xp[mid] <= x:
+            lo = mid
+        else:
+            hi = mid
+    return lo
+
+
+@njit(cache=True, fastmath=FASTMATH)
 def _interp(x, xp, fp):
     """np.interp (clamped) for increasing xp."""
     n = xp.shape[0]
@@ -167,15 +180,9 @@ def _interp(x, xp, fp):
         return fp[0]
     if x >= xp[n - 1]:
         return fp[n - 1]
-    lo, hi = 0, n - 1
-    while hi - lo > 1:
-        mid = (lo + hi) // 2
-        if xp[mid] <= x:
-            lo = mid
-        else:
-            hi = mid
-    w = (x - xp[lo]) / (xp[hi] - xp[lo])
-    return fp[lo] * (1.0 - w) + fp[hi] * w
+    lo = _bisect(x, xp)
+    w = (x - xp[lo]) / (xp[lo + 1] - xp[lo])
+    return fp[lo] * (1.0 - w) + fp[lo + 1] * w
 
 
 @njit(cache=True, fastmath=FASTMATH)
@@ -195,13 +202,7 @@ def _key_cell(x, xp, inv_dx):
         return 0, 0.0
     if x >= xp[n - 1]:
         return n - 2, 1.0
-    lo, hi = 0, n - 1
-    while hi - lo > 1:
-        mid = (lo + hi) // 2
-        if xp[mid] <= x:
-            lo = mid
-        else:
-            hi = mid
+    lo = _bisect(x, xp)
     return lo, (x - xp[lo]) * inv_dx[lo]
 
 
