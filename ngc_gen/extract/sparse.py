@@ -384,10 +384,13 @@ def extract_sparse(gcs: list[GeneralizedCylinder], grid: Grid, stores: list[Poin
         st.blocks = initial_blocks(st, grid, keys, step)
     deep: dict[int, list[np.ndarray]] = {}     # blocks inside some N_i with f_i < 0
 
-    def drop_deep():   # another GC's deep block: the field is negative there whatever GC i says
+    def drop_deep(parents=None):   # another GC's deep block: the field is negative there
         merged = {S: sorted_unique(np.concatenate(D)) for S, D in deep.items()}
-        for st in states:
-            st.blocks = st.blocks[~inside_deep(st.blocks, merged, keys)]
+        for n, st in enumerate(states):
+            ok = ~inside_deep(st.blocks, merged, keys)
+            st.blocks = st.blocks[ok]
+            if parents is not None:
+                parents[n] = (parents[n][0][ok], parents[n][1][ok])
 
     while True:
         t0 = time.perf_counter()
@@ -419,6 +422,7 @@ def extract_sparse(gcs: list[GeneralizedCylinder], grid: Grid, stores: list[Poin
             t0 = time.perf_counter()
             evals0 = stats["n_network_evals"]
             level = {"step": 1}
+            drop_deep(parents)        # blocks of side 2 that another GC found deep at this step
             n_cells = finest_cells(field_, states, parents, settings.lipschitz, level)
             drop_deep()
             level.update(blocks=n_cells, kept=sum(len(st.blocks) for st in states),
