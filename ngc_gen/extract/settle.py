@@ -122,6 +122,36 @@ def decide_cells(state, status, cell):
                 status[b, o] = KEEP if (neg and pos) else DROP
 
 
+@njit(cache=True, parallel=True)
+def fill_exact(blocks, half_key, need, keys, f, m, tau32, state):
+    """state[b, j] <- the exact state of point j of block b where need[b, j]: its key
+    blocks[b] + half_key[j] is found in the sorted `keys`, whose values are f, m. Blocks come
+    sorted, so for each j the keys come sorted too: a galloping pass per j."""
+    n = keys.shape[0]
+    for j in prange(27):
+        lo = 0
+        for b in range(blocks.shape[0]):
+            if not need[b, j]:
+                continue
+            x = blocks[b] + half_key[j]
+            if keys[lo] < x:
+                step, prev = 1, lo
+                hi = lo + 1
+                while hi < n and keys[hi] < x:
+                    prev = hi
+                    step *= 2
+                    hi = prev + step
+                a, c = prev + 1, min(hi, n)
+                while a < c:
+                    mid = (a + c) // 2
+                    if keys[mid] < x:
+                        a = mid + 1
+                    else:
+                        c = mid
+                lo = a
+            state[b, j] = _flags(f[lo], m[lo], tau32)
+
+
 def exact_state(f: np.ndarray, m: np.ndarray, tau: float) -> np.ndarray:
     """Evaluated points (f, m) -> their SURE state bits (uint8)."""
     inside = m <= 1.0

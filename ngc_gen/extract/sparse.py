@@ -272,7 +272,7 @@ def children(blocks: np.ndarray, f: np.ndarray, m: np.ndarray, st: GCState, step
     idx = keys.decode(kids)
     ok = np.all(idx <= grid.resolution - 2, 1)
     kids, idx = kids[ok], idx[ok]
-    return kids[near(st, grid, idx, half)], np.sort(np.concatenate(deep_runs))
+    return kids[near(st, grid, idx, half)], np.sort(np.concatenate(deep_runs), kind="stable")
 
 
 def inside_deep(blocks: np.ndarray, deep: dict[int, np.ndarray], keys: Keys) -> np.ndarray:
@@ -304,8 +304,9 @@ def finest_cells(field_: SparseField, states: list[GCState], parents: list, lips
     edges near the surface (3-4% measured, up to 10x) and one corner then settles the single
     negative grid points of small floaters wrongly; all of them kept every mesh of
     bench/extract.py at 128 and 256 identical to the reference. A cell whose corners are all
-    settled (or exact) is decided at once; only the unsettled corners of undecided cells (that
-    come near the GC) are evaluated, for all GCs in one pass. -> the number of candidate cells
+    settled (or exact) is decided at once; only the unsettled corners of undecided cells are
+    evaluated (geometry first: points outside the GC need no network), for all GCs in one
+    pass. -> the number of candidate cells
     (children of the blocks inside the grid); stats get new_points (new points of the blocks,
     per block) and settled (those settled without evaluation)."""
     grid, keys = field_.grid, field_.keys
@@ -323,31 +324,27 @@ def finest_cells(field_: SparseField, states: list[GCState], parents: list, lips
                                  settle.PARENTS, settle.N_PARENTS, settle.N_ODD, state)
             idx = keys.decode(P)
             settle.cell_status(state, idx, grid.resolution - 2, CORNERS, settle.CELL, status)
-            n_cells += int(np.all(idx[:, None, :] + CORNERS <= grid.resolution - 2, -1).sum())
-            b, o = np.nonzero(status == settle.UNDECIDED)
-            far_ = ~near(st, grid, idx[b] + CORNERS[o], 1)
-            status[b[far_], o[far_]] = settle.DROP
+            n_cells += int(np.prod(1 + (idx + 1 <= grid.resolution - 2), 1).sum())
         need = np.zeros((n, 27), dtype=bool)
         if n:
             settle.needed_points(state, status, settle.CELL, need)
         runs = [P[need[:, j]] + half_key[j] for j in range(27)]      # 27 sorted runs
         needed = sorted_unique(np.concatenate(runs))
-        plans.append((P, state, status, need, runs, needed))
+        plans.append((P, state, status, need, needed))
         want.append(needed)
     new = np.flatnonzero(settle.N_ODD > 0)
     stats["settled"] = int(sum(np.count_nonzero(p[1][:, new] & settle.SURE) for p in plans))
     stats["new_points"] = int(sum(len(p[0]) for p in plans)) * len(new)
     got = field_.ensure(states, want)
-    for st, (P, state, status, need, runs, needed), (fU, mU) in zip(states, plans, got):
+    for st, (P, state, status, need, needed), (fU, mU) in zip(states, plans, got):
         if len(P) == 0:
             st.blocks = P
             continue
-        for j, run in enumerate(runs):
-            at = find_sorted(needed, run)
-            state[need[:, j], j] = settle.exact_state(fU[at], mU[at], np.float32(st.tau))
+        settle.fill_exact(P, half_key, need, needed, fU, mU, np.float32(st.tau), state)
         settle.decide_cells(state, status, settle.CELL)
         keep = status == settle.KEEP
-        st.blocks = np.sort(np.concatenate([P[keep[:, o]] + keys.corner[o] for o in range(8)]))
+        st.blocks = np.sort(np.concatenate([P[keep[:, o]] + keys.corner[o] for o in range(8)]),
+                            kind="stable")                   # 8 sorted runs: a merge
     return n_cells
 
 
@@ -384,10 +381,13 @@ def extract_sparse(gcs: list[GeneralizedCylinder], grid: Grid, stores: list[Poin
         st.blocks = initial_blocks(st, grid, keys, step)
     deep: dict[int, list[np.ndarray]] = {}     # blocks inside some N_i with f_i < 0
 
-    def drop_deep():   # another GC's deep block: the field is negative there whatever GC i says
+    def drop_deep(parents=None):   # another GC's deep block: the field is negative there
         merged = {S: sorted_unique(np.concatenate(D)) for S, D in deep.items()}
-        for st in states:
-            st.blocks = st.blocks[~inside_deep(st.blocks, merged, keys)]
+        for n, st in enumerate(states):
+            ok = ~inside_deep(st.blocks, merged, keys)
+            st.blocks = st.blocks[ok]
+            if parents is not None:
+                parents[n] = (parents[n][0][ok], parents[n][1][ok])
 
     while True:
         t0 = time.perf_counter()
@@ -419,6 +419,7 @@ def extract_sparse(gcs: list[GeneralizedCylinder], grid: Grid, stores: list[Poin
             t0 = time.perf_counter()
             evals0 = stats["n_network_evals"]
             level = {"step": 1}
+            drop_deep(parents)        # blocks of side 2 that another GC found deep at this step
             n_cells = finest_cells(field_, states, parents, settings.lipschitz, level)
             drop_deep()
             level.update(blocks=n_cells, kept=sum(len(st.blocks) for st in states),
@@ -464,12 +465,14 @@ def field_values(field_: SparseField, states: list[GCState], points: np.ndarray,
     """F at sorted unique point keys: every GC whose box holds a point, folded in GC order;
     the background where no GC holds it."""
     grid, keys = field_.grid, field_.keys
-    pidx = keys.decode(points)
-    want = []
-    for st in states:
+    lo = np.zeros((len(states), 3), dtype=np.int64)
+    hi = np.full((len(states), 3), -1, dtype=np.int64)             # empty box: holds nothing
+    for n, st in enumerate(states):
         box = grid.index_box(*st.gc.bounds())
-        want.append(np.zeros(len(points), dtype=bool) if box is None
-                    else np.all((pidx >= box[0]) & (pidx <= box[1]), 1))
+        if box is not None:
+            lo[n], hi[n] = box
+    want = np.empty((len(states), len(points)), dtype=bool)
+    _in_boxes(np.ascontiguousarray(points, dtype=np.int64), keys.Q, lo, hi, want)
     got = field_.ensure(states, [points[sel] for sel in want])
     vals, ins = [], []
     for sel, (f, m) in zip(want, got):
@@ -481,6 +484,17 @@ def field_values(field_: SparseField, states: list[GCState], points: np.ndarray,
         ins.append(i)
     F = fold(vals, ins, smooth) if states else np.full(len(points), np.inf, np.float32)
     return np.where(np.isfinite(F), F, np.float32(background)).astype(np.float32)
+
+
+@njit(cache=True, parallel=True)
+def _in_boxes(key, Q, lo, hi, out):
+    """out[g, n]: point key[n] lies in the inclusive index box [lo[g], hi[g]]."""
+    for n in prange(key.shape[0]):
+        k = key[n]
+        i, j, l = k // (Q * Q), (k // Q) % Q, k % Q
+        for g in range(lo.shape[0]):
+            out[g, n] = (lo[g, 0] <= i <= hi[g, 0] and lo[g, 1] <= j <= hi[g, 1]
+                         and lo[g, 2] <= l <= hi[g, 2])
 
 
 # faces of a cell: (axis, side) -> the 4 corners (CORNERS indices) on that face
