@@ -299,7 +299,9 @@ def rescore(run_dir: Path, resolution: int) -> dict:
     cfg = OmegaConf.load(run_dir / "config.yaml")
     cfg.extract.resolution = int(resolution)
     checkpoint = run_dir / "checkpoints/last.ckpt"
-    metrics.update(score_checkpoint(cfg, checkpoint, run_dir / "meshes"), checkpoint=str(checkpoint))
+    coarse = COARSE if cfg.model.decoder.get("_target_", "").endswith("DeepSDFDecoder") else {}
+    metrics.update(score_checkpoint(cfg, checkpoint, run_dir / "meshes", **coarse),
+                   checkpoint=str(checkpoint))
     tmp = metrics_path.with_suffix(".tmp")
     tmp.write_text(json.dumps(metrics, indent=2))
     os.replace(tmp, metrics_path)
