@@ -14,6 +14,7 @@ import os
 import re
 import shutil
 import sys
+import time
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -148,14 +149,34 @@ def user_errors():
         fail(message, e)
 
 
+def busy_cores(window: float = 0.25, stat: str = "/proc/stat") -> float:
+    """Cores other processes keep busy now: the machine's busy CPU time over `window` seconds
+    (/proc/stat), while this process sleeps. Unlike the 1-minute load average it does not count
+    what this process did a moment ago (a `make` setup step, the pipeline's previous stage).
+    Falls back to the load average where /proc/stat is missing."""
+    def times():
+        with open(stat) as f:
+            v = [int(x) for x in f.readline().split()[1:]]
+        idle = v[3] + (v[4] if len(v) > 4 else 0)   # idle + iowait
+        return sum(v) - idle, sum(v)
+
+    try:
+        b0, t0 = times()
+        time.sleep(window)
+        b1, t1 = times()
+    except (OSError, ValueError, IndexError):
+        return os.getloadavg()[0]
+    return (os.cpu_count() or 1) * (b1 - b0) / max(t1 - t0, 1)
+
+
 def auto_threads(cores: int | None = None, load: float | None = None) -> int:
     """The `threads=auto` rule: the cores no other job is using, at least one. Measured here
     (bench notes in README "Threads"): on 2 cores, an NGC training step takes 77 ms with one
     thread and 334 ms with two while one other process runs, because torch's two threads wait
-    on each other when one is descheduled; on an idle machine two threads are faster. The
-    1-minute load average stands for the other jobs."""
+    on each other when one is descheduled; on an idle machine two threads are faster. `load`:
+    the busy cores (default `busy_cores()`, sampled now)."""
     cores = (os.cpu_count() or 1) if cores is None else int(cores)
-    load = os.getloadavg()[0] if load is None else float(load)
+    load = busy_cores() if load is None else float(load)
     return max(1, min(cores, cores - int(round(load))))
 
 
@@ -164,8 +185,10 @@ def set_threads(threads) -> int | None:
     (`auto_threads`); null keeps torch's default (all cores). Returns the count set."""
     if threads is None:
         return None
+    busy = None
     if str(threads) == "auto":
-        n = auto_threads()
+        busy = busy_cores()
+        n = auto_threads(load=busy)
     else:
         try:
             n = int(threads)
@@ -179,9 +202,9 @@ def set_threads(threads) -> int | None:
                           "machine) or threads=null (all cores)")
     import torch
 
-    if threads == "auto" and n != torch.get_num_threads():
-        log.info("threads=auto: %d torch thread(s) (1-minute load %.1f on %d cores)", n,
-                 os.getloadavg()[0], os.cpu_count() or 1)
+    if busy is not None and n != torch.get_num_threads():
+        log.info("threads=auto: %d torch thread(s) (%.1f of %d cores busy with other jobs)", n,
+                 busy, os.cpu_count() or 1)
     torch.set_num_threads(n)
     return n
 

@@ -52,3 +52,21 @@ def test_entry_points_reject_bad_threads(script, tmp_path):
     run = tmp_path / "run"  # at most Hydra's own record of the call
     left = {p.name for p in run.iterdir()} if run.exists() else set()
     assert left <= {".hydra", "train.log", "sample.log", "edit.log"}, left
+
+
+def test_busy_cores_reads_the_cpu_time_spent_meanwhile(tmp_path, monkeypatch):
+    # /proc/stat's first line: user nice system idle iowait ...; between the two reads the
+    # machine spent 150 busy and 50 idle jiffies: 3/4 of every core
+    from ngc_gen.app import cli
+
+    stat = tmp_path / "stat"
+    lines = iter(["cpu 100 0 100 1000 0 0 0\n", "cpu 200 0 150 1040 10 0 0\n"])
+
+    def fake_sleep(_):
+        stat.write_text(next(lines))
+
+    stat.write_text(next(lines))
+    monkeypatch.setattr(cli.time, "sleep", fake_sleep)
+    monkeypatch.setattr(cli.os, "cpu_count", lambda: 2)
+    assert cli.busy_cores(stat=str(stat)) == pytest.approx(1.5)
+    assert cli.auto_threads(2, cli.busy_cores(stat=str(tmp_path / "missing"))) >= 1
