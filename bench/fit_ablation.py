@@ -3,7 +3,7 @@
     python bench/fit.py --tag lr1e2 --methods ngc --threads 1 --set model.lr=1e-2   # one screen
     python bench/fit.py --tag lr1e2 --methods ngc --rescore                         # new metrics
     python bench/fit_ablation.py [TAG ...]                                          # the table
-    python bench/fit_ablation.py --picture baseline lr1e2   # fit_before_after.png, one camera
+    python bench/fit_ablation.py --picture baseline default   # fit_before_after.png, one camera
 
 Reads bench/runs/fit/<tag>/fit.json (every tag, or those given; `baseline` is the default
 recipe) and bench/results/fit.json's ceiling, and writes bench/results/fit_ablation.json
@@ -75,10 +75,12 @@ def markdown(res: dict) -> str:
 
 
 def run_meshes(tag: str) -> Path:
-    """The meshes of a screening tag, or of the default bench run (`baseline`: bench/results'
-    own NGC run, bench/runs/fit/ngc)."""
-    d = RUNS / tag / "ngc" / "meshes"
-    return d if d.is_dir() else RUNS / "ngc" / "meshes"
+    """The meshes of a screening tag, or of the bench's own NGC run (`default`:
+    bench/runs/fit/ngc, what bench/results/fit.json reports)."""
+    d = RUNS / "ngc" / "meshes" if tag == "default" else RUNS / tag / "ngc" / "meshes"
+    if not d.is_dir():
+        raise SystemExit(f"no meshes in {d}: run `python bench/fit.py --tag {tag} ...` first")
+    return d
 
 
 def picture(before: str, after: str, shapes: list[str], path: Path) -> None:
