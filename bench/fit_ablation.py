@@ -67,7 +67,8 @@ def markdown(res: dict) -> str:
         lines.append(f"| ceiling (exact SDF) | | {c['resolution']} | {m['cd'] * 1e4:.2f} | "
                      f"{m['nc']:.3f} | {m['fscore']:.3f} | {m['fragments']} | {m['hd']:.4f} | "
                      "| |")
-    order = sorted(res["runs"].items(), key=lambda kv: (not kv[0].startswith("baseline"), -kv[1]["nc"]))
+    order = sorted(res["runs"].items(),
+                   key=lambda kv: (not kv[0].startswith("baseline"), -kv[1]["nc"]))
     for tag, r in order:
         load = r.get("load") or []
         load_s = f"{load[0]:.1f}-{load[3]:.1f}" if len(load) >= 4 else ""
