@@ -59,7 +59,8 @@ def collect(tags: list[str]) -> dict:
 
 
 def markdown(res: dict) -> str:
-    lines = ["| run | overrides | grid | CD x1e-4 | NC | F@0.01 | fragments | HD | train_s | load |",
+    lines = ["| run | overrides | grid | CD x1e-4 | NC | F@0.01 | fragments | HD | train_s "
+             "| load |",
              "|---|---|---|---|---|---|---|---|---|---|"]
     c = res.get("ceiling")
     if c:
@@ -113,7 +114,7 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("tags", nargs="*")
     ap.add_argument("--picture", nargs=2, metavar=("BEFORE", "AFTER"),
-                    help="render two runs' meshes side by side (bench/results/fit_before_after.png)")
+                    help="two runs' meshes side by side: bench/results/fit_before_after.png")
     ap.add_argument("--shapes", nargs="+", default=["ant", "creature_0000", "creature_0005"])
     args = ap.parse_args()
     if args.picture:
