@@ -134,7 +134,7 @@ def deepsdf_long(steps: int, resolution: int, batch_size: int, ngc_seconds: floa
     seconds, step = clock_of(last)
     metrics = score_checkpoint(cfg, last, run_dir / "meshes", **COARSE)
     out = method_summary({**metrics, "train_s": seconds, "steps": step})
-    out.update(max_steps=steps, batch_size=batch_size,
+    out.update(max_steps=steps, batch_size=batch_size, resolution=resolution,
                clock_csv=str((run_dir / "clock.csv").relative_to(ROOT)))
     # coarse-to-fine meshes equal dense ones where the field is 2-Lipschitz: check one shape
     module = load_autodecoder(last).eval()
