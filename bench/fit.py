@@ -283,8 +283,10 @@ def markdown(res: dict) -> str:
         lines.append("")
         lines.append(f"DeepSDF, own recipe: 8 x 512, latent skip at 4, clamp 0.1, lr 5e-4 "
                      f"(codes 1e-3) halved every quarter of {long['max_steps']} steps, same "
-                     f"batch; stopped at step {long['steps']}. NGC CD / its CD = "
-                     f"{res['methods']['ngc']['cd'] / long['cd']:.2f} (paper: 0.53).")
+                     f"batch; stopped at step {long['steps']}, meshes at "
+                     f"{long.get('resolution', res['resolution'])}^3 (coarse-to-fine). NGC CD / "
+                     f"its CD = {res['methods']['ngc']['cd'] / long['cd']:.2f} (paper: 0.53); "
+                     f"it has not converged.")
 
     return "\n".join(lines) + "\n"
 
@@ -379,8 +381,8 @@ def main():
         res["shapes"] = list(metrics["shapes"])
         if method == "ngc" and args.tag is None:
             res["prefilter"] = prefilter_check(metrics["checkpoint"], args.check_resolution)
-    if args.tag is None and (args.rescore
-                             or res.get("ceiling", {}).get("resolution") != args.resolution):
+    if args.tag is None and not args.deepsdf_long and (
+            args.rescore or res.get("ceiling", {}).get("resolution") != args.resolution):
         res["ceiling"] = ceiling(args.resolution)
     out.mkdir(parents=True, exist_ok=True)
     for name, text in (("fit.json", json.dumps(res, indent=2)), ("fit.md", markdown(res))):
