@@ -23,6 +23,7 @@ import numpy as np
 from numba import njit, prange
 
 from .marching import CORNERS
+from .store import gallop
 
 CAN_NEG, CAN_POS, SURE = 1, 2, 4
 DROP, KEEP, UNDECIDED = 0, 1, 2
@@ -127,28 +128,12 @@ def fill_exact(blocks, half_key, need, keys, f, m, tau32, state):
     """state[b, j] <- the exact state of point j of block b where need[b, j]: its key
     blocks[b] + half_key[j] is found in the sorted `keys`, whose values are f, m. Blocks come
     sorted, so for each j the keys come sorted too: a galloping pass per j."""
-    n = keys.shape[0]
     for j in prange(27):
         lo = 0
         for b in range(blocks.shape[0]):
             if not need[b, j]:
                 continue
-            x = blocks[b] + half_key[j]
-            if keys[lo] < x:
-                step, prev = 1, lo
-                hi = lo + 1
-                while hi < n and keys[hi] < x:
-                    prev = hi
-                    step *= 2
-                    hi = prev + step
-                a, c = prev + 1, min(hi, n)
-                while a < c:
-                    mid = (a + c) // 2
-                    if keys[mid] < x:
-                        a = mid + 1
-                    else:
-                        c = mid
-                lo = a
+            lo = gallop(keys, lo, blocks[b] + half_key[j])
             state[b, j] = _flags(f[lo], m[lo], tau32)
 
 

@@ -31,29 +31,37 @@ def sorted_unique(a: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=True)
+def gallop(hay, lo, x):
+    """The first index >= lo with hay[index] >= x (len(hay) if none), hay sorted: doubling steps
+    from lo, then bisection, so a run of increasing x costs O(log distance) each."""
+    n = hay.shape[0]
+    if lo >= n or hay[lo] >= x:
+        return lo
+    step, prev = 1, lo
+    hi = lo + 1
+    while hi < n and hay[hi] < x:
+        prev = hi
+        step *= 2
+        hi = prev + step
+    a, b = prev + 1, min(hi, n)
+    while a < b:
+        mid = (a + b) // 2
+        if hay[mid] < x:
+            a = mid + 1
+        else:
+            b = mid
+    return a
+
+
+@njit(cache=True)
 def _find_sorted(hay, needles, out):
     """out[i] = index of needles[i] in hay, -1 if absent; both sorted, so each search gallops
     on from the previous hit: O(m log(n / m)) for m needles in n keys."""
     n = hay.shape[0]
     lo = 0
     for i in range(needles.shape[0]):
-        x = needles[i]
-        if lo < n and hay[lo] < x:
-            step, prev = 1, lo
-            hi = lo + 1
-            while hi < n and hay[hi] < x:
-                prev = hi
-                step *= 2
-                hi = prev + step
-            a, b = prev + 1, min(hi, n)
-            while a < b:
-                mid = (a + b) // 2
-                if hay[mid] < x:
-                    a = mid + 1
-                else:
-                    b = mid
-            lo = a
-        out[i] = lo if lo < n and hay[lo] == x else -1
+        lo = gallop(hay, lo, needles[i])
+        out[i] = lo if lo < n and hay[lo] == needles[i] else -1
 
 
 def find_sorted(hay: np.ndarray, needles: np.ndarray) -> np.ndarray:

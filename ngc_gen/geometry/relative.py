@@ -120,19 +120,23 @@ def coarse_convex(kappa: np.ndarray, coarse: np.ndarray, segments: int, length: 
 
 
 @njit(cache=True, fastmath=FASTMATH)
-def _piece(s, breaks):
-    """Index of the polynomial piece holding s (clamped)."""
-    P = breaks.shape[0] - 1
-    if P == 1:
-        return 0
-    lo, hi = 0, P
+def _bisect(x, xp):
+    """The cell lo of increasing xp with xp[lo] <= x < xp[lo + 1] (0 below xp[0], the last
+    cell from xp[-1] on)."""
+    lo, hi = 0, xp.shape[0] - 1
     while hi - lo > 1:
         mid = (lo + hi) // 2
-        if breaks[mid] <= s:
+        if xp[mid] <= x:
             lo = mid
         else:
             hi = mid
     return lo
+
+
+@njit(cache=True, fastmath=FASTMATH)
+def _piece(s, breaks):
+    """Index of the polynomial piece holding s (clamped)."""
+    return 0 if breaks.shape[0] == 2 else _bisect(s, breaks)
 
 
 @njit(cache=True, fastmath=FASTMATH)
@@ -157,19 +161,6 @@ def _curve(s, breaks, coef):
         cy = cy * h + coef[i, k, 1]
         cz = cz * h + coef[i, k, 2]
     return cx, cy, cz, dx, dy, dz, ex, ey, ez
-
-
-@njit(cache=True, fastmath=FASTMATH)
-def _bisect(x, xp):
-    """lo with xp[lo] <= x < xp[lo + 1], for xp[0] < x < xp[-1] (increasing xp)."""
-    lo, hi = 0, xp.shape[0] - 1
-    while hi - lo > 1:
-        mid = (lo + hi) // 2
-        if xp[mid] <= x:
-            lo = mid
-        else:
-            hi = mid
-    return lo
 
 
 @njit(cache=True, fastmath=FASTMATH)
