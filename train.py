@@ -9,9 +9,9 @@ from ngc_gen.app.cli import hydra_entry
 @hydra.main(version_base="1.3", config_path="conf", config_name="train")
 def main(cfg: DictConfig) -> None:
     from ngc_gen.app.cli import run_job
-    from ngc_gen.app.stages import run_stage
+    from ngc_gen.app.stages import check_inputs, run_stage
 
-    run_job(run_stage, cfg)
+    run_job(run_stage, cfg, check=check_inputs)
 
 
 if __name__ == "__main__":

@@ -222,9 +222,12 @@ def torch_threads(n: int):
         torch.set_num_threads(previous)
 
 
-def run_job(fn, cfg):
-    """What every entry point does: set the threads, run `fn(cfg)`, report user errors."""
+def run_job(fn, cfg, check=None):
+    """What every entry point does: `check(cfg)` (light input checks, before torch loads), set
+    the threads, run `fn(cfg)`, report user errors."""
     with user_errors():
+        if check is not None:
+            check(cfg)
         set_threads(cfg.get("threads"))
         return fn(cfg)
 

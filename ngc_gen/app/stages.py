@@ -27,10 +27,22 @@ def preflight(cfg: DictConfig) -> None:
     resume_point(cfg, Path(cfg.run_dir), getattr(importlib.import_module(module), name))
 
 
-def run_stage(cfg: DictConfig):
+def check_inputs(cfg: DictConfig) -> None:
+    """What train.py checks before torch loads, so a wrong command fails in about a second: the
+    stage name, and that data=folder's folder holds meshes."""
     if cfg.stage not in STAGES:
         raise ConfigError("unknown stage", key="stage", value=cfg.stage,
                           fix=f"choose one of {', '.join(STAGES)} (e.g. stage=fit)")
+    data = cfg.get("data")
+    if (cfg.stage in ("prepare", "annotate", "fit", "reconstruct") and data is not None
+            and str(data.get("_target_", "")).endswith(".MeshFolder")):
+        from ngc_gen.data.mesh_folder import mesh_files
+
+        mesh_files(data.path)
+
+
+def run_stage(cfg: DictConfig):
+    check_inputs(cfg)  # again for callers other than train.py (pipeline, tests); cheap
     if cfg.stage in ("fit", "reconstruct"):
         trainer_steps(cfg)
     if cfg.stage == "fit":

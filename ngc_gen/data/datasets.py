@@ -11,8 +11,8 @@ from pathlib import Path
 from .annotations import Annotation, load_annotation
 from .auto_gc import AutoGCSettings, auto_annotation
 from .errors import DataError
+from .mesh_folder import mesh_files
 
-MESH_SUFFIXES = {".obj", ".ply", ".stl", ".off", ".glb", ".gltf"}
 
 
 class AnnotatedShapes:
@@ -68,14 +68,7 @@ class MeshFolder:
 
     def mesh_files(self) -> list[Path]:
         """The folder's mesh files, sorted by name."""
-        if not self.path.is_dir():
-            raise DataError(f"mesh folder {self.path} does not exist",
-                            fix="pass data.path=/path/to/your/meshes")
-        meshes = sorted(p for p in self.path.iterdir() if p.suffix.lower() in MESH_SUFFIXES)
-        if not meshes:
-            raise DataError(f"no meshes ({', '.join(sorted(MESH_SUFFIXES))}) in {self.path}",
-                            fix="put mesh files in the folder or point data.path elsewhere")
-        return meshes
+        return mesh_files(self.path)
 
     def shapes(self) -> list[Annotation]:
         out = []

@@ -50,7 +50,7 @@ def test_closest_point_matches_brute_force(rng):
         ours = np.linalg.norm(q - foot, axis=1)
         # dense sampling is within (spacing/2)^2 / (2 r) of the truth: ours may only be smaller
         assert np.all(ours <= brute + 1e-6)
-        assert np.all(brute - ours < 1e-5)
+        assert np.all(brute - ours <= h / 2)
 
 
 def test_rigid_motion_leaves_relative_coordinates_unchanged(rng):
@@ -193,17 +193,20 @@ def test_strongly_curved_gc_finds_the_nearest_foot_point(rng, points, r):
     vertex descent and the seed must not stop at another local minimum)."""
     gc = GeneralizedCylinder.from_dict({"name": "bend", "curve": {"type": "bezier",
                                         "points": points}, "keys": [{"t": 0, "radii": [r, r]}]})
-    rel = inside_rel_samples(rng, 20_000)
+    rel = inside_rel_samples(rng, 4_000)
     rel = rel[np.abs(rel[:, 0]) < 1] * [1, 1.2, 1.2]
     q = gc.to_world(rel)
     rel2 = gc.to_relative(q)
     foot = gc.to_world(np.stack([rel2[:, 0], 0 * rel2[:, 0], 0 * rel2[:, 0]], 1))
-    dense = gc.curve.evaluate(torch.linspace(0, 1, 400_001, dtype=torch.float64))[0].numpy()
+    # samples h apart give a distance within h / 2 of the true one (250k, not more: a k-d tree
+    # over a curve is slow per query, the ball around a query meets thousands of leaves)
+    dense = gc.curve.evaluate(torch.linspace(0, 1, 250_001, dtype=torch.float64))[0].numpy()
+    h = np.linalg.norm(np.diff(dense, axis=0), axis=1).max()
     from scipy.spatial import cKDTree
     brute, _ = cKDTree(dense).query(q)
     ours = np.linalg.norm(q - foot, axis=1)
     assert np.all(ours <= brute + 1e-7)
-    assert np.all(brute - ours < 1e-5)
+    assert np.all(brute - ours <= h / 2)
 
 
 @pytest.mark.parametrize("points, r", CURVED)

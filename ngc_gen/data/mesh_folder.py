@@ -1,0 +1,25 @@
+"""A folder of the user's meshes: which files count, and the error when there are none.
+
+Light on purpose (pathlib only): `train.py` checks `data.path` with it before torch and
+Lightning load, so a wrong path fails in about a second.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+from .errors import DataError
+
+MESH_SUFFIXES = {".obj", ".ply", ".stl", ".off", ".glb", ".gltf"}
+
+
+def mesh_files(folder: str | Path) -> list[Path]:
+    """The folder's mesh files, sorted by name; DataError if the folder is missing or empty."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise DataError(f"mesh folder {folder} does not exist",
+                        fix="pass data.path=/path/to/your/meshes")
+    meshes = sorted(p for p in folder.iterdir() if p.suffix.lower() in MESH_SUFFIXES)
+    if not meshes:
+        raise DataError(f"no meshes ({', '.join(sorted(MESH_SUFFIXES))}) in {folder}",
+                        fix="put mesh files in the folder or point data.path elsewhere")
+    return meshes
