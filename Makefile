@@ -33,7 +33,7 @@ test: setup
 test-all: setup
 	$(BIN)/python -m pytest -q
 
-demo: setup  # the whole pipeline: fit, edit, shape latents, diffusion, sample (conf/experiment/demo.yaml)
+demo: $(VENV)/.installed  # (no browser needed) the whole pipeline: fit, edit, shape latents, diffusion, sample (conf/experiment/demo.yaml)
 	$(BIN)/python train.py experiment=demo
 
 bench: bench-geometry bench-fit bench-deform bench-generate bench-editor bench-autogc bench-condition \

@@ -11,14 +11,14 @@ from omegaconf import DictConfig
 from tqdm import tqdm
 from tqdm.contrib.logging import logging_redirect_tqdm
 
-from ngc_gen.data.prepare import PrepareSettings, PreparedShape, prepare_shape
+from ngc_gen.data.prepare import PrepareSettings, PreparedShape, prepare_shape, prepare_uncached
 
 from .cli import torch_threads
 from .errors import ConfigError
 from .checks import check_writable
 from .training import instantiate, instantiate_group
 
-RUNNER_KEYS = ("cache_dir", "shard")  # settings the stage reads itself (not PrepareSettings)
+RUNNER_KEYS = ("cache_dir", "shard", "workers")  # settings the stage reads itself (not PrepareSettings)
 
 
 def settings_from_config(cfg: DictConfig) -> PrepareSettings:
@@ -69,6 +69,8 @@ def prepare_dataset(cfg: DictConfig, verbose: bool = True) -> list[PreparedShape
         annotations = dataset.shapes()
     if shard is not None:
         annotations = annotations[shard[0]::shard[1]]
+    # shapes not in the cache: made in worker processes first (about a second each), then read
+    made = prepare_uncached(annotations, settings, cache_dir, workers=cfg.prepare.workers)
     out, rows = [], []
     bar = tqdm(annotations, desc=f"prepare {dataset.name}", unit="shape",
                disable=not verbose or len(annotations) < 2)
@@ -77,9 +79,9 @@ def prepare_dataset(cfg: DictConfig, verbose: bool = True) -> list[PreparedShape
             t0 = time.perf_counter()
             shape = prepare_shape(ann, settings, cache_dir)
             out.append(shape)
+            seconds = made.get(shape.name, None if shape.from_cache else time.perf_counter() - t0)
             rows.append((shape.name, len(shape.gc_names), shape.coverage, len(shape.points),
-                         len(shape.pair_point), "cache" if shape.from_cache else
-                         f"{time.perf_counter() - t0:.2f} s"))
+                         len(shape.pair_point), "cache" if seconds is None else f"{seconds:.2f} s"))
     if verbose:
         print(f"\n{'shape':24s} {'GCs':>4s} {'coverage':>9s} {'samples':>8s} {'pairs':>8s}  source")
         for name, g, cov, n, p, src in rows:

@@ -36,6 +36,7 @@ from ngc_gen.data.implicit import (block_points, grid_axes, mesh_from_field, pro
                                    profile_norm)
 from ngc_gen.data.annotations import rounded_gc_dict, similar_gc_dict
 from ngc_gen.data.mesh_io import normalize
+from ngc_gen.data.workers import map_shapes
 from ngc_gen.geometry import GeneralizedCylinder, bernstein_basis, smooth_min
 
 #: Bump when the generator changes: built datasets with another version are rebuilt.
@@ -412,8 +413,16 @@ def _settings_key(seed: int, resolution: int) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
+def _make_timed(args):
+    seed, resolution, name = args
+    start = time.perf_counter()
+    mesh, ann, cov = _make(seed, resolution, name, 200_000)
+    return mesh, ann, cov, time.perf_counter() - start
+
+
 def build_creatures(out_dir, n: int, seed: int = 0, test_fraction: float = 0.25,
-                    resolution: int = 128, progress: bool | None = None) -> list[dict]:
+                    resolution: int = 128, progress: bool | None = None,
+                    workers: int | None = None) -> list[dict]:
     """Build (or reuse) `n` creatures in `out_dir`: `<name>.ply` + `<name>.yaml` per shape,
     `split.json` {train, test} and `manifest.json`.
 
@@ -421,7 +430,8 @@ def build_creatures(out_dir, n: int, seed: int = 0, test_fraction: float = 0.25,
     same generator version, seed and resolution and its files exist, so growing `n` only builds
     the new shapes. Returns one record per shape: name, seed, mesh, annotation (paths), split,
     vertices, faces, coverage, seconds (0 when reused). A progress bar shows when `progress` is
-    True, or by default when n > 8."""
+    True, or by default when n > 8. Missing shapes are made in `workers` processes (`map_shapes`;
+    default: one per core)."""
     from tqdm.auto import tqdm
 
     if int(n) < 1:
@@ -442,25 +452,27 @@ def build_creatures(out_dir, n: int, seed: int = 0, test_fraction: float = 0.25,
     names = [f"creature_{i:04d}" for i in range(int(n))]
     split = creature_split(names, seed, test_fraction)
     which = {nm: s for s in ("train", "test") for nm in split[s]}
-    records = []
-    bar = tqdm(names, desc="creatures", disable=not (n > 8 if progress is None else progress))
-    for i, nm in enumerate(bar):
-        ply, yml = out / f"{nm}.ply", out / f"{nm}.yaml"
-        rec = manifest["shapes"].get(nm)
-        if rec is not None and ply.is_file() and yml.is_file():
-            rec = {**rec, "seconds": 0.0}
-        else:
-            start = time.perf_counter()
-            mesh, ann, cov = _make(shape_seed(seed, i), resolution, nm, 200_000)
-            atomic_write(ply, lambda f: f.write(mesh.export(file_type="ply")))
-            atomic_write_text(yml, yaml.safe_dump(ann, sort_keys=False, default_flow_style=None,
-                                                  width=100))
-            rec = {"seed": shape_seed(seed, i), "vertices": len(mesh.vertices),
-                   "faces": len(mesh.faces), "coverage": cov,
-                   "seconds": round(time.perf_counter() - start, 3)}
-            manifest["shapes"][nm] = {k: v for k, v in rec.items() if k != "seconds"}
-            atomic_write_text(manifest_path, json.dumps(manifest, indent=1))
-        records.append({"name": nm, "mesh": str(ply), "annotation": str(yml),
-                        "split": which[nm], **rec})
+    missing = [i for i, nm in enumerate(names) if not (
+        manifest["shapes"].get(nm) is not None and (out / f"{nm}.ply").is_file()
+        and (out / f"{nm}.yaml").is_file())]
+    made = map_shapes(_make_timed, [(shape_seed(seed, i), resolution, names[i]) for i in missing],
+                      workers)
+    bar = tqdm(total=len(missing), desc="creatures",
+               disable=not (len(missing) > 8 if progress is None else progress))
+    fresh = {}
+    for i, (mesh, ann, cov, seconds) in zip(missing, made):
+        nm = names[i]
+        atomic_write(out / f"{nm}.ply", lambda f: f.write(mesh.export(file_type="ply")))
+        atomic_write_text(out / f"{nm}.yaml", yaml.safe_dump(ann, sort_keys=False,
+                                                              default_flow_style=None, width=100))
+        fresh[nm] = round(seconds, 3)
+        manifest["shapes"][nm] = {"seed": shape_seed(seed, i), "vertices": len(mesh.vertices),
+                                  "faces": len(mesh.faces), "coverage": cov}
+        atomic_write_text(manifest_path, json.dumps(manifest, indent=1))
+        bar.update()
+    bar.close()
+    records = [{"name": nm, "mesh": str(out / f"{nm}.ply"), "annotation": str(out / f"{nm}.yaml"),
+                "split": which[nm], **manifest["shapes"][nm], "seconds": fresh.get(nm, 0.0)}
+               for nm in names]
     atomic_write_text(out / "split.json", json.dumps(split, indent=1))
     return records

@@ -306,3 +306,33 @@ def prepare_shape(annotation: Annotation | str | os.PathLike, settings: PrepareS
              len(shape.pair_point), len(shape.gc_names), time.perf_counter() - start,
              f" -> {path}" if path is not None else "")
     return shape
+
+
+def _prepare_in_worker(args) -> float | None:
+    """Seconds to prepare and cache one shape in a worker process; None if it failed (the
+    caller prepares that shape again in its own process, which raises the error)."""
+    annotation, settings, cache_dir = args
+    start = time.perf_counter()
+    try:
+        prepare_shape(annotation, settings, cache_dir)
+    except Exception:  # noqa: BLE001 (reported by the caller's own attempt)
+        return None
+    return time.perf_counter() - start
+
+
+def prepare_uncached(annotations: list[Annotation], settings: PrepareSettings,
+                     cache_dir: str | os.PathLike, workers: int | None = None) -> dict[str, float]:
+    """Prepare into `cache_dir`, in worker processes (`map_shapes`), the shapes whose cache file
+    is missing or stale; {name: seconds} of those made. `prepare_shape` then reads them from the
+    cache. A shape that fails is left to the caller's `prepare_shape`, which raises its error."""
+    from ngc_gen.data.workers import map_shapes
+
+    def stale(ann: Annotation) -> bool:
+        if not ann.mesh_path.is_file():
+            return False  # prepare_shape explains it
+        return _stored_key(cache_path(cache_dir, ann.name)) != cache_key(
+            ann.mesh_path.read_bytes(), ann, settings)
+
+    todo = [a for a in annotations if stale(a)]
+    seconds = map_shapes(_prepare_in_worker, [(a, settings, cache_dir) for a in todo], workers)
+    return {a.name: s for a, s in zip(todo, seconds) if s is not None}

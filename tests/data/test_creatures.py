@@ -1,6 +1,7 @@
 """Procedural creatures: determinism, watertight single-piece meshes, the shared GC template,
 GC coverage, non-elliptic profiles, and the on-disk dataset (reuse, split)."""
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -182,3 +183,14 @@ def test_build_writes_loadable_files_and_reuses_them(tmp_path):
     assert [dict(r, seconds=0) for r in again] == [dict(r, seconds=0) for r in recs]
     assert {p.name: p.stat().st_mtime_ns for p in tmp_path.glob("creature_*")} == mtimes
     assert not list(tmp_path.glob("*.tmp"))
+
+
+def test_building_in_worker_processes_gives_the_same_files(tmp_path):
+    """The default build spreads the shapes over processes; the files must not depend on it."""
+    one = build_creatures(tmp_path / "one", 4, seed=5, resolution=64, workers=1)
+    two = build_creatures(tmp_path / "two", 4, seed=5, resolution=64, workers=2)
+    assert [dict(r, seconds=0, mesh=0, annotation=0) for r in one] == \
+        [dict(r, seconds=0, mesh=0, annotation=0) for r in two]
+    for a, b in zip(one, two):
+        assert Path(a["mesh"]).read_bytes() == Path(b["mesh"]).read_bytes()
+        assert Path(a["annotation"]).read_text() == Path(b["annotation"]).read_text()

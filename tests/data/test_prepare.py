@@ -220,3 +220,28 @@ def test_only_surface_or_only_volume_samples(sphere_annotation, fraction):
     shape = prepare_shape(sphere_annotation, dataclasses.replace(SMALL, n_samples=1_000, surface_fraction=fraction))
     assert len(shape.points) == 1_000 and shape.n_surface == int(1_000 * fraction)
     assert shape.pair_point.max() < 1_000
+
+
+def test_shapes_prepared_in_worker_processes_equal_those_prepared_here(sphere_file, write_yaml,
+                                                                        gc_dict, tmp_path):
+    """prepare_uncached fills the cache from spawned workers; the samples must be the ones this
+    process makes, a cached shape is not made again, and a failing shape is left to the caller."""
+    from ngc_gen.data.prepare import prepare_uncached
+
+    anns = [load_annotation(write_yaml({"name": f"s{i}", "mesh": sphere_file.name,
+                                        "gcs": [gc_dict("body", -0.3 - 0.1 * i, 0.3)]},
+                                       name=f"s{i}.yaml")) for i in range(4)]
+    bad = load_annotation(write_yaml({"name": "bad", "mesh": sphere_file.name,
+                                      "gcs": [gc_dict("body", -0.1, 0.1, radii=(0.1, 0.1))]},
+                                     name="bad.yaml"))
+    made = prepare_uncached(anns + [bad], SMALL, tmp_path / "par", workers=2)
+    assert sorted(made) == ["s0", "s1", "s2", "s3"] and all(s > 0 for s in made.values())
+    for ann in anns:
+        here = prepare_shape(ann, SMALL, tmp_path / "seq")
+        there = prepare_shape(ann, SMALL, tmp_path / "par")
+        assert there.from_cache and not here.from_cache
+        for f in ("points", "sdf", "pair_point", "pair_gc", "pair_rel"):
+            np.testing.assert_array_equal(getattr(here, f), getattr(there, f))
+    assert prepare_uncached(anns, SMALL, tmp_path / "par", workers=2) == {}
+    with pytest.raises(DataError, match="cover"):
+        prepare_shape(bad, SMALL, tmp_path / "par")
