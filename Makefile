@@ -13,10 +13,15 @@ $(BIN)/activate:
 
 $(VENV)/.installed: $(BIN)/activate pyproject.toml
 	$(BIN)/python -c "import torch" 2>/dev/null || $(BIN)/pip install -q "$(TORCH_SPEC)"
+	$(BIN)/pip install -q -e ".[skeleton]"
+	touch $@
+
+# the test tools (pytest, import-linter, playwright) on top: make demo does not need them
+$(VENV)/.installed-dev: $(VENV)/.installed
 	$(BIN)/pip install -q -e ".[dev,skeleton]"
 	touch $@
 
-setup: $(VENV)/.installed chromium
+setup: $(VENV)/.installed-dev chromium
 
 # Debian's chromium for the editor's browser test (Playwright drives it; never `playwright
 # install`): installed when missing and we are root or have passwordless sudo.

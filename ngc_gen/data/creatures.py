@@ -392,6 +392,11 @@ def shape_seed(seed: int, index: int) -> int:
     return int(np.random.SeedSequence([int(seed), int(index)]).generate_state(1)[0])
 
 
+def creature_names(n: int) -> list[str]:
+    """The names of a dataset of `n` creatures."""
+    return [f"creature_{i:04d}" for i in range(int(n))]
+
+
 def creature_split(names: list[str], seed: int, test_fraction: float) -> dict:
     """Deterministic disjoint {train, test} split of `names` (each list sorted)."""
     if not 0.0 <= test_fraction < 1.0:
@@ -422,7 +427,7 @@ def _make_timed(args):
 
 def build_creatures(out_dir, n: int, seed: int = 0, test_fraction: float = 0.25,
                     resolution: int = 128, progress: bool | None = None,
-                    workers: int | None = None) -> list[dict]:
+                    workers: int | None = None, only: list[str] | None = None) -> list[dict]:
     """Build (or reuse) `n` creatures in `out_dir`: `<name>.ply` + `<name>.yaml` per shape,
     `split.json` {train, test} and `manifest.json`.
 
@@ -430,7 +435,8 @@ def build_creatures(out_dir, n: int, seed: int = 0, test_fraction: float = 0.25,
     same generator version, seed and resolution and its files exist, so growing `n` only builds
     the new shapes. Returns one record per shape: name, seed, mesh, annotation (paths), split,
     vertices, faces, coverage, seconds (0 when reused). A progress bar shows when `progress` is
-    True, or by default when n > 8. Missing shapes are made in `workers` processes (`map_shapes`;
+    True, or by default when n > 8. `only`: build and return just these names (the split still
+    covers all `n`: it depends on the names alone). Missing shapes are made in `workers` processes (`map_shapes`;
     default: one per core)."""
     from tqdm.auto import tqdm
 
@@ -449,10 +455,15 @@ def build_creatures(out_dir, n: int, seed: int = 0, test_fraction: float = 0.25,
     if manifest.get("settings") != key:
         manifest = {"settings": key, "version": CREATURES_VERSION, "seed": int(seed),
                     "resolution": int(resolution), "shapes": {}}
-    names = [f"creature_{i:04d}" for i in range(int(n))]
+    names = creature_names(n)
     split = creature_split(names, seed, test_fraction)
     which = {nm: s for s in ("train", "test") for nm in split[s]}
-    missing = [i for i, nm in enumerate(names) if not (
+    wanted = names if only is None else [nm for nm in names if nm in set(only)]
+    if only is not None and len(wanted) < len(set(only)):
+        unknown = sorted(set(only) - set(names))
+        raise DataError(f"no creature named {', '.join(unknown)} among the {n} built",
+                        fix=f"ask for creature_0000 .. creature_{int(n) - 1:04d}")
+    missing = [i for i, nm in enumerate(names) if nm in set(wanted) and not (
         manifest["shapes"].get(nm) is not None and (out / f"{nm}.ply").is_file()
         and (out / f"{nm}.yaml").is_file())]
     made = map_shapes(_make_timed, [(shape_seed(seed, i), resolution, names[i]) for i in missing],
@@ -473,6 +484,6 @@ def build_creatures(out_dir, n: int, seed: int = 0, test_fraction: float = 0.25,
     bar.close()
     records = [{"name": nm, "mesh": str(out / f"{nm}.ply"), "annotation": str(out / f"{nm}.yaml"),
                 "split": which[nm], **manifest["shapes"][nm], "seconds": fresh.get(nm, 0.0)}
-               for nm in names]
+               for nm in wanted]
     atomic_write_text(out / "split.json", json.dumps(split, indent=1))
     return records

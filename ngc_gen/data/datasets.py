@@ -5,7 +5,6 @@ rest of the pipeline uses.
 """
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 from .annotations import Annotation, load_annotation
@@ -90,11 +89,13 @@ class Creatures:
         self.split, self.test_fraction, self.limit = split, test_fraction, limit
 
     def shapes(self) -> list[Annotation]:
-        from .creatures import build_creatures
+        from .creatures import build_creatures, creature_names, creature_split
 
-        build_creatures(self.out_dir, self.n, seed=self.seed, test_fraction=self.test_fraction)
-        split = json.loads((self.out_dir / "split.json").read_text())
+        split = creature_split(creature_names(self.n), self.seed, self.test_fraction)
         names = split["train"] + split["test"] if self.split == "all" else split[self.split]
         names = names[: self.limit] if self.limit else names
+        # only the shapes asked for are built (the demo's 3 of 64)
+        build_creatures(self.out_dir, self.n, seed=self.seed, test_fraction=self.test_fraction,
+                        only=names)
         return [load_annotation(self.out_dir / f"{n}.yaml") for n in names]
 

@@ -194,3 +194,13 @@ def test_building_in_worker_processes_gives_the_same_files(tmp_path):
     for a, b in zip(one, two):
         assert Path(a["mesh"]).read_bytes() == Path(b["mesh"]).read_bytes()
         assert Path(a["annotation"]).read_text() == Path(b["annotation"]).read_text()
+
+
+def test_only_the_creatures_asked_for_are_built(tmp_path):
+    recs = build_creatures(tmp_path, 40, seed=5, resolution=64, only=["creature_0031"])
+    assert [r["name"] for r in recs] == ["creature_0031"]
+    assert sorted(p.name for p in tmp_path.glob("*.ply")) == ["creature_0031.ply"]
+    split = json.loads((tmp_path / "split.json").read_text())
+    assert len(split["train"]) + len(split["test"]) == 40  # the split covers every name
+    with pytest.raises(DataError, match="creature_0040"):
+        build_creatures(tmp_path, 40, seed=5, resolution=64, only=["creature_0040"])
