@@ -13,10 +13,11 @@ $(BIN)/activate:
 
 $(VENV)/.installed: $(BIN)/activate pyproject.toml
 	$(BIN)/python -c "import torch" 2>/dev/null || $(BIN)/pip install -q "$(TORCH_SPEC)"
-	$(BIN)/pip install -q -e ".[skeleton]"
+	$(BIN)/pip install -q -e .
 	touch $@
 
-# the test tools (pytest, import-linter, playwright) on top: make demo does not need them
+# the test tools (pytest, import-linter, playwright) and CGAL's skeleton on top: make demo (the
+# annotated ant and creatures) needs neither
 $(VENV)/.installed-dev: $(VENV)/.installed
 	$(BIN)/pip install -q -e ".[dev,skeleton]"
 	touch $@

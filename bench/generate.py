@@ -2,7 +2,9 @@
 training creatures, then MMD-CD, COV-CD and 1-NNA-CD of generated shapes against held-out
 creatures never seen in training.
 
-    python bench/generate.py [--n 64] [--shape-latent-steps 6000] [--diffusion-steps 3000]
+    python bench/generate.py [--n 64] [--shape-latent-steps N] [--diffusion-steps N]
+
+The recipe (steps, learning rates) is conf/experiment/generate.yaml's, the one make demo runs.
 
 Rows (each the mean over sets of as many shapes as the held-out set: COV and 1-NNA of one set of
 16 move in steps of 6% and vary by +-10% between sets; 2048 surface points per shape, squared
@@ -33,11 +35,20 @@ RESULTS = ROOT / "bench/results"
 
 
 def overrides(args) -> list[str]:
-    return ["data=creatures", f"data.n={args.n}", f"data.test_fraction={args.test_fraction}",
-            f"data.seed={args.seed}", f"prepare.n_samples={args.samples}",
+    # the recipe is conf/experiment/generate.yaml's (make demo runs the same one)
+    return ["experiment=generate", "data=creatures", f"data.n={args.n}",
+            f"data.test_fraction={args.test_fraction}", f"data.seed={args.seed}",
+            f"prepare.n_samples={args.samples}",
             f"prepare.cache_dir={ROOT}/.cache/prepared/creatures_gen{args.samples // 1000}k",
-            f"batch_size={args.batch_size}", "trainer.enable_progress_bar=false", "logger=csv",
-            f"seed={args.seed}"]
+            *([f"batch_size={args.batch_size}"] if args.batch_size else []),
+            "trainer.enable_progress_bar=false", "logger=csv", f"seed={args.seed}"]
+
+
+def compose_batch_size() -> int:
+    """The recipe's batch size (conf/experiment/generate.yaml)."""
+    from ngc_gen.app.config import compose_config
+
+    return int(compose_config(overrides=["experiment=generate"]).batch_size)
 
 
 def train(args) -> dict:
@@ -52,13 +63,14 @@ def train(args) -> dict:
         t0 = time.perf_counter()
         cfg = compose_config(overrides=overrides(args) + [
             "stage=shape_latent", f"run_dir={sl_dir}",
-            f"shape_latent.max_steps={args.shape_latent_steps}", "shape_latent.preview=0"])
+            "shape_latent.preview=0"] + ([f"shape_latent.max_steps={args.shape_latent_steps}"]
+                                         if args.shape_latent_steps else []))
         run_shape_latent(cfg)
         times["shape_latent_stage_s"] = time.perf_counter() - t0
     if not (args.reuse and (diff_dir / "metrics.json").is_file()):
         cfg = compose_config(overrides=overrides(args) + [
-            "stage=diffusion", f"run_dir={diff_dir}", f"shape_latent_run={sl_dir}",
-            f"diffusion.max_steps={args.diffusion_steps}"])
+            "stage=diffusion", f"run_dir={diff_dir}", f"shape_latent_run={sl_dir}"]
+            + ([f"diffusion.max_steps={args.diffusion_steps}"] if args.diffusion_steps else []))
         run_diffusion(cfg)
     sl = json.loads((sl_dir / "metrics.json").read_text())
     diff = json.loads((diff_dir / "metrics.json").read_text())
@@ -152,9 +164,12 @@ def recipe_args(ap: argparse.ArgumentParser) -> None:
     ap.add_argument("--test-fraction", type=float, default=0.25)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--samples", type=int, default=50_000, help="prepare.n_samples per shape")
-    ap.add_argument("--batch-size", type=int, default=8192)
-    ap.add_argument("--shape-latent-steps", type=int, default=6000)
-    ap.add_argument("--diffusion-steps", type=int, default=3000)
+    ap.add_argument("--batch-size", type=int, default=None,
+                    help="default: conf/experiment/generate.yaml's")
+    ap.add_argument("--shape-latent-steps", type=int, default=None,
+                    help="default: conf/experiment/generate.yaml's")
+    ap.add_argument("--diffusion-steps", type=int, default=None,
+                    help="default: conf/experiment/generate.yaml's")
 
 
 def main():
@@ -224,8 +239,9 @@ def main():
     ref, _ = clouds(ref_meshes, args.points, 0)
     d_rr = pairwise_chamfer(ref)
     res = {"n_reference": n_ref, "n_train": len(train_meshes), "points": args.points,
-           "resolution": args.resolution, "shape_latent_steps": args.shape_latent_steps,
-           "diffusion_steps": args.diffusion_steps, "batch_size": args.batch_size,
+           "resolution": args.resolution, "shape_latent_steps": runs["shape_latent"]["steps"],
+           "diffusion_steps": runs["diffusion"]["steps"],
+           "batch_size": args.batch_size or compose_batch_size(),
            "samples_per_shape": args.samples, "seed": args.seed, "threads": args.threads,
            "load_avg_1min_at_start": load_at_start,
            "convention": "2048 surface points per shape, squared Chamfer (sum of the two means), "
