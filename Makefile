@@ -6,7 +6,7 @@ TORCH_SPEC ?= torch==2.13.0
 BIN := $(VENV)/bin
 
 .PHONY: setup chromium test test-all bench bench-geometry bench-fit bench-deform bench-generate \
-	bench-editor bench-autogc bench-condition bench-up bench-reconstruct demo clean
+	bench-editor bench-autogc bench-condition bench-up bench-reconstruct bench-demo demo clean
 
 $(BIN)/activate:
 	$(PY) -m venv $(VENV)
@@ -43,7 +43,7 @@ demo: $(VENV)/.installed  # (no browser needed) the whole pipeline: fit, edit, s
 	$(BIN)/python train.py experiment=demo
 
 bench: bench-geometry bench-fit bench-deform bench-generate bench-editor bench-autogc bench-condition \
-	bench-up bench-reconstruct
+	bench-up bench-reconstruct bench-demo
 
 bench-geometry: setup
 	$(BIN)/python bench/geometry.py
@@ -68,6 +68,9 @@ bench-reconstruct: setup  # reuses bench-generate's shape-latent run
 
 bench-condition: setup  # reuses bench-generate's runs (trains them if missing)
 	$(BIN)/python bench/condition.py --sweep
+
+bench-demo:  # make demo on a fresh clone of HEAD, timed (stdlib only: the clone sets itself up)
+	$(PY) bench/demo.py
 
 bench-up: setup  # the pictures' up-axis rule on the ant, airplane and creatures
 	$(BIN)/python bench/up_axis.py
