@@ -22,6 +22,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shutil
 import sys
 import time
 from pathlib import Path
@@ -60,6 +61,10 @@ def train(args) -> dict:
     times = {}
     sl_dir, diff_dir = RUNS / "shape_latent", RUNS / "diffusion"
     if not (args.reuse and (sl_dir / "metrics.json").is_file()):
+        # a fresh run: a run directory's last.ckpt would be resumed (or refused, if the recipe
+        # changed since)
+        shutil.rmtree(sl_dir, ignore_errors=True)
+        shutil.rmtree(diff_dir, ignore_errors=True)
         t0 = time.perf_counter()
         cfg = compose_config(overrides=overrides(args) + [
             "stage=shape_latent", f"run_dir={sl_dir}",
@@ -68,6 +73,7 @@ def train(args) -> dict:
         run_shape_latent(cfg)
         times["shape_latent_stage_s"] = time.perf_counter() - t0
     if not (args.reuse and (diff_dir / "metrics.json").is_file()):
+        shutil.rmtree(diff_dir, ignore_errors=True)
         cfg = compose_config(overrides=overrides(args) + [
             "stage=diffusion", f"run_dir={diff_dir}", f"shape_latent_run={sl_dir}"]
             + ([f"diffusion.max_steps={args.diffusion_steps}"] if args.diffusion_steps else []))

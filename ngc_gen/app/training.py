@@ -240,5 +240,17 @@ def train(cfg: DictConfig, run_dir: Path, module, *data, **fit_kwargs) -> Traine
     if point.path is not None and trainer.is_global_zero:
         print(f"resuming from {point.path} (step {point.step})", flush=True)
     t0 = time.perf_counter()
-    trainer.fit(module, *data, ckpt_path=point.path, **fit_kwargs)
+    try:
+        trainer.fit(module, *data, ckpt_path=point.path, **fit_kwargs)
+    except RuntimeError as e:
+        if point.path is None or "state_dict" not in str(e):
+            raise
+        from .errors import ConfigError
+
+        first = next((ln.strip() for ln in str(e).splitlines() if "mismatch" in ln
+                      or "Missing key" in ln or "Unexpected key" in ln), str(e).splitlines()[0])
+        raise ConfigError(f"cannot resume from {point.path}: it holds another model than this "
+                          f"config builds ({first.rstrip('.')})",
+                          fix="start in a new run directory (hydra.run.dir=...), or resume with "
+                              "the model settings the checkpoint was trained with") from None
     return Trained(trainer, time.perf_counter() - t0, start.step)

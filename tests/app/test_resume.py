@@ -113,6 +113,11 @@ def test_fit_resumes_from_last_ckpt(torus, tmp_path):
     # resume=false refuses to start over in a directory that holds a run's checkpoints
     r = run_entry("train.py", *args, "resume=false")
     assert r.returncode == 2 and "resume = False" in r.stderr and "resume=true" in r.stderr
+    # a checkpoint of another model (here: other encoding bands) is one line, not a traceback
+    r = run_entry("train.py", *args, "model.decoder.pe_frequencies=4")
+    assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr[-2000:]
+    assert "cannot resume from" in r.stderr and "size mismatch" in r.stderr
+    assert "hydra.run.dir" in r.stderr
 
 
 def test_prepare_keeps_the_cache_entries_it_finished(tmp_path):
