@@ -12,10 +12,11 @@ from typing import Callable, Iterator
 
 
 def _one_thread() -> None:
+    """The initializer of each worker process."""
     import numba
     import torch
 
-    torch.set_num_threads(1)
+    torch.set_num_threads(1)  # in a worker process we spawned
     numba.set_num_threads(1)
 
 
