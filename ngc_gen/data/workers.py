@@ -26,11 +26,14 @@ def default_workers() -> int:
 
 
 def map_shapes(fn: Callable, items: list, workers: int | None = None,
-               min_items: int = 4) -> Iterator:
-    """`map(fn, items)`, in `workers` spawned processes (default: one per core) when there are
-    at least `min_items` items, else in this process. `fn` must be a module-level function."""
-    workers = default_workers() if workers is None else int(workers)
-    if workers <= 1 or len(items) < min_items:
+               min_items: int = 8) -> Iterator:
+    """`map(fn, items)`, in `workers` spawned processes, else in this process. `workers` None:
+    one per core when there are at least `min_items` items (a spawned worker takes ~5 s to
+    import torch and numba: fewer shapes are done sooner here). `fn` must be module-level."""
+    if workers is None:
+        workers = default_workers() if len(items) >= min_items else 1
+    workers = int(workers)
+    if workers <= 1 or len(items) < 2:
         yield from map(fn, items)
         return
     import multiprocessing
