@@ -436,8 +436,8 @@ def build_creatures(out_dir, n: int, seed: int = 0, test_fraction: float = 0.25,
     the new shapes. Returns one record per shape: name, seed, mesh, annotation (paths), split,
     vertices, faces, coverage, seconds (0 when reused). A progress bar shows when `progress` is
     True, or by default when n > 8. `only`: build and return just these names (the split still
-    covers all `n`: it depends on the names alone). Missing shapes are made in `workers` processes (`map_shapes`;
-    default: one per core)."""
+    covers all `n`: it depends on the names alone). Missing shapes are made in `workers`
+    processes (`map_shapes`)."""
     from tqdm.auto import tqdm
 
     if int(n) < 1:
@@ -458,12 +458,13 @@ def build_creatures(out_dir, n: int, seed: int = 0, test_fraction: float = 0.25,
     names = creature_names(n)
     split = creature_split(names, seed, test_fraction)
     which = {nm: s for s in ("train", "test") for nm in split[s]}
-    wanted = names if only is None else [nm for nm in names if nm in set(only)]
-    if only is not None and len(wanted) < len(set(only)):
-        unknown = sorted(set(only) - set(names))
+    asked = set(names if only is None else only)
+    wanted = [nm for nm in names if nm in asked]
+    if len(wanted) < len(asked):
+        unknown = sorted(asked - set(names))
         raise DataError(f"no creature named {', '.join(unknown)} among the {n} built",
                         fix=f"ask for creature_0000 .. creature_{int(n) - 1:04d}")
-    missing = [i for i, nm in enumerate(names) if nm in set(wanted) and not (
+    missing = [i for i, nm in enumerate(names) if nm in asked and not (
         manifest["shapes"].get(nm) is not None and (out / f"{nm}.ply").is_file()
         and (out / f"{nm}.yaml").is_file())]
     made = map_shapes(_make_timed, [(shape_seed(seed, i), resolution, names[i]) for i in missing],

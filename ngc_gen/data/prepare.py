@@ -325,7 +325,7 @@ def prepare_uncached(annotations: list[Annotation], settings: PrepareSettings,
     """Prepare into `cache_dir`, in worker processes (`map_shapes`), the shapes whose cache file
     is missing or stale; {name: seconds} of those made. `prepare_shape` then reads them from the
     cache. A shape that fails is left to the caller's `prepare_shape`, which raises its error."""
-    from ngc_gen.data.workers import map_shapes
+    from ngc_gen.data.workers import map_shapes, worker_count
 
     def stale(ann: Annotation) -> bool:
         if not ann.mesh_path.is_file():
@@ -334,5 +334,7 @@ def prepare_uncached(annotations: list[Annotation], settings: PrepareSettings,
             ann.mesh_path.read_bytes(), ann, settings)
 
     todo = [a for a in annotations if stale(a)]
+    if worker_count(len(todo), workers) <= 1:
+        return {}  # the caller's own prepare_shape makes them: no save-then-load round trip
     seconds = map_shapes(_prepare_in_worker, [(a, settings, cache_dir) for a in todo], workers)
     return {a.name: s for a, s in zip(todo, seconds) if s is not None}

@@ -25,15 +25,20 @@ def default_workers() -> int:
     return os.cpu_count() or 1
 
 
+def worker_count(n_items: int, workers: int | None = None, min_items: int = 8) -> int:
+    """The processes `map_shapes` uses for `n_items` items (1: this process)."""
+    if workers is None:
+        workers = default_workers() if n_items >= min_items else 1
+    return int(workers) if n_items >= 2 else 1
+
+
 def map_shapes(fn: Callable, items: list, workers: int | None = None,
                min_items: int = 8) -> Iterator:
     """`map(fn, items)`, in `workers` spawned processes, else in this process. `workers` None:
     one per core when there are at least `min_items` items (a spawned worker takes ~5 s to
     import torch and numba: fewer shapes are done sooner here). `fn` must be module-level."""
-    if workers is None:
-        workers = default_workers() if len(items) >= min_items else 1
-    workers = int(workers)
-    if workers <= 1 or len(items) < 2:
+    workers = worker_count(len(items), workers, min_items)
+    if workers <= 1:
         yield from map(fn, items)
         return
     import multiprocessing
