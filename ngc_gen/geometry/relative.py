@@ -257,7 +257,8 @@ def _relative_kernel(q, out, measure, cull, breaks, coef, poly_x, poly_s, poly_d
             d = _dist2(qx, qy, qz, coarse_x, c)
             if d < best_d:
                 best_d, best_c = d, c
-            covered |= d <= cover2[c]
+            if cull:  # (a compare and an or per vertex in the hot loop otherwise)
+                covered |= d <= cover2[c]
         if cull and not covered:
             out[i, 0] = out[i, 1] = out[i, 2] = np.nan
             if with_measure:
