@@ -142,6 +142,7 @@ class AutoGCSettings:
     samples: int = 20000
     seed: int = 0
     protrusions: bool = True
+    bulb_ratio: float = 1.8
 
     def __post_init__(self):
         checks = {"method": self.method in METHODS, "max_gcs": self.max_gcs >= 1,

@@ -73,6 +73,57 @@ def split_curved(branch: Branch, tolerance: float, max_depth: int = 3) -> list[B
     return split_curved(a, tolerance, max_depth - 1) + split_curved(b, tolerance, max_depth - 1)
 
 
+def split_bulb(branch: Branch, ratio: float, min_length: float,
+               section: np.ndarray | None = None) -> list[Branch]:
+    """An end branch that ends in a part thicker than what joins it to the body (a head on its
+    neck), as two branches split where that part starts; otherwise [branch].
+
+    Oriented junction -> free end, for each node k: r_d the median cross-section radius from k
+    to the free end, r_p the median over as much arc just before k. A split needs r_d / r_p >=
+    ``ratio`` at some k whose end part is at least ``min_length`` x r_d long and whose rest
+    ``min_length`` x r_p (a foot or a rounded tip is too short to count; a branch widening
+    toward its free end by more than ``ratio`` counts, a tail thinning toward it never does).
+    The cut is where, coming from the free end, the radius first falls below sqrt(r_d r_p) of
+    the k with the largest ratio (the medians alone would place it anywhere along the neck).
+    ``section`` (P,): the radius per node (NaN: unknown), e.g. the mean distance of the surface
+    samples nearest to the node, which an off-centre skeleton does not shrink as it does
+    branch.radius (the distance to the nearest surface); default branch.radius."""
+    if ratio <= 0 or branch.junction[0] == branch.junction[1] or len(branch.points) < 6:
+        return [branch]
+    flip = branch.junction[1]  # make node 0 the junction end
+    S = branch.radius if section is None else np.asarray(section, dtype=np.float64)
+    P, R = (branch.points[::-1], S[::-1]) if flip else (branch.points, S)
+    arc = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(P, axis=0), axis=1))]
+    n = len(P)
+    k = np.arange(n)[:, None]
+    j = np.arange(n)[None, :]
+    distal = np.where(j >= k, R[None, :], np.nan)
+    before = (arc[None, :] < arc[:, None]) & (arc[None, :] >= 2 * arc[:, None] - arc[-1])
+    finite = np.isfinite(R)[None, :]
+    ok = (before & finite).any(1) & (np.isfinite(distal).any(1))
+    r_d = np.zeros(n)
+    r_p = np.full(n, np.inf)
+    r_d[ok] = np.nanmedian(distal[ok], axis=1)
+    r_p[ok] = np.nanmedian(np.where(before, R[None, :], np.nan)[ok], axis=1)
+    long_enough = ((arc[-1] - arc) >= min_length * r_d) & (arc >= min_length * r_p)
+    score = np.where(long_enough & ok, r_d / r_p, 0.0)
+    best = int(np.argmax(score))
+    if score[best] < ratio:
+        return [branch]
+    thin = np.flatnonzero(R < np.sqrt(r_d[best] * r_p[best]))  # NaN: not thin
+    m = int(thin.max()) + 1 if len(thin) else best
+    if m < 2 or m > n - 3 or arc[-1] - arc[m] < min_length * r_d[best]:
+        return [branch]  # (the thick end part past the last thin node is too short)
+    T = branch.radius[::-1] if flip else branch.radius
+    a = Branch(P[: m + 1], T[: m + 1], (True, False), branch.component)
+    b = Branch(P[m:], T[m:], (False, False), branch.component)
+    if flip:
+        a = Branch(a.points[::-1], a.radius[::-1], (False, True), a.component)
+        b = Branch(b.points[::-1], b.radius[::-1], (False, False), b.component)
+        return [b, a]
+    return [a, b]
+
+
 def _start_up(tangent: np.ndarray) -> np.ndarray:
     """A unit vector normal to the tangent: the world axis least aligned with it, made normal."""
     axis = np.eye(3)[int(np.argmin(np.abs(tangent)))]

@@ -12,7 +12,7 @@ from scipy.spatial import cKDTree
 
 from ngc_gen.geometry import GeneralizedCylinder
 
-from .branch_gc import branch_gc, resample, split_curved
+from .branch_gc import branch_gc, resample, split_bulb, split_curved
 from .branches import Branch, branch_graph
 from .coverage import grow_to_cover
 from .gc_names import gc_names
@@ -102,8 +102,8 @@ def _split_owner(pieces: list[Branch], piece_of: list[np.ndarray], owner: np.nda
 
 def skeleton_gcs(mesh: trimesh.Trimesh, max_gcs: int = 24, min_branch_length: float = 2.0,
                  margin: float = 0.05, resolution: int = 96, skeleton: str = "auto",
-                 n_keys: int = 5, samples: int = 20000, seed: int = 0, protrusions: bool = True
-                 ) -> tuple[list[GeneralizedCylinder], dict]:
+                 n_keys: int = 5, samples: int = 20000, seed: int = 0, protrusions: bool = True,
+                 bulb_ratio: float = 1.8) -> tuple[list[GeneralizedCylinder], dict]:
     """GCs for a (normalised) mesh and what was found on the way: {backend, n_branches,
     n_components}. Arguments as in conf/annotate/default.yaml."""
     if skeleton not in BACKENDS:
@@ -119,7 +119,13 @@ def skeleton_gcs(mesh: trimesh.Trimesh, max_gcs: int = 24, min_branch_length: fl
     branches = branch_graph(sk.nodes, sk.edges, radius, min_branch_length, max_gcs)
     rooted, nodes, node_owner, branches_full = _rooted(branches)
     n_skeleton = len(rooted)
-    owner = node_owner[cKDTree(nodes).query(surface, k=1)[1]]
+    node_tree = cKDTree(nodes)
+    d_near, near = node_tree.query(surface, k=1)
+    owner = node_owner[near]
+    # cross-section radius per node: mean distance of the surface samples nearest to it
+    count = np.bincount(near, minlength=len(nodes))
+    section = np.bincount(near, weights=d_near, minlength=len(nodes)) / np.maximum(count, 1)
+    section[count == 0] = np.nan
     if protrusions and len(rooted) < max_gcs:  # thin parts the skeleton merged into a body
         node_r = np.maximum(local_thickness(nodes, surface), proxy.h)
         comp = np.array([b.component for b in branches])[node_owner]
@@ -142,7 +148,11 @@ def skeleton_gcs(mesh: trimesh.Trimesh, max_gcs: int = 24, min_branch_length: fl
             owner = np.where(mine, new_owner[k_new], owner)
     pieces, piece_of = [], []  # a branch too curved for one cubic is split, its points too
     for i, b in enumerate(rooted):
-        parts = split_curved(b, CURVE_TOLERANCE) if len(rooted) + 1 <= max_gcs and i < n_skeleton else [b]
+        parts = [b]
+        if i < n_skeleton and len(rooted) + 1 <= max_gcs:  # a head on its neck, then curvature
+            sec = section[node_tree.query(b.points, k=1)[1]]
+            parts = [c for p in split_bulb(b, bulb_ratio, min_branch_length, sec)
+                     for c in split_curved(p, CURVE_TOLERANCE)]
         piece_of.append(np.arange(len(pieces), len(pieces) + len(parts)))
         pieces += parts
     owner = _split_owner(pieces, piece_of, owner, surface)
