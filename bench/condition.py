@@ -43,10 +43,10 @@ LEGS = ("leg_fl", "leg_fr", "leg_bl", "leg_br")
 
 
 def defaults() -> dict:
-    """The condition settings sample.py uses (conf/sample.yaml), the bench's defaults."""
+    """The condition settings sample.py uses (conf/mode/condition.yaml), the bench's defaults."""
     from ngc_gen.app.config import compose_config
 
-    return dict(compose_config("sample").condition)
+    return dict(compose_config("sample", ["mode=condition"]).condition)
 
 
 def refit_latent(shape_latent, prepared, steps: int, lr: float, batch: int, seed: int):
@@ -62,24 +62,46 @@ def refit_latent(shape_latent, prepared, steps: int, lr: float, batch: int, seed
     gc = torch.from_numpy(prepared.pair_gc.astype(np.int64))
     rel = torch.from_numpy(prepared.pair_rel.astype(np.float32))
     sdf = torch.from_numpy(prepared.sdf[prepared.pair_point].astype(np.float32))
-    s = sl.latents.weight.detach().mean(0, keepdim=True).clone().requires_grad_(True)
-    opt = torch.optim.Adam([s], lr=lr)
+    start = sl.latents.weight.detach().mean(0, keepdim=True)
+    n_fixed = sl.n_fixed  # explicit latents: the GC entries are the shape's own GCs, held
+    fixed = sd.gc_part(target[None])[:, :n_fixed]
+    free = start[:, n_fixed:].clone().requires_grad_(True)
+    opt = torch.optim.Adam([free], lr=lr)
     g = torch.Generator().manual_seed(seed)
     for p in sl.parameters():
         p.requires_grad_(False)
     for _ in range(steps):
         idx = torch.randint(len(gc), (batch,), generator=g)
+        s = torch.cat([fixed, free], 1)
         z, codes = sd(s)
         pred = sl.ngc(codes[0, gc[idx]], rel[idx])
         loss = ((pred - sdf[idx]).abs().mean()
                 + hp.param_weight * ((z[0] - target)[sd.varying] ** 2).mean()
-                + hp.latent_reg * (s * s).sum())
+                + hp.latent_reg * (free * free).sum())
         opt.zero_grad()
         loss.backward()
         opt.step()
     for p in sl.parameters():
         p.requires_grad_(True)
-    return s.detach()
+    return torch.cat([fixed, free], 1).detach()
+
+
+def affine_hull_residual(sd, train_theta: np.ndarray, held_theta: np.ndarray) -> float:
+    """RMS distance (std units, parameters that vary in training) of held-out GC parameter
+    vectors from the affine hull of the training shapes' vectors: what any decoder that maps
+    latents to GCs only through the training shapes' span (the MLP head of non-explicit
+    latents) leaves at least, however its latent is chosen."""
+    import torch
+
+    def z(theta):
+        return sd.normalise(torch.as_tensor(theta, dtype=torch.float64))[:, sd.varying].numpy()
+
+    zt, zh = z(train_theta), z(held_theta)
+    mu = zt.mean(0)
+    _, sv, vt = np.linalg.svd(zt - mu, full_matrices=False)
+    basis = vt[sv > 1e-9 * sv.max()]
+    r = (zh - mu) - (zh - mu) @ basis.T @ basis
+    return float(np.sqrt((r ** 2).mean()))
 
 
 def decoder_floor(gen, cond, steps: int = 1500, lr: float = 1e-2) -> float:
@@ -203,11 +225,12 @@ def main():
 
     import torch
     import trimesh
+    import yaml
 
     torch.set_num_threads(args.threads)
 
     from generate import RUNS as GEN_RUNS
-    from generate import train
+    from generate import compose_batch_size, train
 
     from ngc_gen.data.annotations import load_annotation
     from ngc_gen.data.datasets import Creatures
@@ -250,6 +273,12 @@ def main():
                          "one condition; s_per_sample: guided latent sampling per sample"}
     if args.sweep:
         res["sweep"] = sweep(gen, conds, args)
+    theta = {n: template.vector(yaml.safe_load((data.out_dir / f"{n}.yaml").read_text())["gcs"])
+             for n in split["train"] + held}
+    res["gc_affine_hull_residual"] = affine_hull_residual(
+        sd, np.stack([theta[n] for n in split["train"]]), np.stack([theta[n] for n in held]))
+    res["latent_layout"] = ("explicit: [GC parameters, free entries]" if sd.explicit else
+                            "MLP head: latent -> GC parameters")
 
     # ---- conditioned and unconditioned samples (the same noise), refitted latents ----------
     n_per = args.per_condition
@@ -281,7 +310,7 @@ def main():
         plain_meshes.append(m)
         prepared = prepare_shape(load_annotation(data.out_dir / f"{name}.yaml"), settings, cache)
         s_fit = refit_latent(gen.shape_latent, prepared, args.refit_steps, args.refit_lr,
-                             args.batch_size, args.seed)
+                             args.batch_size or compose_batch_size(), args.seed)
         fit = decode_shapes(gen.shape_latent, s_fit, [f"{name}_refit"])[0]
         fit = with_given_gcs(fit, cond)
         refit_meshes.append(mesh_shapes(gen, [fit], RUNS / "refit", args.resolution)[0][0])

@@ -149,7 +149,7 @@ def run_shape_latent(cfg: DictConfig) -> dict:
     metrics = evaluate(module, dm)
     metrics.update(steps=int(trainer.global_step), start_step=start_step, train_s=train_s,
                    n_shapes=len(prepared),
-                   latent_dim=int(module.hparams.latent_dim), n_params=template.size,
+                   latent_dim=int(module.latents.weight.shape[1]), n_params=template.size,
                    gcs=template.names, checkpoint=str(last),
                    latents=str(run_dir / "latents.pt"))
     n_prev = int(cfg.shape_latent.preview)
@@ -159,7 +159,7 @@ def run_shape_latent(cfg: DictConfig) -> dict:
                                          int(cfg.shape_latent.preview_resolution))
     atomic_write_text(run_dir / "metrics.json", json.dumps(metrics, indent=2))
     p = metrics["params"]
-    print(f"\nshape latents: {len(prepared)} shapes x {module.hparams.latent_dim} dims, "
+    print(f"\nshape latents: {len(prepared)} shapes x {module.latents.weight.shape[1]} dims, "
           f"{template.n_gcs} GCs, {template.size} GC parameters; {metrics['steps']} steps in "
           f"{train_s:.0f} s")
     print(f"  SDF L1 {metrics['l1']:.5f}   param MSE (std units) {metrics['param']:.5f}   "

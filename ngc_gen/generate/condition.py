@@ -172,6 +172,8 @@ def posterior_step(shape_decoder, diffusion, x: torch.Tensor, cond: GCCondition,
     its Jacobian at x. This is the posterior mean shift of x ~ N(x, scale^2 I) observed through
     the linearised decoder with noise std 1/strength (std units): directions the condition does
     not constrain (J small) do not move. scale: float or (B,)."""
+    if float(strength) == 0.0:                # no condition: an infinitely wide prior step
+        return torch.zeros_like(x)
     r, J = residual_jacobian(shape_decoder, diffusion, x, cond)
     if r.shape[1] == 0:                       # nothing conditioned varies: nothing to guide
         return torch.zeros_like(x)

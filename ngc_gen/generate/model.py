@@ -140,7 +140,7 @@ def load_generator(run, shape_latent_run=None) -> ShapeGenerator:
     except DataError as e:
         raise DataError(f"the shape-latent run of diffusion checkpoint {path} cannot be loaded: "
                         f"{e}", fix="pass shape_latent_run=<dir or checkpoint> if it moved") from e
-    dim = shape_latent.hparams.latent_dim
+    dim = shape_latent.latents.weight.shape[1]
     if diffusion.hparams.dim != dim:
         raise DataError(f"diffusion latents have {diffusion.hparams.dim} dims, the shape-latent "
                         f"run {sl_path} has {dim}",

@@ -47,6 +47,7 @@ def latent_only_module(trained: ShapeLatentModule, vectors, meta: dict, latent_l
     module.shape_decoder.requires_grad_(False)
     with torch.no_grad():  # start from the mean training latent: a shape the decoder knows
         module.latents.weight.copy_(trained.latents.weight.mean(0).expand_as(module.latents.weight))
+    module.write_gc_entries()  # explicit latents: the new shapes' own GCs, in trained units
     return module
 
 

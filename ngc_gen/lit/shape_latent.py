@@ -16,6 +16,12 @@ Batches are the fit stage's NGC rows (global GC id, rel (3,), sdf): every shape 
 template's K GCs, so id = shape * K + gc. Only the shapes present in a batch are decoded.
 The annotated parameter vectors (`target_params`) and the decoder's parameter statistics are
 buffers, so the checkpoint alone rebuilds everything.
+
+Explicit latents (`shape_decoder.explicit`, the default): a latent is [GC parameters in std
+units (P), free entries (latent_dim)]. The GC entries are the shape's annotated parameters,
+written by `set_targets` and never trained (their gradient is zeroed), so the parameter loss is
+0 and latent_reg applies to the free entries; latent noise reaches both, so the codes are
+learned as a smooth function of the GCs, which is what conditional sampling asks of them.
 """
 from __future__ import annotations
 
@@ -55,12 +61,22 @@ class ShapeLatentModule(L.LightningModule):
         if kind != "ngc":
             raise ValueError(f"the shape-latent model needs an NGC decoder, got a {kind} one")
         sd = keywords(shape_decoder, ShapeDecoder)
+        if isinstance(shape_decoder, dict) and "explicit" not in sd:
+            sd["explicit"] = False  # a checkpoint's record from before explicit latents
         self.hparams.update(ngc=dict(self.ngc.config), shape_decoder=sd)
         self.make_optimizer = optimizer_factory(optimizer)
         self.shape_decoder = ShapeDecoder(latent_dim, self.template.size, self.template.n_gcs,
                                           self.ngc.code_dim, **sd)
-        self.latents = nn.Embedding(n_shapes, latent_dim)
+        self.hparams["shape_decoder"] = {**sd, "explicit": self.shape_decoder.explicit}
+        self.latents = nn.Embedding(n_shapes, self.shape_decoder.in_dim)
         nn.init.normal_(self.latents.weight, 0.0, latent_init_std)
+        self.n_fixed = self.template.size if self.shape_decoder.explicit else 0
+        if self.n_fixed:  # the GC entries stay the annotated parameters
+            with torch.no_grad():
+                self.latents.weight[:, :self.n_fixed] = 0.0
+            keep = torch.ones(self.shape_decoder.in_dim)
+            keep[:self.n_fixed] = 0.0
+            self.latents.weight.register_hook(lambda g: g * keep.to(g))
         self.register_buffer("target_params", torch.zeros(n_shapes, self.template.size,
                                                           dtype=torch.float64))
 
@@ -78,6 +94,16 @@ class ShapeLatentModule(L.LightningModule):
                              f"{tuple(v.shape)}")
         self.target_params.copy_(v)
         self.shape_decoder.set_param_stats(v)
+        self.write_gc_entries()
+
+    @torch.no_grad()
+    def write_gc_entries(self) -> None:
+        """Explicit latents: set each latent's GC entries to its shape's target parameters in
+        the decoder's std units (again after the decoder's statistics are replaced)."""
+        if self.n_fixed:
+            sd = self.shape_decoder
+            z = sd.gc_part(sd.normalise(self.target_params.to(sd.param_mean)))
+            self.latents.weight[:, :self.n_fixed] = z.to(self.latents.weight)
 
     # -- decoding ----------------------------------------------------------------------------
     def decode(self, s: torch.Tensor):
@@ -109,8 +135,12 @@ class ShapeLatentModule(L.LightningModule):
         sd = self.shape_decoder
         target = sd.normalise(self.target_params[uniq]).to(z)
         varying = sd.varying
-        param = ((z - target)[:, varying] ** 2).mean() if bool(varying.any()) else z.sum() * 0
-        reg = (s * s).sum(1).mean()
+        if self.n_fixed or not bool(varying.any()):  # explicit: z is the target by construction
+            param = z.sum() * 0
+        else:
+            param = ((z - target)[:, varying] ** 2).mean()
+        free = s[:, self.n_fixed:]
+        reg = (free * free).sum(1).mean()
         loss = l1 + self.hparams.param_weight * param + self.hparams.latent_reg * reg
         return {"loss": loss, "l1": l1, "param": param, "latent_norm2": reg}
 

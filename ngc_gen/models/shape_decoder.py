@@ -7,14 +7,12 @@ theta (`GCTemplate.vector` / `GCTemplate.gc_dicts`), per GC in template order:
 
     control points (degree+1, 3) | log key radii (keys, 2) | key twists (keys,) deg | log caps (2,)
 
-Radii and caps are stored as logs, so any decoded value maps to a positive one. The decoder
-predicts theta as a bounded residual around the training set's mean in per-parameter std units,
-
-    theta = mean + std * b tanh(out / b)           (b = `bound`, default 5 std)
-
-so decoded GCs stay within b std of the data (non-degenerate curves) for any latent, and a
-parameter that never varies in the data (std 0: a symmetry plane, an untwisted part) is
-decoded exactly at its constant value.
+Radii and caps are stored as logs, so any decoded value maps to a positive one. Parameters are
+handled in per-parameter std units around the training set's mean, z = (theta - mean) / std,
+held within +-b std (b = `bound`, default 5) so decoded GCs stay non-degenerate for any
+latent; a parameter that never varies in the data (std 0: a symmetry plane, an untwisted part)
+is decoded exactly at its constant value. With `explicit` latents (the default) z is part of
+the latent itself; otherwise an MLP head predicts it (`ShapeDecoder`).
 """
 from __future__ import annotations
 
@@ -208,23 +206,33 @@ def _check_gc(d, where) -> None:
 
 
 class ShapeDecoder(nn.Module):
-    """s (B, latent_dim) -> (normalised GC parameters (B, P), NGC codes (B, K, code_dim)).
+    """s (B, in_dim) -> (normalised GC parameters (B, P), NGC codes (B, K, code_dim)).
+
+    explicit (the default in conf/shape_latent): the first P entries of a latent ARE the GC
+    parameters in std units, s = [z (P), free (latent_dim)], and the MLP maps the whole of s to
+    the codes. A latent then holds any GC parameters exactly (the decoded GCs of a conditional
+    sample are what guidance or inpainting put there), and the codes are learned as a function
+    of the GCs. Otherwise (checkpoints from before): s (latent_dim) -> MLP -> both heads, the
+    parameters as a bounded residual b tanh(out / b), whose range is what 48 training shapes
+    span (held-out creatures' GCs lie 0.26 std rms outside their affine hull: bench/condition.py).
 
     The parameter statistics (`param_mean`, `param_std`: buffers, so they travel in the
     checkpoint) must be set from the training shapes with `set_param_stats` before use.
     """
 
     def __init__(self, latent_dim: int, n_params: int, n_gcs: int, code_dim: int,
-                 hidden: int = 256, layers: int = 2, bound: float = 5.0):
+                 hidden: int = 256, layers: int = 2, bound: float = 5.0, explicit: bool = True):
         super().__init__()
         self.latent_dim, self.n_params, self.n_gcs, self.code_dim = (latent_dim, n_params,
                                                                      n_gcs, code_dim)
-        self.bound = float(bound)
-        self.trunk = mlp(latent_dim, hidden, layers)
-        self.param_head = nn.Linear(hidden, n_params)
+        self.bound, self.explicit = float(bound), bool(explicit)
+        self.in_dim = latent_dim + (n_params if self.explicit else 0)
+        self.trunk = mlp(self.in_dim, hidden, layers)
+        self.param_head = None if self.explicit else nn.Linear(hidden, n_params)
         self.code_head = nn.Linear(hidden, n_gcs * code_dim)
-        nn.init.zeros_(self.param_head.weight)  # starts at the mean shape
-        nn.init.zeros_(self.param_head.bias)
+        if self.param_head is not None:
+            nn.init.zeros_(self.param_head.weight)  # starts at the mean shape
+            nn.init.zeros_(self.param_head.bias)
         self.register_buffer("param_mean", torch.zeros(n_params))
         self.register_buffer("param_std", torch.zeros(n_params))
 
@@ -256,21 +264,28 @@ class ShapeDecoder(nn.Module):
         return self.param_mean + self.param_std * z
 
     def forward(self, s: torch.Tensor):
-        """s (B, latent_dim) -> z (B, P) in std units, bounded to +-bound; codes (B, K, C)."""
+        """s (B, in_dim) -> z (B, P) in std units, within +-bound; codes (B, K, C)."""
         h = self.trunk(s)
         codes = self.code_head(h).reshape(len(s), self.n_gcs, self.code_dim)
-        return self._bounded(self.param_head(h)), codes
+        return self._z(s, h), codes
 
     def param_z(self, s: torch.Tensor) -> torch.Tensor:
-        """s (B, latent_dim) -> z (B, P) only (no codes: conditional sampling's Jacobians)."""
-        return self._bounded(self.param_head(self.trunk(s)))
+        """s (B, in_dim) -> z (B, P) only (no codes: conditional sampling's Jacobians)."""
+        return self._z(s, None if self.explicit else self.trunk(s))
 
-    def _bounded(self, out: torch.Tensor) -> torch.Tensor:
+    def gc_part(self, z: torch.Tensor) -> torch.Tensor:
+        """Explicit latents: the GC entries of a latent for parameters z (B, P) in std units
+        (constant parameters 0); concatenated with the free entries it is a latent."""
+        return torch.where(self.varying, z, torch.zeros_like(z))
+
+    def _z(self, s: torch.Tensor, h: torch.Tensor | None) -> torch.Tensor:
         b = self.bound
-        return b * torch.tanh(out / b)
+        if self.explicit:  # the latent's own entries, clamped: any value decodes to a GC
+            return self.gc_part(s[:, :self.n_params].clamp(-b, b))
+        return b * torch.tanh(self.param_head(h) / b)
 
     def decode(self, s: torch.Tensor):
-        """s (B, latent_dim) -> (raw theta (B, P), codes (B, K, C))."""
+        """s (B, in_dim) -> (raw theta (B, P), codes (B, K, C))."""
         z, codes = self(s)
         return self.params(z), codes
 

@@ -50,8 +50,8 @@ def inputs(tmp_path_factory):
     fit = d / "fit" / "checkpoints" / "last.ckpt"
     fit.parent.mkdir(parents=True)
     save_checkpoint(make_module(), fit)
-    # a shape-latent run with 8-dim latents, and a diffusion run trained on 4-dim latents that
-    # names it as its shape-latent run: latents of the wrong size
+    # a shape-latent run with 8 free latent entries, and a diffusion run trained on the latents
+    # of one with 4 that names it as its shape-latent run: latents of the wrong size
     torch.manual_seed(0)
     sl = ShapeLatentModule(n_shapes=2, template=tiny_template(), ngc=dict(SIZES), latent_dim=8,
                            meta={"shapes": [{"name": "a"}, {"name": "b"}]})
@@ -59,19 +59,20 @@ def inputs(tmp_path_factory):
     sl4 = ShapeLatentModule(n_shapes=2, template=tiny_template(), ngc=dict(SIZES), latent_dim=4,
                             meta={"shapes": [{"name": "a"}, {"name": "b"}]})
     sl4_ckpt = save_lightning_like(sl4, d / "sl4" / "checkpoints" / "last.ckpt")
-    diff = LatentDiffusion(dim=4, denoiser={"width": 16, "depth": 1},
+    w4, w8 = sl4.latents.weight.shape[1], sl.latents.weight.shape[1]  # + the GC entries
+    diff = LatentDiffusion(dim=w4, denoiser={"width": 16, "depth": 1},
                            meta={"shape_latent_checkpoint": str(sl_ckpt)})
-    diff.fit_standardisation(torch.randn(5, 4))
+    diff.fit_standardisation(torch.randn(5, w4))
     diff_ckpt = save_lightning_like(diff, d / "diff" / "checkpoints" / "last.ckpt")
     latents = d / "sl" / "latents.pt"
     torch.save({"kind": "ngc_gen.shape_latents", "names": ["a", "b"],
-                "latents": torch.zeros(2, 8)}, latents)
+                "latents": torch.zeros(2, w8)}, latents)
     truncated = d / "truncated.ckpt"
     truncated.write_bytes(fit.read_bytes()[:2000])
     mesh = d / "ball.ply"
     trimesh.creation.icosphere(subdivisions=2).export(mesh)
     return {"fit": fit, "sl": sl_ckpt, "sl4": sl4_ckpt, "diff": diff_ckpt, "latents": latents,
-            "truncated": truncated, "mesh": mesh, "dir": d}
+            "truncated": truncated, "mesh": mesh, "dir": d, "w4": w4, "w8": w8}
 
 
 # ---- how a case runs -----------------------------------------------------------------------------
@@ -210,7 +211,7 @@ def case_latents_file_for_a_checkpoint(t, i):
 
 def case_latents_of_the_wrong_size(t, i):
     return in_process(run_sample, "sample", [f"run={i['diff']}", f"out_dir={t}/out"]), \
-        r"diffusion latents have 4 dims, the shape-latent run .* has 8.*Fix:"
+        rf"diffusion latents have {i['w4']} dims, the shape-latent run .* has {i['w8']}.*Fix:"
 
 
 def case_sample_a_fit_checkpoint(t, i):

@@ -62,7 +62,9 @@ def test_stages_write_checkpoints_and_latents(runs):
     assert (sl / "checkpoints/last.ckpt").is_file() and (diff / "checkpoints/last.ckpt").is_file()
     lat = torch.load(sl / "latents.pt", weights_only=True)
     split = json.loads((sl.parent / "data/split.json").read_text())
-    assert lat["names"] == split["train"] and lat["latents"].shape == (3, 16)
+    n_params = json.loads((sl / "metrics.json").read_text())["n_params"]
+    # explicit latents: the GC parameters, then shape_latent.latent_dim=16 free entries
+    assert lat["names"] == split["train"] and lat["latents"].shape == (3, n_params + 16)
     assert (sl / "meshes" / f"{split['train'][0]}.ply").is_file()
     metrics = json.loads((sl / "metrics.json").read_text())
     assert metrics["steps"] == 60 and metrics["n_params"] == 266
@@ -72,7 +74,8 @@ def test_stages_write_checkpoints_and_latents(runs):
 def test_generate_writes_editable_shapes(runs, gen):
     out = runs["gen"]
     lat = torch.load(out / "latents.pt", weights_only=True)
-    assert lat["names"] == ["sample_000", "sample_001"] and lat["latents"].shape == (2, 16)
+    assert lat["names"] == ["sample_000", "sample_001"]
+    assert lat["latents"].shape == (2, gen.shape_latent.latents.weight.shape[1])
     assert (out / "shapes.png").is_file()  # sample.py's picture (picture=true by default)
     edit = load_autodecoder(out / "shapes.ckpt")          # the fit format edit.py loads
     metas = edit.hparams.meta["shapes"]
@@ -230,7 +233,8 @@ def test_reconstruct_a_held_out_creature_and_interpolate_to_a_generated_one(runs
     assert l1["before"] == pytest.approx(l1["latent"], rel=1e-5)
     assert l1["after"] < 0.99 * l1["before"]
     lat = torch.load(out / "latents.pt", weights_only=True)
-    assert lat["names"] == held_out and lat["latents"].shape == (1, 16)
+    width = torch.load(runs["sl"] / "latents.pt", weights_only=True)["latents"].shape[1]
+    assert lat["names"] == held_out and lat["latents"].shape == (1, width)
     assert set(metrics["shapes"]) == set(held_out) and (out / "shapes.ckpt").is_file()
     # the reconstructed shape keeps the input's GCs (the frames its codes were fitted in), up to
     # the similarity that normalises the written mesh; decoded GCs would miss them by ~0.4 std
@@ -247,7 +251,7 @@ def test_reconstruct_a_held_out_creature_and_interpolate_to_a_generated_one(runs
         "picture=false", f"out_dir={tmp_path / 'interp'}"]))
     z = torch.load(tmp_path / "interp/latents.pt", weights_only=True)["latents"]
     assert torch.equal(z[0], lat["latents"][0])
-    with pytest.raises(DataError, match="named latents of size 16"):
+    with pytest.raises(DataError, match=f"named latents of size {width}"):
         load_generator(runs["diff"]).add_latents(runs["sl"] / "checkpoints/last.ckpt")
 
 

@@ -36,7 +36,8 @@ def generator():
                                meta={"shapes": [{"name": "a"}, {"name": "b"}]})
     module.set_targets(np.stack([template.vector(GC_DICTS)] * 2))
     tube_decoder_(module.ngc)
-    diffusion = LatentDiffusion(dim=4, denoiser={"width": 16, "depth": 1})
+    diffusion = LatentDiffusion(dim=module.latents.weight.shape[1],  # GC entries + 4 free
+                                denoiser={"width": 16, "depth": 1})
     diffusion.fit_standardisation(module.latents.weight.detach())
     return ShapeGenerator(module.eval(), diffusion.eval(), "test")
 

@@ -78,10 +78,11 @@ def test_template_mismatch_names_shape_gc_and_field(template, creature_gcs, chan
         assert e.value.field == field and e.value.gc is not None
 
 
-@pytest.fixture(scope="module")
-def decoder(template, creature_gcs):
+@pytest.fixture(scope="module", params=[True, False], ids=["explicit", "mlp_head"])
+def decoder(template, creature_gcs, request):
     torch.manual_seed(0)
-    dec = ShapeDecoder(32, template.size, template.n_gcs, code_dim=16, hidden=64)
+    dec = ShapeDecoder(32, template.size, template.n_gcs, code_dim=16, hidden=64,
+                       explicit=request.param)
     dec.set_param_stats(np.stack([template.vector(g) for g in creature_gcs]))
     with torch.no_grad():  # untrained heads start at the mean: randomise them hard
         for p in dec.parameters():
@@ -91,7 +92,7 @@ def decoder(template, creature_gcs):
 
 @pytest.mark.parametrize("scale", [0.3, 3.0, 1000.0])
 def test_decoded_gcs_are_valid_for_random_latents(template, decoder, scale):
-    s = torch.randn(6, 32, generator=torch.Generator().manual_seed(int(scale))) * scale
+    s = torch.randn(6, decoder.in_dim, generator=torch.Generator().manual_seed(int(scale))) * scale
     with torch.no_grad():
         theta, codes = decoder.decode(s)
     assert codes.shape == (6, template.n_gcs, 16) and torch.isfinite(codes).all()
@@ -113,11 +114,29 @@ def test_constant_parameters_decode_exactly(template, decoder, creature_gcs):
     const = ~decoder.varying.numpy()
     assert const.any() and decoder.varying.any()
     with torch.no_grad():
-        theta, _ = decoder.decode(torch.randn(8, 32) * 10)
+        theta, _ = decoder.decode(torch.randn(8, decoder.in_dim) * 10)
     np.testing.assert_allclose(theta.numpy()[:, const], np.broadcast_to(V[0, const],
                                                                         (8, const.sum())),
                                atol=1e-6)
     assert decoder.normalise(torch.as_tensor(V, dtype=torch.float32))[:, const].abs().max() == 0
+
+
+def test_explicit_latents_hold_their_gcs_exactly(template, creature_gcs):
+    """An explicit latent [GC parameters in std units, free entries] decodes to exactly those
+    GCs whatever its free entries, and its codes depend on both parts."""
+    torch.manual_seed(0)
+    dec = ShapeDecoder(8, template.size, template.n_gcs, code_dim=16, hidden=64, explicit=True)
+    V = torch.as_tensor(np.stack([template.vector(g) for g in creature_gcs]))
+    dec.set_param_stats(V)
+    z = dec.gc_part(dec.normalise(V.float()))
+    free = torch.randn(len(V), 8)
+    with torch.no_grad():
+        theta, codes = dec.decode(torch.cat([z, free], 1))
+        _, codes_free = dec.decode(torch.cat([z, free + 1.0], 1))
+        _, codes_gcs = dec.decode(torch.cat([z.roll(1, 0), free], 1))
+    np.testing.assert_allclose(theta.numpy(), V.numpy(), atol=1e-5)
+    assert not torch.allclose(codes, codes_free) and not torch.allclose(codes, codes_gcs)
+    assert dec.in_dim == 8 + template.size
 
 
 def test_param_errors_are_zero_for_identical_vectors(template, creature_gcs):
