@@ -180,7 +180,9 @@ def posterior_step(shape_decoder, diffusion, x: torch.Tensor, cond: GCCondition,
     prior = (1.0 / (float(strength) * torch.as_tensor(scale, dtype=x.dtype))) ** 2
     eye = torch.eye(x.shape[1], dtype=x.dtype, device=x.device)
     A = J.transpose(1, 2) @ J + prior.reshape(-1, 1, 1) * eye
-    return torch.linalg.solve(A, J.transpose(1, 2) @ r[..., None])[..., 0]
+    # A is symmetric positive definite: Cholesky. (torch.linalg.solve's batched LU failed here
+    # with 2 threads: "Intel oneMKL ERROR: Parameter 6 was incorrect on entry to DLASWP")
+    return torch.cholesky_solve(J.transpose(1, 2) @ r[..., None], torch.linalg.cholesky(A))[..., 0]
 
 
 class GuidedDenoiser:
