@@ -106,7 +106,7 @@ class ResidualMLPDenoiser(nn.Module):
     Noise conditioning: Fourier features of c_noise through a 2-layer SiLU MLP.
     """
 
-    def __init__(self, dim: int, width: int = 512, depth: int = 4, emb_dim: int | None = None,
+    def __init__(self, dim: int, width: int = 512, depth: int = 3, emb_dim: int | None = None,
                  fourier_channels: int = 64, fourier_scale: float = 1.0, dropout: float = 0.0):
         super().__init__()
         emb_dim = emb_dim or width
