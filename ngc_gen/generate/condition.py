@@ -18,7 +18,7 @@ with noise std 1/w (std units):
 
 w = `strength` is the precision of the condition: 0 is the unconditional sampler bit for bit;
 with explicit latents (z(s) = the latent's GC entries, J a selection) held-out creatures' GCs are
-met to 0.16 std at 10 and 0.06 at 30 (the default; bench/condition.py --sweep). The step is the smallest latent change that removes
+met to 0.17 std at 10 and 0.067 at 30 (the default; bench/condition.py --sweep). The step is the smallest latent change that removes
 the residual where the condition constrains the latent (J large against 1/(w c_out)); latent
 directions it does not constrain keep what the diffusion model sampled (the other GCs, surface
 detail). c_out -> sigma at low noise, so the correction fades as the sample settles;
@@ -235,7 +235,7 @@ def conditional_latents(gen, cond: GCCondition, indices, seed: int, strength: fl
     if not (np.isfinite(float(strength)) and float(strength) >= 0.0):
         raise DataError(f"guidance strength must be a number >= 0, got {strength}",
                         field="condition.strength",
-                        fix="use 0 (unconditional) or e.g. 30 (match the GCs to ~0.06 std)")
+                        fix="use 0 (unconditional) or e.g. 30 (match the GCs to ~0.07 std)")
     if int(project_steps) < 0:
         raise DataError(f"project_steps must be >= 0, got {project_steps}",
                         field="condition.project_steps", fix="use e.g. 0 .. 10")
