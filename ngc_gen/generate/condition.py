@@ -18,7 +18,8 @@ with noise std 1/w (std units):
 
 w = `strength` is the precision of the condition: 0 is the unconditional sampler bit for bit;
 with explicit latents (z(s) = the latent's GC entries, J a selection) held-out creatures' GCs are
-met to 0.17 std at 10 and 0.067 at 30 (the default; bench/condition.py --sweep). The step is the smallest latent change that removes
+met to 0.17 std at 10 and 0.067 at 30 (the default; bench/condition.py --sweep). The step is
+the smallest latent change that removes
 the residual where the condition constrains the latent (J large against 1/(w c_out)); latent
 directions it does not constrain keep what the diffusion model sampled (the other GCs, surface
 detail). c_out -> sigma at low noise, so the correction fades as the sample settles;
