@@ -63,14 +63,13 @@ class ShapeLatentModule(L.LightningModule):
         sd = keywords(shape_decoder, ShapeDecoder)
         if isinstance(shape_decoder, dict) and "explicit" not in sd:
             sd["explicit"] = False  # a checkpoint's record from before explicit latents
-        self.hparams.update(ngc=dict(self.ngc.config), shape_decoder=sd)
         self.make_optimizer = optimizer_factory(optimizer)
         self.shape_decoder = ShapeDecoder(latent_dim, self.template.size, self.template.n_gcs,
                                           self.ngc.code_dim, **sd)
-        self.hparams["shape_decoder"] = {**sd, "explicit": self.shape_decoder.explicit}
+        self.hparams.update(ngc=dict(self.ngc.config),  # the layout is always recorded
+                            shape_decoder={**sd, "explicit": self.shape_decoder.explicit})
         self.latents = nn.Embedding(n_shapes, self.shape_decoder.in_dim)
         nn.init.normal_(self.latents.weight, 0.0, latent_init_std)
-        self.n_fixed = self.template.size if self.shape_decoder.explicit else 0
         if self.n_fixed:  # the GC entries stay the annotated parameters
             with torch.no_grad():
                 self.latents.weight[:, :self.n_fixed] = 0.0
@@ -79,6 +78,12 @@ class ShapeLatentModule(L.LightningModule):
             self.latents.weight.register_hook(lambda g: g * keep.to(g))
         self.register_buffer("target_params", torch.zeros(n_shapes, self.template.size,
                                                           dtype=torch.float64))
+
+    @property
+    def n_fixed(self) -> int:
+        """Leading latent entries that are GC parameters (explicit latents), else 0."""
+        sd = self.shape_decoder
+        return sd.n_params if sd.explicit else 0
 
     @property
     def names(self) -> list[str]:
@@ -133,11 +138,11 @@ class ShapeLatentModule(L.LightningModule):
             pred, sdf = pred.clamp(-c, c), sdf.clamp(-c, c)
         l1 = (pred - sdf).abs().mean()
         sd = self.shape_decoder
-        target = sd.normalise(self.target_params[uniq]).to(z)
         varying = sd.varying
         if self.n_fixed or not bool(varying.any()):  # explicit: z is the target by construction
             param = z.sum() * 0
         else:
+            target = sd.normalise(self.target_params[uniq]).to(z)
             param = ((z - target)[:, varying] ** 2).mean()
         free = s[:, self.n_fixed:]
         reg = (free * free).sum(1).mean()

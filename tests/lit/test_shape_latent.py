@@ -78,6 +78,41 @@ def test_loss_decreases_on_three_creatures(prepared):
     assert after["l1"] < before["l1"] and after["param"] < 0.5 * before["param"], (before, after)
 
 
+def test_explicit_latents_keep_their_gcs_through_training(prepared):
+    """Explicit latents: each latent's GC entries are its shape's annotated parameters before
+    and after training (they get no update, only the free entries and the networks learn), so
+    every training latent decodes to its own GCs."""
+    torch.manual_seed(0)
+    module = make_module(prepared, lr=3e-3, latent_lr=3e-2, latent_noise=0.25)
+    assert module.shape_decoder.explicit is False  # a bare dict is a pre-explicit record
+    module = ShapeLatentModule(
+        len(prepared), module.template.to_dict(), decoder_sizes("small"), latent_dim=32,
+        shape_decoder={"hidden": 64, "explicit": True}, lr=3e-3, latent_lr=3e-2,
+        latent_noise=0.25, meta=module.hparams.meta)
+    module.set_targets(module.target_params.new_tensor(template_and_targets(prepared)[1]))
+    P = module.n_fixed
+    assert P == module.template.size and module.latents.weight.shape[1] == P + 32
+    sd = module.shape_decoder
+    expected = sd.gc_part(sd.normalise(module.target_params.float()))
+    before = module.latents.weight.detach().clone()
+    assert torch.allclose(before[:, :P], expected)
+    dm = PreparedDataModule(prepared, mode="ngc", batch_size=1024, seed=0)
+    opt = module.configure_optimizers()
+    module.train()
+    for step in range(10):
+        dm.train_set.set_epoch(step)
+        loss = module.losses(*dm.train_set[0])["loss"]
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+    after = module.latents.weight.detach()
+    assert torch.equal(after[:, :P], before[:, :P])
+    assert not torch.allclose(after[:, P:], before[:, P:])
+    with torch.no_grad():
+        theta, _ = module.decode(after)
+    np.testing.assert_allclose(theta.numpy(), module.target_params.numpy(), atol=1e-5)
+
+
 def test_rows_map_to_shape_and_gc(prepared):
     """Global GC ids from the fit data module are shape * K + gc for a shared template."""
     dm = PreparedDataModule(prepared, mode="ngc", batch_size=512)
