@@ -8,10 +8,18 @@ Bricks sit on a fixed lattice, so a vertex on a face shared by two bricks has th
 coordinate along that face in both and comes out bit-identical: duplicates are merged exactly.
 The dense grid (`marching_cubes_mesh`) goes through the same code, so a sparse and a dense
 extraction with equal values at the sign-change cells give the same mesh, bit for bit.
+
+Specks are left out: a connected component less than 2 cells wide along every axis, typically
+the 8 triangles around one grid sample that marching cubes separates from its neighbours (a
+floater, or a pinhole bubble). The grid says nothing about such a piece's shape; specks appear
+where a tip or a thin part narrows below the grid spacing, for the exact distance field as much
+as for a fit (`speck_faces`).
 """
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse
+import scipy.sparse.csgraph
 import trimesh
 from skimage.measure import marching_cubes
 
@@ -70,12 +78,30 @@ def first_of_equal_rows(a: np.ndarray) -> np.ndarray:
     return out
 
 
+def speck_faces(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """verts (V, 3) in grid-index units, faces (F, 3) -> (F,) bool: the face belongs to a speck,
+    a connected component less than 2 cells wide along every axis (its vertices all lie on the
+    edges of one grid sample, or of a pinhole between samples)."""
+    n = len(verts)
+    edges = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]]])
+    graph = scipy.sparse.coo_matrix((np.ones(len(edges), dtype=np.int8), edges.T), shape=(n, n))
+    n_comp, label = scipy.sparse.csgraph.connected_components(graph, directed=False)
+    order = np.argsort(label, kind="stable")
+    start = np.flatnonzero(np.concatenate([[True], np.diff(label[order]) != 0]))
+    v = verts[order]
+    width = np.maximum.reduceat(v, start) - np.minimum.reduceat(v, start)
+    speck = np.zeros(n_comp, dtype=bool)
+    speck[label[order[start]]] = np.all(width < 2.0, axis=1)
+    return speck[label[faces[:, 0]]]
+
+
 def cells_mesh(cells: np.ndarray, values: np.ndarray, grid: Grid, level: float = 0.0,
-               brick: int = BRICK) -> trimesh.Trimesh:
+               brick: int = BRICK, keep_specks: bool = False) -> trimesh.Trimesh:
     """cells (n, 3) int64 index of each cell's first corner (all corners <= R - 1), values
     (n, 8) float32 at its corners (CORNERS order) -> the level surface through those cells in
     world coordinates, faces oriented with normals toward increasing values (outward for an
-    SDF). Cells without a crossing are skipped; no crossing at all gives an empty mesh."""
+    SDF). Cells without a crossing are skipped, and so are specks unless `keep_specks` (module
+    docstring); no crossing at all gives an empty mesh."""
     keep = crossing(values, level)
     cells, values = cells[keep], values[keep]
     if len(cells) == 0:
@@ -123,6 +149,10 @@ def cells_mesh(cells: np.ndarray, values: np.ndarray, grid: Grid, level: float =
     faces = rep[faces]
     faces = faces[(faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2])
                   & (faces[:, 0] != faces[:, 2])]
+    if not keep_specks and len(faces):
+        faces = faces[~speck_faces(verts, faces)]
+        if not len(faces):
+            return empty_mesh()
     used = np.zeros(len(verts), dtype=bool)
     used[faces.reshape(-1)] = True
     index = np.cumsum(used) - 1
@@ -131,9 +161,10 @@ def cells_mesh(cells: np.ndarray, values: np.ndarray, grid: Grid, level: float =
     return trimesh.Trimesh(vertices=world, faces=index[faces], process=False)
 
 
-def marching_cubes_mesh(values: np.ndarray, grid: Grid, level: float = 0.0) -> trimesh.Trimesh:
+def marching_cubes_mesh(values: np.ndarray, grid: Grid, level: float = 0.0,
+                        keep_specks: bool = False) -> trimesh.Trimesh:
     """values: (R, R, R) float grid over `grid` (negative inside) -> the level-`level` surface,
-    through the same bricked code as the sparse path."""
+    through the same bricked code as the sparse path (specks left out unless `keep_specks`)."""
     values = np.asarray(values, dtype=np.float32)
     R = grid.resolution
     if values.shape != (R, R, R):
@@ -147,4 +178,4 @@ def marching_cubes_mesh(values: np.ndarray, grid: Grid, level: float = 0.0) -> t
     del count, below
     corner_values = np.stack([values[cells[:, 0] + dx, cells[:, 1] + dy, cells[:, 2] + dz]
                               for dx, dy, dz in CORNERS], 1)
-    return cells_mesh(cells, corner_values, grid, level)
+    return cells_mesh(cells, corner_values, grid, level, keep_specks=keep_specks)
