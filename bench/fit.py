@@ -286,9 +286,28 @@ def markdown(res: dict) -> str:
                      f"batch; stopped at step {long['steps']}, meshes at "
                      f"{long.get('resolution', res['resolution'])}^3 (coarse-to-fine). NGC CD / "
                      f"its CD = {res['methods']['ngc']['cd'] / long['cd']:.2f} (paper: 0.53); "
-                     f"it has not converged.")
+                     f"{long_status(long)}.")
 
     return "\n".join(lines) + "\n"
+
+
+def long_status(long: dict) -> str:
+    """Where the long DeepSDF run stands: the end of its schedule or not, and how much its
+    training loss still fell over the last fifth of the steps (bench/runs/fit/.../clock.csv)."""
+    done = "it ran its whole schedule" if long["steps"] >= long["max_steps"] else \
+        f"it has not finished its schedule ({long['steps']} of {long['max_steps']} steps)"
+    path = ROOT / long.get("clock_csv", "")
+    if not path.is_file():
+        return done
+    rows = np.loadtxt(path, delimiter=",", ndmin=2)
+    rows = rows[rows[:, 0] <= long["steps"]]
+    late = rows[rows[:, 0] >= 0.8 * long["steps"]]
+    if len(late) < 4:
+        return done
+    k = max(1, len(late) // 4)   # means of the first and last quarter of those rows
+    a, b = late[:k, 2].mean(), late[-k:, 2].mean()
+    return (f"{done}; its training loss fell {100 * (a - b) / a:.0f}% over the last fifth of "
+            f"the steps ({a:.2e} -> {b:.2e})")
 
 
 def rescore(run_dir: Path, resolution: int) -> dict:
@@ -298,7 +317,12 @@ def rescore(run_dir: Path, resolution: int) -> dict:
 
     metrics_path = run_dir / "metrics.json"
     metrics = json.loads(metrics_path.read_text())
+    from ngc_gen.app.config import compose_config
+
     cfg = OmegaConf.load(run_dir / "config.yaml")
+    base = compose_config(overrides=["stage=fit"])
+    for group in ("prepare", "extract"):   # keys added since the run: today's defaults
+        cfg[group] = OmegaConf.merge(base[group], cfg[group])
     cfg.extract.resolution = int(resolution)
     checkpoint = run_dir / "checkpoints/last.ckpt"
     coarse = COARSE if cfg.model.decoder.get("_target_", "").endswith("DeepSDFDecoder") else {}
