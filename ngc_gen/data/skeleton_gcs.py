@@ -100,12 +100,13 @@ def _split_owner(pieces: list[Branch], piece_of: list[np.ndarray], owner: np.nda
     return out
 
 
-def skeleton_gcs(mesh: trimesh.Trimesh, max_gcs: int = 24, min_branch_length: float = 2.0,
+def skeleton_gcs(mesh: trimesh.Trimesh, max_gcs: int = 24, min_branch_length: float = 1.0,
                  margin: float = 0.05, resolution: int = 96, skeleton: str = "auto",
                  n_keys: int = 5, samples: int = 20000, seed: int = 0, protrusions: bool = True,
                  bulb_ratio: float = 1.8) -> tuple[list[GeneralizedCylinder], dict]:
     """GCs for a (normalised) mesh and what was found on the way: {backend, n_branches,
-    n_components}. Arguments as in conf/annotate/default.yaml."""
+    n_components}. Arguments as in conf/annotate/default.yaml (its values are the defaults here,
+    as in `AutoGCSettings`; a test checks they agree)."""
     if skeleton not in BACKENDS:
         raise DataError(f"unknown skeleton backend {skeleton!r}", field="annotate.skeleton",
                         fix=f"use one of {', '.join(BACKENDS)}")

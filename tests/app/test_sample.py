@@ -258,8 +258,13 @@ def test_reconstruct_a_held_out_creature_and_interpolate_to_a_generated_one(runs
 def test_condition_mode_takes_the_given_gcs(runs, tmp_path, write_yaml):
     """`sample.py mode=condition gcs=<held-out creature's annotation>`: shapes + YAMLs whose GCs
     are the given ones (replace), in the given frame, plus the picture and an edit checkpoint."""
-    split = json.loads((runs["sl"].parent / "data/split.json").read_text())
-    given = runs["sl"].parent / "data" / f"{split['test'][0]}.yaml"
+    from ngc_gen.data.creatures import build_creatures
+
+    data = runs["sl"].parent / "data"
+    split = json.loads((data / "split.json").read_text())
+    # the held-out creature: built here (reused if another test built it), not by the fixture
+    build_creatures(data, 4, only=split["test"][:1])
+    given = data / f"{split['test'][0]}.yaml"
     out = tmp_path / "cond"
     r = run_entry("sample.py", f"run={runs['diff']}", "mode=condition", f"gcs={given}", "n=2",
                   "seed=0", f"extract.resolution={RES}", "progress=false", f"hydra.run.dir={out}")

@@ -294,6 +294,14 @@ def test_settings_defaults_are_the_config_defaults():
     conf = yaml.safe_load((ROOT / "conf/annotate/default.yaml").read_text())
     conf.pop("write_beside")
     assert AutoGCSettings.from_config(conf) == AutoGCSettings()
+    # skeleton_gcs's own keyword defaults (a bare call) are the same values
+    import dataclasses
+    import inspect
+
+    params = inspect.signature(skeleton_gcs).parameters
+    for f in dataclasses.fields(AutoGCSettings):
+        if f.name in params:
+            assert params[f.name].default == getattr(AutoGCSettings(), f.name), f.name
 
 
 def test_bad_input_is_refused(tmp_path):
