@@ -157,7 +157,9 @@ def test_shape_latent_and_diffusion_resume_from_last_ckpt(tmp_path):
                       "shape_latent.latent_dim=16", "shape_latent.preview=0")
     saved, stdout, log_before = kill_and_resume(args, sl, steps)
     assert_resumed(sl, saved, steps, stdout, log_before)
-    assert torch.load(sl / "latents.pt", weights_only=True)["latents"].shape == (3, 16)
+    # explicit latents: the GC parameters, then shape_latent.latent_dim=16 free entries
+    n_params = json.loads((sl / "metrics.json").read_text())["n_params"]
+    assert torch.load(sl / "latents.pt", weights_only=True)["latents"].shape == (3, n_params + 16)
 
     diff, steps = tmp_path / "diff", 3000  # a tiny denoiser steps fast: room to kill it
     args = train_args(diff, "stage=diffusion", f"shape_latent_run={sl}",
