@@ -315,10 +315,10 @@ def rescore(run_dir: Path, resolution: int) -> dict:
     `resolution`) and rewrite its metrics.json: for metric changes, without training again."""
     from omegaconf import OmegaConf
 
-    metrics_path = run_dir / "metrics.json"
-    metrics = json.loads(metrics_path.read_text())
     from ngc_gen.app.config import compose_config
 
+    metrics_path = run_dir / "metrics.json"
+    metrics = json.loads(metrics_path.read_text())
     cfg = OmegaConf.load(run_dir / "config.yaml")
     base = compose_config(overrides=["stage=fit"])
     for group in ("prepare", "extract"):   # keys added since the run: today's defaults
