@@ -166,3 +166,54 @@ def branch_graph(nodes: np.ndarray, edges: np.ndarray, radius: np.ndarray, min_l
         out.append(Branch(nodes[p], radius[p], (bool(deg[p[0]] >= 3), bool(deg[p[-1]] >= 3)),
                           int(comp[p[0]])))
     return out
+
+
+#: a junction's other branches may be at most this x as thick as the thinner of the two that
+#: `pass_through` joins there
+THROUGH_THIN = 0.5
+
+
+def _key(p: np.ndarray) -> tuple:
+    return tuple(np.round(p, 9))
+
+
+def pass_through(branches: list[Branch]) -> tuple[list[Branch], dict]:
+    """Join the two branches of a junction that only thin end branches leave besides them.
+
+    The skeleton of a head on its neck with a snout and two ears has a junction where the ears
+    leave: neck -> junction -> snout, which would cut the head in two GCs (the neck's, holding
+    the back of the head, and the snout's). Where the two thickest branches at a junction are
+    one end branch (a free end) and any other, and every other branch there is an end branch at
+    most ``THROUGH_THIN`` x the thinner of the two, they become one branch through the
+    junction. A branch is joined at most once (no chains). Thickness: mean local radius.
+    -> (branches, {junction key: index of the branch that now passes through it})."""
+    at: dict = {}
+    for i, b in enumerate(branches):
+        for side in (0, -1):
+            if b.junction[side]:
+                at.setdefault(_key(b.points[side]), []).append((i, side))
+    free = [not (b.junction[0] and b.junction[1]) for b in branches]
+    thick = [float(b.radius.mean()) for b in branches]
+    used, joined, through = set(), [], {}
+    for key in sorted(at):
+        ends = sorted(at[key], key=lambda e: (-thick[e[0]], e[0]))
+        if len(ends) < 3 or len({i for i, _ in ends}) != len(ends):
+            continue
+        (i, si), (j, sj), rest = ends[0], ends[1], ends[2:]
+        if i in used or j in used or not (free[i] or free[j]):
+            continue
+        if not all(free[k] and thick[k] <= THROUGH_THIN * min(thick[i], thick[j]) for k, _ in rest):
+            continue
+        a, b = branches[i], branches[j]
+        pa, ra = (a.points, a.radius) if si == -1 else (a.points[::-1], a.radius[::-1])
+        pb, rb = (b.points, b.radius) if sj == 0 else (b.points[::-1], b.radius[::-1])
+        ja = a.junction[0] if si == -1 else a.junction[1]
+        jb = b.junction[1] if sj == 0 else b.junction[0]
+        used |= {i, j}
+        joined.append((key, Branch(np.concatenate([pa, pb[1:]]), np.concatenate([ra, rb[1:]]),
+                                   (bool(ja), bool(jb)), a.component)))
+    out = [b for i, b in enumerate(branches) if i not in used]
+    for key, b in joined:
+        through[key] = len(out)
+        out.append(b)
+    return out, through

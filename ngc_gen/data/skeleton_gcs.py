@@ -13,7 +13,7 @@ from scipy.spatial import cKDTree
 from ngc_gen.geometry import GeneralizedCylinder
 
 from .branch_gc import branch_gc, resample, split_bulb, split_curved
-from .branches import Branch, branch_graph
+from .branches import Branch, branch_graph, pass_through
 from .coverage import grow_to_cover
 from .gc_names import gc_names
 from .protrusions import THINNER as protrusion_thinner
@@ -34,19 +34,23 @@ def _exit_index(radius: np.ndarray) -> int:
     return int(np.argmax(radius <= 1.25 * own))
 
 
-def _rooted(branches: list[Branch]) -> tuple[list[Branch], np.ndarray, np.ndarray, list[Branch]]:
+def _rooted(branches: list[Branch], through: dict | None = None
+            ) -> tuple[list[Branch], np.ndarray, np.ndarray, list[Branch]]:
     """Branches with their roots trimmed, the skeleton samples (M, 3) with their owner (M,), and
     the untrimmed resampled branches (whose points, concatenated, are those samples).
 
     At a junction, every branch but the thickest starts inside the thickest one's body; the
     samples up to where it leaves that body belong to the thickest branch (a torso's surface
     around a tail root is the torso's), and its GC starts halfway between the junction and
-    that exit, so it overlaps its parent a little instead of running through it."""
+    that exit, so it overlaps its parent a little instead of running through it. `through`:
+    junction key -> a branch that passes through that junction (`pass_through`), a rival there."""
     ends: dict = {}
     for i, b in enumerate(branches):
         for side in (0, -1):
             if b.junction[side]:
                 ends.setdefault(tuple(np.round(b.points[side], 9)), []).append((float(b.radius.mean()), -i))
+    for key, i in (through or {}).items():
+        ends.setdefault(key, []).append((float(branches[i].radius.mean()), -i))
     samples, owner, out, full = [], [], [], []
     for i, b in enumerate(branches):
         P, R = b.points, b.radius
@@ -118,7 +122,8 @@ def skeleton_gcs(mesh: trimesh.Trimesh, max_gcs: int = 24, min_branch_length: fl
     sk = proxy_skeleton(proxy, backend=skeleton)
     radius = np.maximum(local_thickness(sk.nodes, surface), proxy.h)
     branches = branch_graph(sk.nodes, sk.edges, radius, min_branch_length, max_gcs)
-    rooted, nodes, node_owner, branches_full = _rooted(branches)
+    branches, through = pass_through(branches)
+    rooted, nodes, node_owner, branches_full = _rooted(branches, through)
     n_skeleton = len(rooted)
     node_tree = cKDTree(nodes)
     d_near, near = node_tree.query(surface, k=1)
