@@ -63,7 +63,8 @@ def protrusion_branches(surface: np.ndarray, nodes: np.ndarray, radius: np.ndarr
     this are one cluster; width (S,): the surface's half-thickness at each sample; tip (M,)
     bool: nodes near a branch's free end, where a cluster is that branch's own unreached tip
     (its GC's cap grows over it), not a new part; body (M,): the thickness of the body each
-    node belongs to (default: radius), which a protrusion must be thinner than. Clusters are taken largest first, and the
+    node belongs to (default: radius), which a protrusion must be thinner than: the body of its
+    anchor node, or the thinner body most of its samples are nearest to. Clusters are taken largest first, and the
     far samples are measured again against each new branch (one thin part, one branch). At most ``max_new`` branches, the largest clusters first."""
     d, j = cKDTree(nodes).query(surface, k=1)
     is_far = (d > far * radius[j]) & (d > thin * width)
@@ -90,7 +91,10 @@ def protrusion_branches(surface: np.ndarray, nodes: np.ndarray, radius: np.ndarr
         ratio = d[mine] / radius[j[mine]]
         anchor = int(j[mine][np.argmin(ratio)])  # where the cluster meets the body
         a, r_a = nodes[anchor], radius[anchor]
-        r_body = radius[anchor] if body is None else body[anchor]
+        # the body it grows from: the anchor's, or the one most of its samples are nearest to
+        # if thinner (a flat ear whose skeleton branch runs along it is that branch's, no new part)
+        b_of = radius if body is None else body
+        r_body = min(float(b_of[anchor]), float(np.median(b_of[j[mine]])))
         far_pt = q[np.argmax(np.linalg.norm(q - a, axis=1))]
         axis = (far_pt - a) / max(np.linalg.norm(far_pt - a), 1e-12)
         if tangent is not None and abs(float(axis @ tangent[anchor])) > ALONG:

@@ -243,6 +243,29 @@ def test_a_head_with_a_snout_and_ears_is_not_cut_at_the_ears(monkeypatch):
     assert shares(skeleton_gcs(mesh)[0])[head] < 0.8  # the premise: cut in two without the join
 
 
+@pytest.mark.skipif(not skeleton_mod.cgal_available(), reason="measured with CGAL's skeleton")
+def test_an_ear_the_skeleton_reaches_gets_no_second_gc():
+    """creature_0000 of the shipped set: CGAL's skeleton runs a branch along each flat ear. The
+    ear's samples lie far from that branch (the ear is wide), which the protrusion pass took for
+    a missed part: two GCs per ear (11 in all). They are the thin branch's own, so no protrusion
+    is added and each ear lies inside one GC."""
+    from ngc_gen.data.coverage import rho_matrix
+    from ngc_gen.data.creatures import make_creature, shape_seed
+    from ngc_gen.data.sampling import gc_membership
+
+    mesh, ann = make_creature(shape_seed(0, 0), resolution=128, check_samples=0)
+    gcs, info = skeleton_gcs(mesh)
+    assert info["n_protrusions"] == 0 and abs(len(gcs) - 10) <= 2
+    true = [GeneralizedCylinder.from_dict(g) for g in ann["gcs"]]
+    points, _ = sample_surface(mesh.vertices, mesh.faces, 20_000, np.random.default_rng(0))
+    part = rho_matrix(true, points)[0].argmin(axis=0)
+    pp, pg, _ = gc_membership(points, gcs)
+    inside = np.zeros((len(points), len(gcs)), dtype=bool)
+    inside[pp, pg] = True
+    for ear in ("ear_l", "ear_r"):
+        assert inside[part == [g.name for g in true].index(ear)].mean(axis=0).max() >= 0.8, ear
+
+
 def test_pass_through_joins_a_limb_and_its_end_part_across_thin_end_branches():
     line = lambda a, b: np.stack([np.linspace(a[k], b[k], 6) for k in range(3)], 1)  # noqa: E731
     J = np.array([1.0, 0.0, 0.5])                         # the head's junction
