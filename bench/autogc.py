@@ -13,7 +13,9 @@
    `--fit-creatures` creatures with automatic GCs, hand annotations and the one-GC axis method:
    Chamfer (DeepSDF convention), the same Chamfer against the ground truth's surface
    (`cd_surface_*`, exact distances: the sample-to-sample estimator's noise floor is as large as
-   a good fit's Chamfer) and normal consistency per shape.
+   a good fit's Chamfer) and normal consistency per shape; cd_noise_floor, the DeepSDF-convention
+   Chamfer between two samplings of the ground truth (what a perfect fit reads: no ratio to
+   cd_axis can go below cd_noise_floor / cd_axis).
 3. A handle edit (a leg raised, bench/deform.py's bend) on the automatically annotated creature
    and ant: eps_V, eps_A of the deformed against the undeformed NGC mesh.
 Writes bench/results/autogc.json ({meshes: [{name, n_gcs, coverage, overlap, time_s, cd_auto,
@@ -166,6 +168,23 @@ def surface_chamfer(method: str, name: str) -> float:
     return mesh_chamfer(pred, trimesh.Trimesh(gt.mesh_vertices, gt.mesh_faces, process=False))
 
 
+def cd_noise_floor(name: str, n: int = 30000) -> float:
+    """The DeepSDF-convention Chamfer between two samplings (seeds 0 and 1, n points each) of the
+    same ground-truth surface: what the fit's cd reads for a perfect fit. A ratio cd_x / cd_axis
+    cannot go below cd_noise_floor / cd_axis, whatever GCs x are."""
+    import trimesh
+    from omegaconf import OmegaConf
+
+    from ngc_gen.data.prepare import load_prepared
+    from ngc_gen.eval.fitting import chamfer
+    from ngc_gen.eval.sampling import sample_surface
+
+    cache = Path(OmegaConf.load(RUNS / "fit_axis" / "config.yaml").prepare.cache_dir)
+    gt = load_prepared(cache / f"{name}.npz")
+    mesh = trimesh.Trimesh(gt.mesh_vertices, gt.mesh_faces, process=False)
+    return chamfer(sample_surface(mesh, n, 0)[0], sample_surface(mesh, n, 1)[0])
+
+
 def edits(checkpoint: str, anns: dict, resolution: int) -> list[dict]:
     """A leg raised on the automatically annotated creature and ant (bench/deform.py's bend)."""
     import yaml
@@ -284,6 +303,7 @@ def main():
         r["nc_auto"] = None if m is None else float(m["normal_consistency"])
         m = fits.get("annotated", {}).get("shapes", {}).get(r["name"])
         r["nc_annotated"] = None if m is None else float(m["normal_consistency"])
+        r["cd_noise_floor"] = cd_noise_floor(r["name"]) if r["cd_axis"] is not None else None
     edit_rows = edits(fits["auto"]["checkpoint"], anns, args.edit_resolution) if fits else []
 
     fitted = [r for r in rows if r["cd_auto"] is not None]
@@ -292,6 +312,8 @@ def main():
         "coverage_min": min(r["coverage"] for r in rows),
         "cd_auto_over_annotated": {r["name"]: r["cd_auto"] / r["cd_annotated"] for r in fitted},
         "cd_auto_over_axis": {r["name"]: r["cd_auto"] / r["cd_axis"] for r in fitted},
+        "cd_annotated_over_axis": {r["name"]: r["cd_annotated"] / r["cd_axis"] for r in fitted},
+        "cd_noise_floor_over_axis": {r["name"]: r["cd_noise_floor"] / r["cd_axis"] for r in fitted},
         "cd_surface_auto_over_annotated": {r["name"]: r["cd_surface_auto"] / r["cd_surface_annotated"]
                                            for r in fitted},
         "cd_surface_auto_over_axis": {r["name"]: r["cd_surface_auto"] / r["cd_surface_axis"]
@@ -307,7 +329,9 @@ def main():
                         "total_s": time.perf_counter() - t_start,
                         "conventions": "coverage/overlap: share of 50k surface samples inside >= 1 / "
                                        ">= 2 GCs; cd: DeepSDF Chamfer (30k points each way, squared, "
-                                       "means summed); cd_surface_*: the same against the other "
+                                       "means summed); cd_noise_floor: that Chamfer between two "
+                                       "samplings of the ground truth (a perfect fit's cd); "
+                                       "cd_surface_*: the same against the other "
                                        "mesh's surface (exact distances, mesh_chamfer); nc: normal "
                                        "consistency; eps_V = |V'-V|/V"}}
     RESULTS.mkdir(parents=True, exist_ok=True)
@@ -325,7 +349,8 @@ def print_summary(res: dict) -> None:
               f"{r['time_s']:6.2f} {f(r['cd_auto'], 9, '2e')} {f(r['cd_annotated'], 9, '2e')} "
               f"{f(r['cd_axis'], 9, '2e')} {f(r['nc_auto'], 8, '3f')}")
     t = res["targets"]
-    for key in ("cd_auto_over_annotated", "cd_auto_over_axis", "cd_surface_auto_over_annotated",
+    for key in ("cd_auto_over_annotated", "cd_auto_over_axis", "cd_annotated_over_axis",
+                "cd_noise_floor_over_axis", "cd_surface_auto_over_annotated",
                 "cd_surface_auto_over_axis", "cd_surface_annotated_over_axis"):
         if key in t:
             print(f"{key:32s} " + "  ".join(f"{n} {v:.2f}" for n, v in t[key].items()))
