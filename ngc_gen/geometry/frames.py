@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 import torch
+from numba import njit
 
 from .errors import GeometryError
 from .arrays import dot
@@ -24,21 +25,28 @@ def default_up(tangent: np.ndarray) -> np.ndarray:
 def double_reflection(x: np.ndarray, t: np.ndarray, r0: np.ndarray) -> np.ndarray:
     """RMF reference vectors at samples x (M,3) with unit tangents t (M,3), starting at r0.
 
-    A sequential recurrence over curve samples (not over query points), done once per GC."""
+    A sequential recurrence over curve samples (not over query points), done once per GC;
+    compiled (numba), as a Python loop it cost 7 ms per GC (0.36 s of annotating the ant)."""
+    x, t = np.ascontiguousarray(x, dtype=np.float64), np.ascontiguousarray(t, dtype=np.float64)
     r = np.empty_like(x)
+    _double_reflection(x, t, np.asarray(r0, dtype=np.float64), r)
+    return r
+
+
+@njit(cache=True)
+def _double_reflection(x, t, r0, r):
     r[0] = r0
-    for i in range(len(x) - 1):
+    for i in range(x.shape[0] - 1):
         v1 = x[i + 1] - x[i]
         c1 = v1 @ v1
         if c1 < 1e-300:
-            rl, tl = r[i], t[i]
+            rl, tl = r[i].copy(), t[i].copy()
         else:
             rl = r[i] - (2.0 / c1) * (v1 @ r[i]) * v1
             tl = t[i] - (2.0 / c1) * (v1 @ t[i]) * v1
         v2 = t[i + 1] - tl
         c2 = v2 @ v2
         r[i + 1] = rl if c2 < 1e-300 else rl - (2.0 / c2) * (v2 @ rl) * v2
-    return r
 
 
 class FrameField:
