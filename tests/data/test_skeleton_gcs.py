@@ -126,25 +126,43 @@ def test_voxel_fallback_when_cgal_is_missing(monkeypatch):
         skeleton_gcs(mesh, skeleton="cgal", **FAST)
 
 
+def _shipped_creature(i: int, resolution: int = 128):
+    """Creature i of the shipped set (seed 0): its mesh, true GCs and 20k surface samples."""
+    from ngc_gen.data.creatures import make_creature, shape_seed
+
+    mesh, ann = make_creature(shape_seed(0, i), resolution=resolution, check_samples=0)
+    true = [GeneralizedCylinder.from_dict(g) for g in ann["gcs"]]
+    points, _ = sample_surface(mesh.vertices, mesh.faces, 20_000, np.random.default_rng(0))
+    return mesh, true, points
+
+
+def _part_shares(true, gcs, points) -> np.ndarray:
+    """(T, G): the share of each true part's samples (a sample belongs to the true GC it is
+    relatively nearest to) inside each GC."""
+    from ngc_gen.data.coverage import rho_matrix
+    from ngc_gen.data.sampling import gc_membership
+
+    part = rho_matrix(true, points)[0].argmin(axis=0)
+    pp, pg, _ = gc_membership(points, gcs)
+    inside = np.zeros((len(points), len(gcs)), dtype=bool)
+    inside[pp, pg] = True
+    return np.stack([inside[part == k].mean(axis=0) for k in range(len(true))])
+
+
 def test_creature_limbs_are_found():
     """A procedural creature (10 true parts): the automatic count is within +-2 and every leg
     lies inside one automatic GC."""
-    from ngc_gen.data.coverage import rho_matrix
     from ngc_gen.data.creatures import make_creature
-    from ngc_gen.data.sampling import gc_membership
 
     mesh, ann = make_creature(3, resolution=64, check_samples=0)
     gcs, _ = skeleton_gcs(mesh, samples=8000)
     assert abs(len(gcs) - 10) <= 2
     true = [GeneralizedCylinder.from_dict(g) for g in ann["gcs"]]
     points, _ = sample_surface(mesh.vertices, mesh.faces, 20_000, np.random.default_rng(0))
-    part = rho_matrix(true, points)[0].argmin(axis=0)
-    pp, pg, _ = gc_membership(points, gcs)
-    inside = np.zeros((len(points), len(gcs)), dtype=bool)
-    inside[pp, pg] = True
+    shares = _part_shares(true, gcs, points).max(axis=1)
     for k, g in enumerate(true):
         if g.name.startswith("leg"):
-            assert inside[part == k].mean(axis=0).max() >= 0.9, g.name
+            assert shares[k] >= 0.9, g.name
     assert sum(g.name.startswith("leg_") for g in gcs) == 4
 
 
@@ -154,21 +172,11 @@ def test_ears_the_skeleton_merges_into_the_head_get_their_own_gcs():
     """creature_0003 of the shipped creature set: CGAL's skeleton runs no branch into its ears
     (7 GCs without the protrusion pass). With it, each ear's samples lie mostly inside a GC other
     than the one that holds most of the head, and the count is within +-2 of the true 10."""
-    from ngc_gen.data.coverage import rho_matrix
-    from ngc_gen.data.creatures import make_creature, shape_seed
-    from ngc_gen.data.sampling import gc_membership
-
-    mesh, ann = make_creature(shape_seed(0, 3), resolution=128, check_samples=0)
-    true = [GeneralizedCylinder.from_dict(g) for g in ann["gcs"]]
-    points, _ = sample_surface(mesh.vertices, mesh.faces, 20_000, np.random.default_rng(0))
-    part = rho_matrix(true, points)[0].argmin(axis=0)
+    mesh, true, points = _shipped_creature(3)
     names = [g.name for g in true]
 
     def shares(gcs):  # (T, G) share of each true part's samples inside each GC
-        pp, pg, _ = gc_membership(points, gcs)
-        inside = np.zeros((len(points), len(gcs)), dtype=bool)
-        inside[pp, pg] = True
-        return np.stack([inside[part == k].mean(axis=0) for k in range(len(true))])
+        return _part_shares(true, gcs, points)
 
     def ear_own(gcs):  # per ear: its largest share inside a GC other than the head's
         s = shares(gcs)
@@ -189,21 +197,11 @@ def test_a_head_on_a_thin_neck_gets_its_own_gc():
     """creature_0010 of the shipped set: one skeleton branch runs through its thin neck into its
     head (7 GCs without the split, 3 fewer than the true 10). With `bulb_ratio` the head gets a
     GC of its own: most of the neck's samples in one GC, most of the head's in another."""
-    from ngc_gen.data.coverage import rho_matrix
-    from ngc_gen.data.creatures import make_creature, shape_seed
-    from ngc_gen.data.sampling import gc_membership
-
-    mesh, ann = make_creature(shape_seed(0, 10), resolution=128, check_samples=0)
-    true = [GeneralizedCylinder.from_dict(g) for g in ann["gcs"]]
-    points, _ = sample_surface(mesh.vertices, mesh.faces, 20_000, np.random.default_rng(0))
-    part = rho_matrix(true, points)[0].argmin(axis=0)
+    mesh, true, points = _shipped_creature(10)
     names = [g.name for g in true]
 
     def best(gcs, name):  # the GC holding most of a true part's samples, and that share
-        pp, pg, _ = gc_membership(points, gcs)
-        inside = np.zeros((len(points), len(gcs)), dtype=bool)
-        inside[pp, pg] = True
-        share = inside[part == names.index(name)].mean(axis=0)
+        share = _part_shares(true, gcs, points)[names.index(name)]
         return int(share.argmax()), float(share.max())
 
     without = auto_gcs(mesh, AutoGCSettings(bulb_ratio=0))
@@ -220,20 +218,11 @@ def test_a_head_with_a_snout_and_ears_is_not_cut_at_the_ears(monkeypatch):
     (neck -> junction -> snout), which cut the head between the neck's GC and the snout's (at
     most 77% of it inside one GC). Joined through that junction, the head lies in one GC."""
     from ngc_gen.data import skeleton_gcs as module
-    from ngc_gen.data.coverage import rho_matrix
-    from ngc_gen.data.creatures import make_creature, shape_seed
-    from ngc_gen.data.sampling import gc_membership
 
-    mesh, ann = make_creature(shape_seed(0, 13), resolution=128, check_samples=0)
-    true = [GeneralizedCylinder.from_dict(g) for g in ann["gcs"]]
-    points, _ = sample_surface(mesh.vertices, mesh.faces, 20_000, np.random.default_rng(0))
-    part = rho_matrix(true, points)[0].argmin(axis=0)
+    mesh, true, points = _shipped_creature(13)
 
     def shares(gcs):  # (T,) the largest share of each true part inside one GC
-        pp, pg, _ = gc_membership(points, gcs)
-        inside = np.zeros((len(points), len(gcs)), dtype=bool)
-        inside[pp, pg] = True
-        return np.array([inside[part == k].mean(axis=0).max() for k in range(len(true))])
+        return _part_shares(true, gcs, points).max(axis=1)
 
     head = [g.name for g in true].index("head")
     gcs, _ = skeleton_gcs(mesh)
@@ -249,21 +238,12 @@ def test_an_ear_the_skeleton_reaches_gets_no_second_gc():
     ear's samples lie far from that branch (the ear is wide), which the protrusion pass took for
     a missed part: two GCs per ear (11 in all). They are the thin branch's own, so no protrusion
     is added and each ear lies inside one GC."""
-    from ngc_gen.data.coverage import rho_matrix
-    from ngc_gen.data.creatures import make_creature, shape_seed
-    from ngc_gen.data.sampling import gc_membership
-
-    mesh, ann = make_creature(shape_seed(0, 0), resolution=128, check_samples=0)
+    mesh, true, points = _shipped_creature(0)
     gcs, info = skeleton_gcs(mesh)
     assert info["n_protrusions"] == 0 and abs(len(gcs) - 10) <= 2
-    true = [GeneralizedCylinder.from_dict(g) for g in ann["gcs"]]
-    points, _ = sample_surface(mesh.vertices, mesh.faces, 20_000, np.random.default_rng(0))
-    part = rho_matrix(true, points)[0].argmin(axis=0)
-    pp, pg, _ = gc_membership(points, gcs)
-    inside = np.zeros((len(points), len(gcs)), dtype=bool)
-    inside[pp, pg] = True
+    shares = _part_shares(true, gcs, points).max(axis=1)
     for ear in ("ear_l", "ear_r"):
-        assert inside[part == [g.name for g in true].index(ear)].mean(axis=0).max() >= 0.8, ear
+        assert shares[[g.name for g in true].index(ear)] >= 0.8, ear
 
 
 def test_pass_through_joins_a_limb_and_its_end_part_across_thin_end_branches():
