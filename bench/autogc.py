@@ -67,8 +67,9 @@ def warm_up(mesh: str) -> float:
 
     t0 = time.perf_counter()
     auto_annotation(mesh, name="warm_up", bound=0.8)
-    print(f"warm-up (first annotation in this process): {time.perf_counter() - t0:.2f} s", flush=True)
-    return time.perf_counter() - t0
+    seconds = time.perf_counter() - t0
+    print(f"warm-up (first annotation in this process): {seconds:.2f} s", flush=True)
+    return seconds
 
 
 def annotate_all(names: dict, hand: dict) -> tuple[list[dict], dict]:
@@ -163,37 +164,38 @@ def fit(method: str, names: list[str], hand: dict, steps: int, resolution: int) 
     return metrics
 
 
+def ground_truth(name: str, method: str = "axis"):
+    """The ground-truth mesh a fit run scored `name` against (its prepared cache)."""
+    import trimesh
+    from omegaconf import OmegaConf
+
+    from ngc_gen.data.prepare import load_prepared
+
+    cache = Path(OmegaConf.load(RUNS / f"fit_{method}" / "config.yaml").prepare.cache_dir)
+    gt = load_prepared(cache / f"{name}.npz")
+    return trimesh.Trimesh(gt.mesh_vertices, gt.mesh_faces, process=False)
+
+
 def surface_chamfer(method: str, name: str) -> float:
     """Chamfer of a fit's mesh against the surface of its ground truth (`mesh_chamfer`: exact
     point-to-mesh distances), free of the sample-to-sample estimator's noise floor (~1e-4 on a
     creature, bench/extract.py), which the DeepSDF-convention cd of a good fit sits on."""
     import trimesh
-    from omegaconf import OmegaConf
 
-    from ngc_gen.data.prepare import load_prepared
     from ngc_gen.eval.fitting import mesh_chamfer
 
-    run_dir = RUNS / f"fit_{method}"
-    cache = Path(OmegaConf.load(run_dir / "config.yaml").prepare.cache_dir)
-    gt = load_prepared(cache / f"{name}.npz")
-    pred = trimesh.load(run_dir / "meshes" / f"{name}.ply", process=False)
-    return mesh_chamfer(pred, trimesh.Trimesh(gt.mesh_vertices, gt.mesh_faces, process=False))
+    pred = trimesh.load(RUNS / f"fit_{method}" / "meshes" / f"{name}.ply", process=False)
+    return mesh_chamfer(pred, ground_truth(name, method))
 
 
 def cd_noise_floor(name: str, n: int = 30000) -> float:
     """The DeepSDF-convention Chamfer between two samplings (seeds 0 and 1, n points each) of the
     same ground-truth surface: what the fit's cd reads for a perfect fit. A ratio cd_x / cd_axis
     cannot go below cd_noise_floor / cd_axis, whatever GCs x are."""
-    import trimesh
-    from omegaconf import OmegaConf
-
-    from ngc_gen.data.prepare import load_prepared
     from ngc_gen.eval.fitting import chamfer
     from ngc_gen.eval.sampling import sample_surface
 
-    cache = Path(OmegaConf.load(RUNS / "fit_axis" / "config.yaml").prepare.cache_dir)
-    gt = load_prepared(cache / f"{name}.npz")
-    mesh = trimesh.Trimesh(gt.mesh_vertices, gt.mesh_faces, process=False)
+    mesh = ground_truth(name)
     return chamfer(sample_surface(mesh, n, 0)[0], sample_surface(mesh, n, 1)[0])
 
 

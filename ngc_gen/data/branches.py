@@ -173,7 +173,9 @@ def branch_graph(nodes: np.ndarray, edges: np.ndarray, radius: np.ndarray, min_l
 THROUGH_THIN = 0.5
 
 
-def _key(p: np.ndarray) -> tuple:
+def junction_key(p: np.ndarray) -> tuple:
+    """A skeleton node's position (3,) as a hashable key: the branches that meet at a junction
+    end on the same node, so their end points give the same key."""
     return tuple(np.round(p, 9))
 
 
@@ -191,7 +193,7 @@ def pass_through(branches: list[Branch]) -> tuple[list[Branch], dict]:
     for i, b in enumerate(branches):
         for side in (0, -1):
             if b.junction[side]:
-                at.setdefault(_key(b.points[side]), []).append((i, side))
+                at.setdefault(junction_key(b.points[side]), []).append((i, side))
     free = [not (b.junction[0] and b.junction[1]) for b in branches]
     thick = [float(b.radius.mean()) for b in branches]
     used, joined, through = set(), [], {}

@@ -66,6 +66,7 @@ def protrusion_branches(surface: np.ndarray, nodes: np.ndarray, radius: np.ndarr
     node belongs to (default: radius), which a protrusion must be thinner than: the body of its
     anchor node, or the thinner body most of its samples are nearest to. Clusters are taken largest first, and the
     far samples are measured again against each new branch (one thin part, one branch). At most ``max_new`` branches, the largest clusters first."""
+    body = radius if body is None else body
     d, j = cKDTree(nodes).query(surface, k=1)
     is_far = (d > far * radius[j]) & (d > thin * width)
     idx = np.flatnonzero(is_far)
@@ -93,8 +94,7 @@ def protrusion_branches(surface: np.ndarray, nodes: np.ndarray, radius: np.ndarr
         a, r_a = nodes[anchor], radius[anchor]
         # the body it grows from: the anchor's, or the one most of its samples are nearest to
         # if thinner (a flat ear whose skeleton branch runs along it is that branch's, no new part)
-        b_of = radius if body is None else body
-        r_body = min(float(b_of[anchor]), float(np.median(b_of[j[mine]])))
+        r_body = min(float(body[anchor]), float(np.median(body[j[mine]])))
         far_pt = q[np.argmax(np.linalg.norm(q - a, axis=1))]
         axis = (far_pt - a) / max(np.linalg.norm(far_pt - a), 1e-12)
         if tangent is not None and abs(float(axis @ tangent[anchor])) > ALONG:

@@ -13,7 +13,7 @@ from scipy.spatial import cKDTree
 from ngc_gen.geometry import GeneralizedCylinder
 
 from .branch_gc import branch_gc, resample, split_bulb, split_curved
-from .branches import Branch, branch_graph, pass_through
+from .branches import Branch, branch_graph, junction_key, pass_through
 from .coverage import grow_to_cover
 from .gc_names import gc_names
 from .protrusions import THINNER as protrusion_thinner
@@ -48,7 +48,7 @@ def _rooted(branches: list[Branch], through: dict | None = None
     for i, b in enumerate(branches):
         for side in (0, -1):
             if b.junction[side]:
-                ends.setdefault(tuple(np.round(b.points[side], 9)), []).append((float(b.radius.mean()), -i))
+                ends.setdefault(junction_key(b.points[side]), []).append((float(b.radius.mean()), -i))
     for key, i in (through or {}).items():
         ends.setdefault(key, []).append((float(branches[i].radius.mean()), -i))
     samples, owner, out, full = [], [], [], []
@@ -63,7 +63,7 @@ def _rooted(branches: list[Branch], through: dict | None = None
         for side in (0, -1):
             if not b.junction[side] or len(P) < 4:
                 continue
-            rivals = ends[tuple(np.round(b.points[side], 9))]
+            rivals = ends[junction_key(b.points[side])]
             thickest = -max(rivals)[1]
             if thickest == i:
                 continue
