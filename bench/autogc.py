@@ -11,7 +11,10 @@
    The ant: the same share for each of its six legs; the airplane: whether fuselage, wings and
    tail parts get different automatic GCs.
 2. NGC fits at equal steps (small preset, the fit stage) on the ant, the airplane and the first
-   `--fit-creatures` creatures with automatic GCs, hand annotations and the one-GC axis method:
+   `--fit-creatures` creatures with automatic GCs, hand annotations and the one-GC axis method,
+   each from every training seed of `--seeds` (cd_* and nc_* are the means over the seeds, the
+   values per seed in cd_*_per_seed: the six shapes share one network, so a seed, or a change
+   of any one shape's GCs, moves a creature's auto/axis ratio by up to 0.1):
    Chamfer (DeepSDF convention), the same Chamfer against the ground truth's surface
    (`cd_surface_*`, exact distances: the sample-to-sample estimator's noise floor is as large as
    a good fit's Chamfer) and normal consistency per shape; cd_noise_floor, the DeepSDF-convention
@@ -44,6 +47,7 @@ CREATURES = ROOT / ".cache/datasets/creatures_n64_s0"
 HAND = {"ant": ROOT / "datasets/ant/ant.yaml", "airplane": ROOT / "datasets/airplane/airplane.yaml"}
 MESHES = {"ant": "pyvista:ant.ply", "airplane": "pyvista:airplane.ply"}
 COVERAGE_SAMPLES = 50_000
+METHODS = ("auto", "annotated", "axis")
 
 
 def single_gc_shares(true_gcs, auto_gcs, points) -> np.ndarray:
@@ -124,8 +128,14 @@ def single_gc_best(true_gcs, auto_gcs, points, part_name: str) -> str:
     return auto_gcs[int(np.argmax(counts))].name
 
 
-def fit(method: str, names: list[str], hand: dict, steps: int, resolution: int) -> dict:
-    """One NGC fit of the shapes with `method` GCs (auto | annotated | axis); per-shape metrics."""
+def run_dir_of(method: str, seed: int = 0) -> Path:
+    return RUNS / (f"fit_{method}" if seed == 0 else f"fit_{method}_seed{seed}")
+
+
+def fit(method: str, names: list[str], hand: dict, steps: int, resolution: int,
+        seed: int = 0) -> dict:
+    """One NGC fit of the shapes with `method` GCs (auto | annotated | axis) from training seed
+    `seed`; per-shape metrics."""
     import shutil
 
     from omegaconf import OmegaConf, open_dict
@@ -135,10 +145,11 @@ def fit(method: str, names: list[str], hand: dict, steps: int, resolution: int) 
 
     import hashlib
 
-    run_dir = RUNS / f"fit_{method}"
+    run_dir = run_dir_of(method, seed)
     files = [str(RUNS / "annotations" / f"{n}.yaml") if method == "auto" else str(hand[n])
              for n in names]
-    h = hashlib.sha256(f"{method} {steps} {resolution} {names}".encode())
+    h = hashlib.sha256(f"{method} {steps} {resolution} {names}{f' seed {seed}' if seed else ''}"
+                       .encode())
     for f in files:
         h.update(Path(f).read_bytes())
     key = h.hexdigest()[:16]
@@ -154,7 +165,7 @@ def fit(method: str, names: list[str], hand: dict, steps: int, resolution: int) 
                 "base": {**data, "name": "autogc_hand"}}
     cfg = compose_config(overrides=[
         "stage=fit", "model=small", f"trainer.max_steps={steps}", f"extract.resolution={resolution}",
-        f"run_dir={run_dir}", "trainer.enable_progress_bar=false", "logger=csv"])
+        f"run_dir={run_dir}", "trainer.enable_progress_bar=false", "logger=csv", f"seed={seed}"])
     with open_dict(cfg):
         cfg.data = OmegaConf.create(data)
     t0 = time.perf_counter()
@@ -164,19 +175,19 @@ def fit(method: str, names: list[str], hand: dict, steps: int, resolution: int) 
     return metrics
 
 
-def ground_truth(name: str, method: str = "axis"):
+def ground_truth(name: str, method: str = "axis", seed: int = 0):
     """The ground-truth mesh a fit run scored `name` against (its prepared cache)."""
     import trimesh
     from omegaconf import OmegaConf
 
     from ngc_gen.data.prepare import load_prepared
 
-    cache = Path(OmegaConf.load(RUNS / f"fit_{method}" / "config.yaml").prepare.cache_dir)
+    cache = Path(OmegaConf.load(run_dir_of(method, seed) / "config.yaml").prepare.cache_dir)
     gt = load_prepared(cache / f"{name}.npz")
     return trimesh.Trimesh(gt.mesh_vertices, gt.mesh_faces, process=False)
 
 
-def surface_chamfer(method: str, name: str) -> float:
+def surface_chamfer(method: str, name: str, seed: int = 0) -> float:
     """Chamfer of a fit's mesh against the surface of its ground truth (`mesh_chamfer`: exact
     point-to-mesh distances), free of the sample-to-sample estimator's noise floor (~1e-4 on a
     creature, bench/extract.py), which the DeepSDF-convention cd of a good fit sits on."""
@@ -184,18 +195,18 @@ def surface_chamfer(method: str, name: str) -> float:
 
     from ngc_gen.eval.fitting import mesh_chamfer
 
-    pred = trimesh.load(RUNS / f"fit_{method}" / "meshes" / f"{name}.ply", process=False)
-    return mesh_chamfer(pred, ground_truth(name, method))
+    pred = trimesh.load(run_dir_of(method, seed) / "meshes" / f"{name}.ply", process=False)
+    return mesh_chamfer(pred, ground_truth(name, method, seed))
 
 
-def cd_noise_floor(name: str, n: int = 30000) -> float:
+def cd_noise_floor(name: str, seed: int = 0, n: int = 30000) -> float:
     """The DeepSDF-convention Chamfer between two samplings (seeds 0 and 1, n points each) of the
     same ground-truth surface: what the fit's cd reads for a perfect fit. A ratio cd_x / cd_axis
     cannot go below cd_noise_floor / cd_axis, whatever GCs x are."""
     from ngc_gen.eval.fitting import chamfer
     from ngc_gen.eval.sampling import sample_surface
 
-    mesh = ground_truth(name)
+    mesh = ground_truth(name, seed=seed)
     return chamfer(sample_surface(mesh, n, 0)[0], sample_surface(mesh, n, 1)[0])
 
 
@@ -259,6 +270,9 @@ def main():
     ap.add_argument("--steps", type=int, default=1500)
     ap.add_argument("--resolution", type=int, default=128)
     ap.add_argument("--edit-resolution", type=int, default=192)
+    ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1],
+                    help="training seeds of the fits; cd_* are their means (one seed moved a "
+                         "creature's auto/axis ratio by up to 0.1)")
     ap.add_argument("--skip-fits", action="store_true")
     args = ap.parse_args()
     load_at_start = os.getloadavg()
@@ -303,23 +317,31 @@ def main():
                  "part_single_gc": air["part_single_gc"]}
 
     fit_names = ["ant", "airplane"] + creatures[: args.fit_creatures]
-    fits = {}
+    fits = {}                               # (method, seed) -> the fit's metrics
     if not args.skip_fits:
-        for method in ("auto", "annotated", "axis"):
-            fits[method] = fit(method, fit_names, hand, args.steps, args.resolution)
-            print(f"fit {method}: " + ", ".join(f"{n} cd {m['cd']:.2e}" for n, m in
-                                                 fits[method]["shapes"].items()), flush=True)
+        for seed in args.seeds:
+            for method in METHODS:
+                fits[method, seed] = f = fit(method, fit_names, hand, args.steps, args.resolution,
+                                             seed)
+                print(f"fit {method} seed {seed}: " + ", ".join(
+                    f"{n} cd {m['cd']:.2e}" for n, m in f["shapes"].items()), flush=True)
     for r in rows:
-        for method, key in (("auto", "cd_auto"), ("annotated", "cd_annotated"), ("axis", "cd_axis")):
-            m = fits.get(method, {}).get("shapes", {}).get(r["name"])
-            r[key] = None if m is None else float(m["cd"])
-            r["cd_surface_" + key[3:]] = None if m is None else surface_chamfer(method, r["name"])
-        m = fits.get("auto", {}).get("shapes", {}).get(r["name"])
-        r["nc_auto"] = None if m is None else float(m["normal_consistency"])
-        m = fits.get("annotated", {}).get("shapes", {}).get(r["name"])
-        r["nc_annotated"] = None if m is None else float(m["normal_consistency"])
-        r["cd_noise_floor"] = cd_noise_floor(r["name"]) if r["cd_axis"] is not None else None
-    edit_rows = edits(fits["auto"]["checkpoint"], anns, args.edit_resolution) if fits else []
+        fitted_here = bool(fits) and r["name"] in fit_names
+        for method in METHODS:
+            per = [fits[method, s]["shapes"][r["name"]] for s in args.seeds] if fitted_here else []
+            cd = [float(m["cd"]) for m in per]
+            surface = [surface_chamfer(method, r["name"], s) for s in args.seeds] \
+                if fitted_here else []
+            r[f"cd_{method}"] = float(np.mean(cd)) if per else None
+            r[f"cd_surface_{method}"] = float(np.mean(surface)) if per else None
+            r[f"cd_{method}_per_seed"] = cd or None
+            r[f"cd_surface_{method}_per_seed"] = surface or None
+            if method != "axis":
+                r[f"nc_{method}"] = float(np.mean([m["normal_consistency"] for m in per])) \
+                    if per else None
+        r["cd_noise_floor"] = cd_noise_floor(r["name"], args.seeds[0]) if fitted_here else None
+    edit_rows = edits(fits["auto", args.seeds[0]]["checkpoint"], anns, args.edit_resolution) \
+        if fits else []
 
     fitted = [r for r in rows if r["cd_auto"] is not None]
     targets = {
@@ -335,10 +357,16 @@ def main():
                                       for r in fitted},
         "cd_surface_annotated_over_axis": {r["name"]: r["cd_surface_annotated"] / r["cd_surface_axis"]
                                            for r in fitted},
+        "cd_surface_auto_over_axis_per_seed": {
+            r["name"]: [a / b for a, b in zip(r["cd_surface_auto_per_seed"],
+                                              r["cd_surface_axis_per_seed"])] for r in fitted},
+        "cd_auto_over_axis_per_seed": {
+            r["name"]: [a / b for a, b in zip(r["cd_auto_per_seed"], r["cd_axis_per_seed"])]
+            for r in fitted},
     }
     res = {"meshes": rows, "creatures": creature_stats, "ant": ant_stats, "airplane": air_stats,
            "edits": edit_rows, "targets": targets,
-           "settings": {"steps": args.steps, "resolution": args.resolution,
+           "settings": {"steps": args.steps, "resolution": args.resolution, "seeds": args.seeds,
                         "fit_shapes": fit_names, "edit_resolution": args.edit_resolution,
                         "warmup_s": warmup_s,
                         "load_avg_at_start": load_at_start, "load_avg_at_end": os.getloadavg(),
@@ -370,6 +398,10 @@ def print_summary(res: dict) -> None:
                 "cd_surface_auto_over_axis", "cd_surface_annotated_over_axis"):
         if key in t:
             print(f"{key:32s} " + "  ".join(f"{n} {v:.2f}" for n, v in t[key].items()))
+    for key in ("cd_auto_over_axis_per_seed", "cd_surface_auto_over_axis_per_seed"):
+        if key in t:
+            print(f"{key:36s} " + "  ".join(f"{n} " + "/".join(f"{v:.2f}" for v in vs)
+                                             for n, vs in t[key].items()))
     c = res["creatures"]
     print(f"creatures ({c['n_shapes']}): |GCs - 10| mean {c['count_err_mean']:.2f} max "
           f"{c['count_err_max']}; true part inside one automatic GC: mean "
