@@ -344,26 +344,8 @@ def main():
         if fits else []
 
     fitted = [r for r in rows if r["cd_auto"] is not None]
-    targets = {
-        "time_s_max": max(r["time_s"] for r in rows),
-        "coverage_min": min(r["coverage"] for r in rows),
-        "cd_auto_over_annotated": {r["name"]: r["cd_auto"] / r["cd_annotated"] for r in fitted},
-        "cd_auto_over_axis": {r["name"]: r["cd_auto"] / r["cd_axis"] for r in fitted},
-        "cd_annotated_over_axis": {r["name"]: r["cd_annotated"] / r["cd_axis"] for r in fitted},
-        "cd_noise_floor_over_axis": {r["name"]: r["cd_noise_floor"] / r["cd_axis"] for r in fitted},
-        "cd_surface_auto_over_annotated": {r["name"]: r["cd_surface_auto"] / r["cd_surface_annotated"]
-                                           for r in fitted},
-        "cd_surface_auto_over_axis": {r["name"]: r["cd_surface_auto"] / r["cd_surface_axis"]
-                                      for r in fitted},
-        "cd_surface_annotated_over_axis": {r["name"]: r["cd_surface_annotated"] / r["cd_surface_axis"]
-                                           for r in fitted},
-        "cd_surface_auto_over_axis_per_seed": {
-            r["name"]: [a / b for a, b in zip(r["cd_surface_auto_per_seed"],
-                                              r["cd_surface_axis_per_seed"])] for r in fitted},
-        "cd_auto_over_axis_per_seed": {
-            r["name"]: [a / b for a, b in zip(r["cd_auto_per_seed"], r["cd_axis_per_seed"])]
-            for r in fitted},
-    }
+    targets = {"time_s_max": max(r["time_s"] for r in rows),
+               "coverage_min": min(r["coverage"] for r in rows), **ratio_targets(fitted)}
     res = {"meshes": rows, "creatures": creature_stats, "ant": ant_stats, "airplane": air_stats,
            "edits": edit_rows, "targets": targets,
            "settings": {"steps": args.steps, "resolution": args.resolution, "seeds": args.seeds,
@@ -384,6 +366,25 @@ def main():
     print_summary(res)
 
 
+RATIOS = [("cd", "auto", "annotated"), ("cd", "auto", "axis"), ("cd", "annotated", "axis"),
+          ("cd", "noise_floor", "axis"), ("cd_surface", "auto", "annotated"),
+          ("cd_surface", "auto", "axis"), ("cd_surface", "annotated", "axis")]
+RATIOS_PER_SEED = [("cd_surface", "auto", "axis"), ("cd", "auto", "axis")]
+
+
+def ratio_targets(fitted: list[dict]) -> dict:
+    """{"<p>_<a>_over_<b>": {mesh: <p>_<a> / <p>_<b>}} for RATIOS (the means over the seeds),
+    and the same per seed ("..._per_seed": {mesh: [one ratio per seed]}) for RATIOS_PER_SEED."""
+    out = {}
+    for p, a, b in RATIOS:
+        out[f"{p}_{a}_over_{b}"] = {r["name"]: r[f"{p}_{a}"] / r[f"{p}_{b}"] for r in fitted}
+    for p, a, b in RATIOS_PER_SEED:
+        out[f"{p}_{a}_over_{b}_per_seed"] = {
+            r["name"]: [x / y for x, y in zip(r[f"{p}_{a}_per_seed"], r[f"{p}_{b}_per_seed"])]
+            for r in fitted}
+    return out
+
+
 def print_summary(res: dict) -> None:
     print(f"\n{'mesh':16s} {'GCs':>4s} {'coverage':>9s} {'overlap':>8s} {'s':>6s} {'cd_auto':>9s} "
           f"{'cd_annot':>9s} {'cd_axis':>9s} {'nc_auto':>8s}")
@@ -393,15 +394,12 @@ def print_summary(res: dict) -> None:
               f"{r['time_s']:6.2f} {f(r['cd_auto'], 9, '2e')} {f(r['cd_annotated'], 9, '2e')} "
               f"{f(r['cd_axis'], 9, '2e')} {f(r['nc_auto'], 8, '3f')}")
     t = res["targets"]
-    for key in ("cd_auto_over_annotated", "cd_auto_over_axis", "cd_annotated_over_axis",
-                "cd_noise_floor_over_axis", "cd_surface_auto_over_annotated",
-                "cd_surface_auto_over_axis", "cd_surface_annotated_over_axis"):
-        if key in t:
-            print(f"{key:32s} " + "  ".join(f"{n} {v:.2f}" for n, v in t[key].items()))
-    for key in ("cd_auto_over_axis_per_seed", "cd_surface_auto_over_axis_per_seed"):
-        if key in t:
+    for key, per_mesh in t.items():              # the ratio targets (ratio_targets)
+        if key.endswith("_per_seed"):
             print(f"{key:36s} " + "  ".join(f"{n} " + "/".join(f"{v:.2f}" for v in vs)
-                                             for n, vs in t[key].items()))
+                                             for n, vs in per_mesh.items()))
+        elif isinstance(per_mesh, dict):
+            print(f"{key:32s} " + "  ".join(f"{n} {v:.2f}" for n, v in per_mesh.items()))
     c = res["creatures"]
     print(f"creatures ({c['n_shapes']}): |GCs - 10| mean {c['count_err_mean']:.2f} max "
           f"{c['count_err_max']}; true part inside one automatic GC: mean "

@@ -126,14 +126,21 @@ def test_voxel_fallback_when_cgal_is_missing(monkeypatch):
         skeleton_gcs(mesh, skeleton="cgal", **FAST)
 
 
-def _shipped_creature(i: int, resolution: int = 128):
-    """Creature i of the shipped set (seed 0): its mesh, true GCs and 20k surface samples."""
-    from ngc_gen.data.creatures import make_creature, shape_seed
+def _creature(seed: int, resolution: int):
+    """A procedural creature: its mesh, true GCs and 20k surface samples."""
+    from ngc_gen.data.creatures import make_creature
 
-    mesh, ann = make_creature(shape_seed(0, i), resolution=resolution, check_samples=0)
+    mesh, ann = make_creature(seed, resolution=resolution, check_samples=0)
     true = [GeneralizedCylinder.from_dict(g) for g in ann["gcs"]]
     points, _ = sample_surface(mesh.vertices, mesh.faces, 20_000, np.random.default_rng(0))
     return mesh, true, points
+
+
+def _shipped_creature(i: int):
+    """Creature i of the shipped set (seed 0, resolution 128): mesh, true GCs, samples."""
+    from ngc_gen.data.creatures import shape_seed
+
+    return _creature(shape_seed(0, i), 128)
 
 
 def _part_shares(true, gcs, points) -> np.ndarray:
@@ -152,13 +159,9 @@ def _part_shares(true, gcs, points) -> np.ndarray:
 def test_creature_limbs_are_found():
     """A procedural creature (10 true parts): the automatic count is within +-2 and every leg
     lies inside one automatic GC."""
-    from ngc_gen.data.creatures import make_creature
-
-    mesh, ann = make_creature(3, resolution=64, check_samples=0)
+    mesh, true, points = _creature(3, 64)
     gcs, _ = skeleton_gcs(mesh, samples=8000)
     assert abs(len(gcs) - 10) <= 2
-    true = [GeneralizedCylinder.from_dict(g) for g in ann["gcs"]]
-    points, _ = sample_surface(mesh.vertices, mesh.faces, 20_000, np.random.default_rng(0))
     shares = _part_shares(true, gcs, points).max(axis=1)
     for k, g in enumerate(true):
         if g.name.startswith("leg"):
