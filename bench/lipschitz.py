@@ -1,0 +1,136 @@
+"""The sparse extractor's Lipschitz margin: evaluations, exactness and time against c (issue 10).
+
+    python bench/lipschitz.py [--margins 1.5 1.0] [--resolutions 128 256] [--repeats 4]
+
+`SparseSettings.lipschitz` = c keeps a block while |f| <= c x its size (c >= 1: a true SDF's bound,
+the default 1.5 adds a safety margin for fitted fields). Per fitted shape and resolution, for each
+c: the network evaluations of the sparse path and whether its mesh equals the prefiltered
+reference bit for bit. Shapes: bench/deform.py's fit (bar, creature_0000, ant) and every fit of
+bench/autogc.py found under bench/runs/autogc (6 shapes each), whatever has been trained. Time:
+the creature at 256 extracted with each c in turn, `--repeats` rounds interleaved in this process
+(a shared machine drifts between runs), best and median. Writes bench/results/lipschitz.json
+({machine, cases: [{fit, shape, n_gcs, resolution, evals: {c: n}, identical: {c: bool}}],
+timing: {c: {best_s, median_s, runs_s, evals}}, summary}).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "bench"))
+
+AUTOGC_RUNS = ROOT / "bench/runs/autogc"
+
+
+def same_mesh(a, b) -> bool:
+    return bool(np.array_equal(a.vertices, b.vertices) and np.array_equal(a.faces, b.faces))
+
+
+def fitted_shapes(module):
+    """(name, gcs, rows_fn) of every shape of a trained AutoDecoder."""
+    from ngc_gen.shape import Shape, recorded_gcs
+
+    for meta in module.hparams.meta["shapes"]:
+        codes = module.codes.weight[meta["code_offset"]:meta["code_offset"] + meta["n_codes"]]
+        gcs = recorded_gcs(meta)
+        yield meta["name"], gcs, Shape(gcs, codes.detach(), module.decoder).rows
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--margins", type=float, nargs="+", default=[1.5, 1.0])
+    ap.add_argument("--resolutions", type=int, nargs="+", default=[128, 256])
+    ap.add_argument("--repeats", type=int, default=4)
+    ap.add_argument("--threads", type=int, default=os.cpu_count() or 1)
+    args = ap.parse_args()
+
+    import torch
+
+    from deform import fitted
+    from ngc_gen.data.atomic import atomic_write_text
+    from ngc_gen.extract import SparseSettings, extract_mesh
+    from ngc_gen.lit.checkpoint import load_autodecoder
+
+    torch.set_num_threads(args.threads)
+    load0 = os.getloadavg()[0]
+    fits = {"deform": Path(fitted(1500, refit=False)["checkpoint"])}
+    for d in sorted(AUTOGC_RUNS.glob("fit_*")):
+        if (d / "checkpoints/last.ckpt").exists():
+            fits[f"autogc/{d.name}"] = d / "checkpoints/last.ckpt"
+    settings = {c: SparseSettings(lipschitz=c) for c in args.margins}
+    cases, timing_input = [], None
+    for fit_name, ckpt in fits.items():
+        module = load_autodecoder(ckpt)
+        for name, gcs, rows in fitted_shapes(module):
+            if fit_name == "deform" and name == "creature_0000":
+                timing_input = (gcs, rows)
+            for R in args.resolutions:
+                ref = extract_mesh(gcs, rows, R, method="prefiltered").mesh
+                case = {"fit": fit_name, "shape": name, "n_gcs": len(gcs), "resolution": R,
+                        "evals": {}, "identical": {}}
+                for c, st in settings.items():
+                    res = extract_mesh(gcs, rows, R, settings=st)
+                    case["evals"][str(c)] = int(res.stats["n_network_evals"])
+                    case["identical"][str(c)] = same_mesh(res.mesh, ref)
+                cases.append(case)
+                print(f"{fit_name:26s} {name:14s} R={R:3d} " + "  ".join(
+                    f"c={c}: {case['evals'][str(c)]:>7,d} evals, identical "
+                    f"{case['identical'][str(c)]}" for c in settings), flush=True)
+
+    timing = {}
+    if timing_input is not None:
+        gcs, rows = timing_input
+        R = max(args.resolutions)
+        extract_mesh(gcs, rows, R)                                       # warm-up
+        runs = {c: [] for c in settings}
+        for _ in range(args.repeats):
+            for c, st in settings.items():
+                t0 = time.perf_counter()
+                res = extract_mesh(gcs, rows, R, settings=st)
+                runs[c].append(time.perf_counter() - t0)
+        for c, ts in runs.items():
+            timing[str(c)] = {"best_s": min(ts), "median_s": float(np.median(ts)), "runs_s": ts,
+                              "resolution": R, "shape": "creature_0000 (deform fit)"}
+            print(f"creature_0000 R={R} c={c}: best {min(ts):.3f} s, median "
+                  f"{np.median(ts):.3f} s ({args.repeats} runs, interleaved)")
+    base = str(args.margins[0])
+    summary = {str(c): {"identical": sum(x["identical"][str(c)] for x in cases),
+                        "cases": len(cases),
+                        "evals_over_first_min": min(x["evals"][str(c)] / x["evals"][base]
+                                                    for x in cases),
+                        "evals_over_first_max": max(x["evals"][str(c)] / x["evals"][base]
+                                                    for x in cases)}
+               for c in settings}
+    if timing:
+        for c in settings:
+            summary[str(c)]["median_time_over_first"] = \
+                timing[str(c)]["median_s"] / timing[base]["median_s"]
+    for c, s in summary.items():
+        print(f"c={c}: {s['identical']} of {s['cases']} meshes identical to prefiltered; "
+              f"evaluations {s['evals_over_first_min']:.2f}-{s['evals_over_first_max']:.2f}x "
+              f"c={base}'s" + (f"; median time {s['median_time_over_first']:.2f}x" if timing
+                               else ""))
+    res = {"machine": {"cpus": os.cpu_count(), "threads": args.threads,
+                       "python": platform.python_version(), "torch": torch.__version__,
+                       "load_avg_1min_at_start": load0,
+                       "load_avg_1min_at_end": os.getloadavg()[0]},
+           "settings": {"margins": args.margins, "resolutions": args.resolutions,
+                        "repeats": args.repeats, "fits": {k: str(v) for k, v in fits.items()}},
+           "cases": cases, "timing": timing, "summary": summary}
+    out = ROOT / "bench/results/lipschitz.json"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(out, json.dumps(res, indent=2))
+    print(f"wrote {out}")
+
+
+if __name__ == "__main__":
+    main()
