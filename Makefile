@@ -6,7 +6,7 @@ TORCH_SPEC ?= torch==2.13.0
 BIN := $(VENV)/bin
 
 .PHONY: setup chromium test test-all bench bench-geometry bench-fit bench-deform bench-generate \
-	bench-editor bench-autogc bench-condition bench-up bench-reconstruct bench-demo bench-lipschitz demo clean
+	bench-editor bench-autogc bench-condition bench-up bench-reconstruct bench-demo bench-sparse-settings demo clean
 
 $(BIN)/activate:
 	$(PY) -m venv $(VENV)
@@ -51,7 +51,7 @@ demo: $(VENV)/.installed  # (no browser needed) the whole pipeline: fit, edit, s
 	$(BIN)/python train.py experiment=demo
 
 bench: bench-geometry bench-fit bench-deform bench-generate bench-editor bench-autogc bench-condition \
-	bench-up bench-reconstruct bench-demo bench-lipschitz
+	bench-up bench-reconstruct bench-demo bench-sparse-settings
 
 bench-geometry: setup
 	$(BIN)/python bench/geometry.py
@@ -71,8 +71,8 @@ bench-editor: setup
 bench-autogc: setup
 	$(BIN)/python bench/autogc.py
 
-bench-lipschitz: setup  # the sparse extractor's margin on bench-deform's and bench-autogc's fits
-	$(BIN)/python bench/lipschitz.py
+bench-sparse-settings: setup  # the sparse extractor's settings (margin, tracking) on bench-deform's and bench-autogc's fits
+	$(BIN)/python bench/sparse_settings.py
 
 bench-reconstruct: setup  # reuses bench-generate's shape-latent run
 	$(BIN)/python bench/reconstruct.py

@@ -4,7 +4,8 @@ import pytest
 import torch
 from scipy.spatial import cKDTree
 
-from ngc_gen.extract import ExtractionResult, extract_mesh as _extract_mesh, per_gc_rows
+from ngc_gen.extract import ExtractionResult, SparseSettings, per_gc_rows
+from ngc_gen.extract import extract_mesh as _extract_mesh
 
 from .conftest import curved_gc, grid_points, sphere_sdf, straight_gc, through_gcs
 
@@ -187,7 +188,8 @@ def test_sparse_equals_prefiltered_on_two_bodies_and_a_steep_field(sphere_gc):
     assert np.array_equal(full.mesh.faces, fast.mesh.faces)
     assert fast.stats["n_network_evals"] < 0.6 * full.stats["n_network_evals"]
     assert sum(lv["network_evals"] for lv in fast.stats["levels"]) \
-        + fast.stats["completion_network_evals"] == fast.stats["n_network_evals"]
+        + fast.stats["completion_network_evals"] + fast.stats["repair_network_evals"] \
+        == fast.stats["n_network_evals"]
 
     # a wavy field twice as steep as an SDF: still the same mesh within the Lipschitz margin
     c = torch.tensor(center, dtype=torch.float64)
@@ -238,3 +240,45 @@ def test_sparse_finds_a_gc_thinner_than_a_coarse_block():
     assert len(full.mesh.faces) > 100
     assert np.array_equal(full.mesh.vertices, fast.mesh.vertices)
     assert np.array_equal(full.mesh.faces, fast.mesh.faces)
+
+
+def rod_sdf(y, z, x0, x1, radius):
+    """World SDF of a capsule along x at (y, z) from x0 to x1."""
+    def sdf(x):
+        x = x.double()
+        t = torch.clamp(x[:, 0], x0, x1)
+        return torch.sqrt((x[:, 0] - t) ** 2 + (x[:, 1] - y) ** 2 + (x[:, 2] - z) ** 2) - radius
+    return sdf
+
+
+def test_tracking_grows_the_surface_along_a_rod_no_even_lattice_point_sees():
+    """The last level visits only blocks whose corners cross N_i's boundary or come within
+    track_near c h of it (`SparseSettings.track`); the rest of the surface is grown from them.
+    A rod one cell thick, attached to a sphere along a lattice line between the points of the
+    side-2 lattice (0.91 h from them by value), meets no such block: it is found by growth,
+    and the mesh is the prefiltered one; track=False visits every block the margin keeps (more
+    evaluations, same mesh), and also finds the rod standing apart."""
+    gc = straight_gc((-0.6, 0.0, 0.0), (0.6, 0.0, 0.0), 0.7, caps=(0.3, 0.3))
+    R = 64
+    h = spacing(R)
+    y, z = -1 + 33 * h, -1 + 31 * h                  # odd lattice lines: no even point near
+    ball, rod = sphere_sdf((0.1, 0.05, -0.02), 0.5), rod_sdf(y, z, 0.0, 0.85, 0.5 * h)
+    fn = through_gcs([gc], [lambda x: torch.minimum(ball(x), rod(x))])
+    ref = extract_mesh([gc], fn, R, method="prefiltered", progress=False)
+    assert ref.mesh.vertices[:, 0].max() > 0.8 and ref.mesh.body_count == 1
+    band = extract_mesh([gc], fn, R, settings=SparseSettings(track=False), progress=False)
+    fast = extract_mesh([gc], fn, R, progress=False)
+    for res in (band, fast):
+        assert np.array_equal(res.mesh.vertices, ref.mesh.vertices)
+        assert np.array_equal(res.mesh.faces, ref.mesh.faces)
+    assert fast.stats["repair_rounds"] >= 5                # the rod came from growth
+    assert band.stats["repair_rounds"] <= 1
+    assert fast.stats["levels"][-1]["network_evals"] < 0.9 * band.stats["levels"][-1][
+        "network_evals"]
+
+    apart = through_gcs([gc], [lambda x: torch.minimum(ball(x), rod_sdf(y, z, 0.7, 0.85,
+                                                                          0.5 * h)(x))])
+    ref = extract_mesh([gc], apart, R, method="prefiltered", progress=False)
+    assert ref.mesh.body_count == 2
+    band = extract_mesh([gc], apart, R, settings=SparseSettings(track=False), progress=False)
+    assert np.array_equal(band.mesh.faces, ref.mesh.faces)

@@ -1,20 +1,27 @@
-"""The sparse extractor's Lipschitz margin: evaluations, exactness and time against c (issue 10).
+"""The sparse extractor's settings: evaluations, exactness and time of each (issue 10).
 
-    python bench/lipschitz.py [--margins 1.5 1.0] [--resolutions 128 256] [--repeats 4]
+    python bench/sparse_settings.py [--variants band:track=false track track_near0:track_near=0
+                                     track_c1:lipschitz=1.0] [--resolutions 128 256] [--repeats 4]
 
-`SparseSettings.lipschitz` = c keeps a block while |f| <= c x its size (c >= 1: a true SDF's bound,
-the default 1.5 adds a safety margin for fitted fields). Per fitted shape and resolution, for each
-c: the network evaluations of the sparse path and whether its mesh equals the prefiltered
-reference bit for bit. Shapes: bench/deform.py's fit (bar, creature_0000, ant) and every fit of
-bench/autogc.py found under bench/runs/autogc (6 shapes each), whatever has been trained. Time:
-the creature at 256 extracted with each c in turn, `--repeats` rounds interleaved in this process
-(a shared machine drifts between runs), best and median. Writes bench/results/lipschitz.json
-({machine, cases: [{fit, shape, n_gcs, resolution, evals: {c: n}, identical: {c: bool}}],
-timing: {c: {best_s, median_s, runs_s, evals}}, summary}).
+A variant is `label[:key=value,...]` over `SparseSettings` fields (the rest at their defaults):
+`lipschitz` = c keeps a block while |f| <= c x its size (c >= 1: a true SDF's bound, the default
+1.5 adds a safety margin for fitted fields); `track` = the last level visits only blocks whose
+corners cross or come within `track_near` x c x the grid spacing of the band, and the surface
+grows from them (false: every block the margin keeps).
+Per fitted shape and resolution, for each variant: the network evaluations of the sparse path
+and whether its mesh equals the prefiltered reference bit for bit. Shapes: bench/deform.py's
+fit (bar, creature_0000, ant) and every fit of bench/autogc.py found under bench/runs/autogc (6
+shapes each), whatever has been trained. Time: the creature at the highest resolution extracted
+with each variant in turn, `--repeats` rounds interleaved in this process (a shared machine
+drifts between runs), best and median. Writes bench/results/sparse_settings.json ({machine,
+settings, cases: [{fit, shape, n_gcs, resolution, evals: {label: n}, identical: {label: bool}}],
+timing: {label: {best_s, median_s, runs_s}}, summary: {label: {identical, cases,
+evals_over_first_min/max, median_time_over_first}}}); ratios are against the first variant.
 """
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
 import platform
@@ -45,9 +52,23 @@ def fitted_shapes(module):
         yield meta["name"], gcs, Shape(gcs, codes.detach(), module.decoder).rows
 
 
+def parse_variant(text: str):
+    """'label:key=value,...' -> (label, SparseSettings kwargs); values are numbers or booleans."""
+    label, _, rest = text.partition(":")
+    kwargs = {}
+    for item in filter(None, rest.split(",")):
+        key, _, value = item.partition("=")
+        low = value.strip().lower()
+        kwargs[key.strip()] = (low == "true") if low in ("true", "false") else float(value)
+    return label, kwargs
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--margins", type=float, nargs="+", default=[1.5, 1.0])
+    ap.add_argument("--variants", nargs="+",
+                    default=["band:track=false", "track", "track_near0:track_near=0",
+                             "track_c1:lipschitz=1.0"],
+                    help="label[:key=value,...] over SparseSettings; ratios against the first")
     ap.add_argument("--resolutions", type=int, nargs="+", default=[128, 256])
     ap.add_argument("--repeats", type=int, default=4)
     ap.add_argument("--threads", type=int, default=os.cpu_count() or 1)
@@ -66,7 +87,8 @@ def main():
     for d in sorted(AUTOGC_RUNS.glob("fit_*")):
         if (d / "checkpoints/last.ckpt").exists():
             fits[f"autogc/{d.name}"] = d / "checkpoints/last.ckpt"
-    settings = {c: SparseSettings(lipschitz=c) for c in args.margins}
+    specs = dict(parse_variant(v) for v in args.variants)
+    settings = {label: SparseSettings(**kw) for label, kw in specs.items()}
     cases, timing_input = [], None
     for fit_name, ckpt in fits.items():
         module = load_autodecoder(ckpt)
@@ -79,12 +101,12 @@ def main():
                         "evals": {}, "identical": {}}
                 for c, st in settings.items():
                     res = extract_mesh(gcs, rows, R, settings=st)
-                    case["evals"][str(c)] = int(res.stats["n_network_evals"])
-                    case["identical"][str(c)] = same_mesh(res.mesh, ref)
+                    case["evals"][c] = int(res.stats["n_network_evals"])
+                    case["identical"][c] = same_mesh(res.mesh, ref)
                 cases.append(case)
                 print(f"{fit_name:26s} {name:14s} R={R:3d} " + "  ".join(
-                    f"c={c}: {case['evals'][str(c)]:>7,d} evals, identical "
-                    f"{case['identical'][str(c)]}" for c in settings), flush=True)
+                    f"{c}: {case['evals'][c]:>7,d} evals, identical "
+                    f"{case['identical'][c]}" for c in settings), flush=True)
 
     timing = {}
     if timing_input is not None:
@@ -98,35 +120,36 @@ def main():
                 res = extract_mesh(gcs, rows, R, settings=st)
                 runs[c].append(time.perf_counter() - t0)
         for c, ts in runs.items():
-            timing[str(c)] = {"best_s": min(ts), "median_s": float(np.median(ts)), "runs_s": ts,
+            timing[c] = {"best_s": min(ts), "median_s": float(np.median(ts)), "runs_s": ts,
                               "resolution": R, "shape": "creature_0000 (deform fit)"}
-            print(f"creature_0000 R={R} c={c}: best {min(ts):.3f} s, median "
+            print(f"creature_0000 R={R} {c}: best {min(ts):.3f} s, median "
                   f"{np.median(ts):.3f} s ({args.repeats} runs, interleaved)")
-    base = str(args.margins[0])
-    summary = {str(c): {"identical": sum(x["identical"][str(c)] for x in cases),
+    base = next(iter(settings))
+    summary = {c: {"identical": sum(x["identical"][c] for x in cases),
                         "cases": len(cases),
-                        "evals_over_first_min": min(x["evals"][str(c)] / x["evals"][base]
+                        "evals_over_first_min": min(x["evals"][c] / x["evals"][base]
                                                     for x in cases),
-                        "evals_over_first_max": max(x["evals"][str(c)] / x["evals"][base]
+                        "evals_over_first_max": max(x["evals"][c] / x["evals"][base]
                                                     for x in cases)}
                for c in settings}
     if timing:
         for c in settings:
-            summary[str(c)]["median_time_over_first"] = \
-                timing[str(c)]["median_s"] / timing[base]["median_s"]
+            summary[c]["median_time_over_first"] = \
+                timing[c]["median_s"] / timing[base]["median_s"]
     for c, s in summary.items():
-        print(f"c={c}: {s['identical']} of {s['cases']} meshes identical to prefiltered; "
+        print(f"{c}: {s['identical']} of {s['cases']} meshes identical to prefiltered; "
               f"evaluations {s['evals_over_first_min']:.2f}-{s['evals_over_first_max']:.2f}x "
-              f"c={base}'s" + (f"; median time {s['median_time_over_first']:.2f}x" if timing
+              f"{base}'s" + (f"; median time {s['median_time_over_first']:.2f}x" if timing
                                else ""))
     res = {"machine": {"cpus": os.cpu_count(), "threads": args.threads,
                        "python": platform.python_version(), "torch": torch.__version__,
                        "load_avg_1min_at_start": load0,
                        "load_avg_1min_at_end": os.getloadavg()[0]},
-           "settings": {"margins": args.margins, "resolutions": args.resolutions,
+           "settings": {"variants": {k: dataclasses.asdict(v) for k, v in settings.items()},
+                        "resolutions": args.resolutions,
                         "repeats": args.repeats, "fits": {k: str(v) for k, v in fits.items()}},
            "cases": cases, "timing": timing, "summary": summary}
-    out = ROOT / "bench/results/lipschitz.json"
+    out = ROOT / "bench/results/sparse_settings.json"
     out.parent.mkdir(parents=True, exist_ok=True)
     atomic_write_text(out, json.dumps(res, indent=2))
     print(f"wrote {out}")
