@@ -14,9 +14,11 @@ fit (bar, creature_0000, ant) and every fit of bench/autogc.py found under bench
 shapes each), whatever has been trained. Time: the creature at the highest resolution extracted
 with each variant in turn, `--repeats` rounds interleaved in this process (a shared machine
 drifts between runs), best and median. Writes bench/results/sparse_settings.json ({machine,
-settings, cases: [{fit, shape, n_gcs, resolution, evals: {label: n}, identical: {label: bool}}],
-timing: {label: {best_s, median_s, runs_s}}, summary: {label: {identical, cases,
-evals_over_first_min/max, median_time_over_first}}}); ratios are against the first variant.
+settings, cases: [{fit, shape, n_gcs, resolution, evals: {label: n}, identical: {label: bool},
+cd: {label: Chamfer to the prefiltered mesh, DeepSDF convention against its surface, 0 where
+identical}}], timing: {label: {best_s, median_s, runs_s}}, summary: {label: {identical, cases,
+cd_max, evals_over_first_min/max, median_time_over_first}}}); ratios are against the first
+variant.
 """
 from __future__ import annotations
 
@@ -78,6 +80,7 @@ def main():
 
     from deform import fitted
     from ngc_gen.data.atomic import atomic_write_text
+    from ngc_gen.eval import mesh_chamfer
     from ngc_gen.extract import SparseSettings, extract_mesh
     from ngc_gen.lit.checkpoint import load_autodecoder
 
@@ -98,15 +101,17 @@ def main():
             for R in args.resolutions:
                 ref = extract_mesh(gcs, rows, R, method="prefiltered").mesh
                 case = {"fit": fit_name, "shape": name, "n_gcs": len(gcs), "resolution": R,
-                        "evals": {}, "identical": {}}
+                        "evals": {}, "identical": {}, "cd": {}}
                 for c, st in settings.items():
                     res = extract_mesh(gcs, rows, R, settings=st)
                     case["evals"][c] = int(res.stats["n_network_evals"])
                     case["identical"][c] = same_mesh(res.mesh, ref)
+                    case["cd"][c] = 0.0 if case["identical"][c] else mesh_chamfer(res.mesh, ref)
                 cases.append(case)
                 print(f"{fit_name:26s} {name:14s} R={R:3d} " + "  ".join(
-                    f"{c}: {case['evals'][c]:>7,d} evals, identical "
-                    f"{case['identical'][c]}" for c in settings), flush=True)
+                    f"{c}: {case['evals'][c]:>7,d} evals, identical {case['identical'][c]}"
+                    + ("" if case["identical"][c] else f" (CD {case['cd'][c]:.1e})")
+                    for c in settings), flush=True)
 
     timing = {}
     if timing_input is not None:
@@ -127,6 +132,7 @@ def main():
     base = next(iter(settings))
     summary = {c: {"identical": sum(x["identical"][c] for x in cases),
                         "cases": len(cases),
+                        "cd_max": max(x["cd"][c] for x in cases),
                         "evals_over_first_min": min(x["evals"][c] / x["evals"][base]
                                                     for x in cases),
                         "evals_over_first_max": max(x["evals"][c] / x["evals"][base]
@@ -137,7 +143,8 @@ def main():
             summary[c]["median_time_over_first"] = \
                 timing[c]["median_s"] / timing[base]["median_s"]
     for c, s in summary.items():
-        print(f"{c}: {s['identical']} of {s['cases']} meshes identical to prefiltered; "
+        print(f"{c}: {s['identical']} of {s['cases']} meshes identical to prefiltered (largest "
+              f"CD {s['cd_max']:.1e}); "
               f"evaluations {s['evals_over_first_min']:.2f}-{s['evals_over_first_max']:.2f}x "
               f"{base}'s" + (f"; median time {s['median_time_over_first']:.2f}x" if timing
                                else ""))
