@@ -246,44 +246,58 @@ def bounds_flags(f: np.ndarray, m: np.ndarray, st: GCState, cD):
     return above, deep
 
 
-def far(f: np.ndarray, m: np.ndarray, st: GCState, cD: float) -> np.ndarray:
-    """Corner values that rule a block of diagonal D = cD / c out for GC i on their own: every
-    point of the block is within D of the corner (`bounds_flags`)."""
-    above, deep = bounds_flags(f, m, st, cD)
-    return above | deep
-
-
 def keep_blocks(f: np.ndarray, m: np.ndarray, st: GCState, step: int, spacing: float,
                 lipschitz: float) -> tuple[np.ndarray, np.ndarray]:
     """The refinement test of the module docstring for (n, 8) corner values -> (keep, deep)
     (n,) bool. A block is ruled out by one corner within its diagonal D, or by all eight
     corners within D / 2 (every point of a block is within half its diagonal of its nearest
     corner); `deep`: ruled out because it lies inside N_i with f_i < 0 throughout, so the
-    field (a minimum or smooth minimum, never above f_i) is negative on the whole block."""
+    field (a minimum or smooth minimum, never above f_i) is negative on the whole block.
+    Blocks of side >= 2 go through one compiled pass (`bounds_flags` per corner, in float64)."""
     inside = m <= 1.0
     if step == 1:
         neg = inside & (f < st.tau)
         pos = ~inside | (f >= 0.0)
         return neg.any(1) & pos.any(1), np.zeros(len(f), dtype=bool)
     cD = lipschitz * step * spacing * math.sqrt(3.0)
-    n_in = inside.sum(1)
-    fmin = np.where(inside, f, np.inf).min(1)
-    fmax = np.where(inside, f, -np.inf).max(1)
-    crossing = (fmin <= st.tau) & (fmax >= 0.0)      # kept even where f is not Lipschitz
-    above, deep = bounds_flags(f, m, st, cD)
-    above_h, deep_h = bounds_flags(f, m, st, 0.5 * cD)
-    keep = (n_in == 0) | crossing
-    deep_out = ~keep & ~above.any(1) & (deep.any(1) | deep_h.all(1))
-    keep |= ~(above.any(1) | above_h.all(1) | deep_out)
-    return keep, deep_out & ~keep
+    keep = np.empty(len(f), dtype=bool)
+    deep = np.empty(len(f), dtype=bool)
+    _keep_kernel(np.ascontiguousarray(f), np.ascontiguousarray(m), float(st.tau),
+                 float(st.r_min), float(cD), keep, deep)
+    return keep, deep
+
+
+@njit(cache=True, parallel=True)
+def _keep_kernel(f, m, tau, r_min, cD, keep, deep_out):
+    """`keep_blocks` for blocks of side >= 2, one pass per block over its 8 corners."""
+    for b in prange(f.shape[0]):
+        n_in = 0
+        fmin, fmax = np.inf, -np.inf
+        above_any, above_h_all, deep_any, deep_h_all = False, True, False, True
+        for o in range(8):
+            mv, fv = float(m[b, o]), float(f[b, o])
+            inside = mv <= 1.0
+            if inside:
+                n_in += 1
+                fmin, fmax = min(fmin, fv), max(fmax, fv)
+            depth = (1.0 - math.sqrt(min(mv, 1.0))) * r_min
+            above_any |= inside and fv > tau + cD
+            above_h_all &= inside and fv > tau + 0.5 * cD
+            deep_any |= inside and fv < -cD and depth > cD
+            deep_h_all &= inside and fv < -0.5 * cD and depth > 0.5 * cD
+        kept = n_in == 0 or (fmin <= tau and fmax >= 0.0)  # crossing: kept even if not Lipschitz
+        deep = not kept and not above_any and (deep_any or deep_h_all)
+        kept = kept or not (above_any or above_h_all or deep)
+        keep[b] = kept
+        deep_out[b] = deep and not kept
 
 
 def children(blocks: np.ndarray, f: np.ndarray, m: np.ndarray, st: GCState, step: int,
              grid: Grid, keys: Keys, lipschitz: float) -> tuple[np.ndarray, np.ndarray]:
     """Sorted keys of the half-size blocks of kept blocks (sorted keys, (n, 8) corner values)
     that hold a real cell, that their one known corner (child o shares corner o with its
-    parent) does not rule out (`far`), and that come near the GC; and the sorted keys of the
-    children that corner rules out as deep (`keep_blocks`)."""
+    parent) does not rule out (`bounds_flags`), and that come near the GC; and the sorted
+    keys of the children that corner rules out as deep (`keep_blocks`)."""
     half = step // 2
     cD = lipschitz * half * grid.spacing * math.sqrt(3.0)
     above, deep = bounds_flags(f, m, st, cD)
