@@ -28,7 +28,7 @@ from .sample import _check, extract_and_write, write_outputs
 def condition(gen: ShapeGenerator, out_dir, gcs, n: int, seed: int, strength: float,
               project_steps: int, replace: bool, resolution: int = 128, bound: float = 1.0,
               chunk: int | None = None, sampler: dict | None = None,
-              progress: bool = True) -> dict:
+              progress: bool = True, settings=None) -> dict:
     """n shapes conditioned on the GCs in YAML file `gcs` (shape i from latent_seed(seed, i),
     as mode=generate); see ngc_gen.generate.condition for strength and project_steps."""
     _check(int(n) >= 1, f"n must be >= 1, got {n}", "n", "ask for at least one shape")
@@ -49,7 +49,7 @@ def condition(gen: ShapeGenerator, out_dir, gcs, n: int, seed: int, strength: fl
         if replace:
             shapes[i] = with_given_gcs(s, cond)
     written, secs = extract_and_write(gen, shapes, out_dir, resolution, bound, chunk,
-                                      normalised=False, progress=progress)
+                                      normalised=False, progress=progress, settings=settings)
     atomic_write_text(out_dir / "condition.yaml", yaml.safe_dump(
         {"name": "condition", "source": cond.source, "gcs": list(cond.gcs)}, sort_keys=False,
         default_flow_style=None, width=100))

@@ -73,3 +73,19 @@ def compose_config(config_name: str = "train", overrides: list[str] | None = Non
     finally:
         if running is not None:
             GlobalHydra.instance().hydra = running
+
+
+def sparse_settings(node):
+    """The sparse extractor's refinement (`ngc_gen.extract.SparseSettings`) from a config's
+    `extract.sparse` node (conf/extract/default.yaml, where its defaults live); a bad value is
+    a ConfigError that names the key."""
+    from hydra.utils import instantiate
+
+    from .errors import ConfigError
+
+    try:
+        return instantiate(node)
+    except Exception as err:  # instantiate wraps the dataclass's ValueError
+        value = OmegaConf.to_container(node) if OmegaConf.is_config(node) else node
+        raise ConfigError(str(err.__cause__ or err), key="extract.sparse", value=value,
+                          fix="see conf/extract/default.yaml for the allowed values") from err

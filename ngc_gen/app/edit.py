@@ -24,6 +24,7 @@ from ngc_gen.edit.errors import EditError
 from ngc_gen.edit.spec import check_program
 
 from .checks import check_writable
+from .config import sparse_settings
 
 PROGRAMS = "ngc_gen/conf/edit"  # the shipped programs: package data, Hydra group `edit`
 
@@ -228,7 +229,8 @@ def run_edit(cfg) -> dict:
     mixes = {original.gc_names[j]: m.label for j, m in edited.mixes.items()}
 
     ex = cfg.extract
-    kw = dict(resolution=int(ex.resolution), bound=float(ex.bound), chunk=int(ex.chunk))
+    kw = dict(resolution=int(ex.resolution), bound=float(ex.bound), chunk=int(ex.chunk),
+              settings=sparse_settings(ex.sparse))
     t0 = time.perf_counter()
     before = original.replaced(smooth=program.smooth_union).mesh(**kw)
     t_before = time.perf_counter() - t0

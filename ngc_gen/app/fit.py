@@ -75,11 +75,15 @@ def score_fit(cfg: DictConfig, module, prepared: list[PreparedShape], run_dir: P
     """(metrics, ground truth): every shape of a trained AutoDecoder meshed into
     run_dir/meshes and scored against its prepared mesh (`reconstruct`), settings from the
     `extract` group and `metrics_seed`."""
+    from .config import sparse_settings
+
     gt = {s.name: (s.mesh_vertices, s.mesh_faces) for s in prepared}
+    mesh_kwargs = ({} if module.hparams.kind == "deepsdf"   # its own world-space extractor
+                   else {"settings": sparse_settings(cfg.extract.sparse)})
     with torch.no_grad():
         metrics = reconstruct(module, run_dir / "meshes", gt, resolution=cfg.extract.resolution,
                               bound=cfg.extract.bound, chunk=cfg.extract.chunk,
-                              seed=cfg.metrics_seed)
+                              seed=cfg.metrics_seed, **mesh_kwargs)
     return metrics, gt
 
 

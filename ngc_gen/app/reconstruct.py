@@ -26,6 +26,8 @@ from omegaconf import DictConfig, open_dict
 from ngc_gen.data.atomic import atomic_write, atomic_write_text
 from ngc_gen.data.errors import DataError
 
+from .config import sparse_settings
+
 FIX = ("pass run=<dir or checkpoint> of a `train.py stage=fit` run (codes) or a "
        "`train.py stage=shape_latent` run (latents)")
 
@@ -175,6 +177,7 @@ def _latents(cfg: DictConfig, path: Path) -> dict:
     save_latents(run_dir / "latents.pt", module, last)
     refined = _refine_codes(cfg, module, prepared, run_dir, meta) if gcs_from == "input" else None
     res = int(cfg.extract.resolution)
+    settings = sparse_settings(cfg.extract.sparse)
     per, written = {}, []
     with torch.no_grad():
         shapes = decode_shapes(module, module.latents.weight, module.names)
@@ -185,7 +188,7 @@ def _latents(cfg: DictConfig, path: Path) -> dict:
             shapes = [shape.replaced(codes=c) for shape, c in zip(shapes, refined[0])]
         for shape, s in zip(shapes, prepared):
             mesh = shape.mesh(res, float(cfg.extract.bound), chunk=auto_chunk(res),
-                              progress=False).mesh
+                              settings=settings, progress=False).mesh
             gt = trimesh.Trimesh(s.mesh_vertices, s.mesh_faces, process=False)
             per[shape.name] = {k: v for k, v in reconstruction_metrics(
                 mesh, gt, seed=cfg.metrics_seed).items() if isinstance(v, (int, float, bool))}

@@ -25,6 +25,7 @@ from ngc_gen.generate.shapes import (BOUND, WrittenShape, auto_chunk, decode_sha
                                      write_edit_checkpoint, write_shape)
 
 from .checks import check_writable
+from .config import sparse_settings
 
 MODES = ("generate", "interpolate", "mix", "condition")
 LATENTS_KIND = "ngc_gen.generated_latents"
@@ -37,15 +38,15 @@ def _check(ok: bool, what: str, field: str, fix: str) -> None:
 
 def extract_and_write(gen: ShapeGenerator, shapes: list[Shape], out_dir: Path,
                       resolution: int = 128, bound: float = 1.0, chunk: int | None = None,
-                      normalised: bool = True,
-                      progress: bool = True) -> tuple[list[WrittenShape], list[float]]:
-    """Extract each shape's mesh and write its PLY + YAML. Returns the written shapes and the
-    seconds per mesh."""
+                      normalised: bool = True, progress: bool = True,
+                      settings=None) -> tuple[list[WrittenShape], list[float]]:
+    """Extract each shape's mesh (settings: the sparse refinement, `SparseSettings`; None: the
+    library's) and write its PLY + YAML. Returns the written shapes and the seconds per mesh."""
     written, seconds = [], []
     for shape in tqdm(shapes, desc="meshes", unit="shape", disable=not progress or len(shapes) < 2):
         t0 = time.perf_counter()
         mesh = shape.mesh(resolution, bound, chunk=chunk or auto_chunk(resolution),
-                          progress=False).mesh
+                          settings=settings, progress=False).mesh
         gcs = shape.gc_dicts()
         center, scale = np.zeros(3), 1.0
         if normalised:
@@ -89,7 +90,7 @@ def write_outputs(gen: ShapeGenerator, out_dir: Path, mode: str, written: list[W
 
 def generate(gen: ShapeGenerator, out_dir, n: int = 16, seed: int = 0, resolution: int = 128,
              bound: float = 1.0, chunk: int | None = None, sampler: dict | None = None,
-             normalised: bool = True, progress: bool = True) -> dict:
+             normalised: bool = True, progress: bool = True, settings=None) -> dict:
     """n new shapes: EDM latents (shape i from latent_seed(seed, i)) decoded to GCs + codes."""
     _check(int(n) >= 1, f"n must be >= 1, got {n}", "n", "ask for at least one shape")
     out_dir = Path(out_dir)
@@ -99,7 +100,7 @@ def generate(gen: ShapeGenerator, out_dir, n: int = 16, seed: int = 0, resolutio
     names = [f"sample_{i:03d}" for i in range(int(n))]
     shapes = decode_shapes(gen.shape_latent, latents, names)
     written, secs = extract_and_write(gen, shapes, out_dir, resolution, bound, chunk, normalised,
-                                      progress=progress)
+                                      progress=progress, settings=settings)
     summary = {"n": int(n), "seed": int(seed), "resolution": int(resolution),
                "sampler": dict(sampler or {}), "latent_s_per_shape": latent_s,
                "mesh_s_per_shape": float(np.mean(secs))}
@@ -112,7 +113,7 @@ def generate(gen: ShapeGenerator, out_dir, n: int = 16, seed: int = 0, resolutio
 def interpolate(gen: ShapeGenerator, out_dir, a=0, b=1, steps: int = 8, seed: int = 0,
                 method: str = "lerp", resolution: int = 128, bound: float = 1.0,
                 chunk: int | None = None, sampler: dict | None = None, normalised: bool = True,
-                progress: bool = True) -> dict:
+                progress: bool = True, settings=None) -> dict:
     """`steps` shapes along the latent path from a to b (alpha = 0 .. 1, both ends included).
     a, b: training shape names or generated indices. method: lerp, or slerp about the mean of
     the training latents."""
@@ -129,7 +130,7 @@ def interpolate(gen: ShapeGenerator, out_dir, a=0, b=1, steps: int = 8, seed: in
     for s, al in zip(shapes, alphas.tolist()):
         s.info["alpha"] = al
     written, secs = extract_and_write(gen, shapes, out_dir, resolution, bound, chunk, normalised,
-                                      progress=progress)
+                                      progress=progress, settings=settings)
     summary = {"a": name_a, "b": name_b, "seed": int(seed), "method": method,
                "alphas": alphas.tolist(), "resolution": int(resolution),
                "mesh_s_per_shape": float(np.mean(secs))}
@@ -139,7 +140,8 @@ def interpolate(gen: ShapeGenerator, out_dir, a=0, b=1, steps: int = 8, seed: in
 def mix(gen: ShapeGenerator, out_dir, a=0, b=1, part: str = "head", blend: str = "replace",
         blend_params: dict | None = None, geometry: str = "source", seed: int = 0,
         resolution: int = 128, bound: float = 1.0, chunk: int | None = None,
-        sampler: dict | None = None, normalised: bool = True, progress: bool = True) -> dict:
+        sampler: dict | None = None, normalised: bool = True, progress: bool = True,
+        settings=None) -> dict:
     """Shape A with part `part` of shape B (`Shape.with_part`, the edit op `mix`'s rule):
     geometry="source" (default) takes B's GC for the part, attached at A's joint, and B's
     features; "target" keeps A's GC and blends features by the weight (blend + blend_params).
@@ -167,7 +169,7 @@ def mix(gen: ShapeGenerator, out_dir, a=0, b=1, part: str = "head", blend: str =
                                   "blend": repr(weight) if weight else "replace",
                                   "geometry": geometry})
     written, secs = extract_and_write(gen, [sa, sb, mixed], out_dir, resolution, bound, chunk,
-                                      normalised, progress=progress)
+                                      normalised, progress=progress, settings=settings)
     summary = {"a": name_a, "b": name_b, "part": str(part), "geometry": geometry,
                "blend": repr(weight) if weight else "replace",
                "seed": int(seed), "resolution": int(resolution),
@@ -194,7 +196,8 @@ def run_sample(cfg) -> dict:
         gen.add_latents(c["latents"])
     common = dict(seed=int(c["seed"]), resolution=int(ex["resolution"]), bound=float(ex["bound"]),
                   chunk=None if ex["chunk"] is None else int(ex["chunk"]), sampler=c["sampler"],
-                  normalised=bool(c["normalise"]), progress=bool(c["progress"]))
+                  normalised=bool(c["normalise"]), progress=bool(c["progress"]),
+                  settings=sparse_settings(cfg.extract.sparse))
     out_dir = Path(c["out_dir"])
     if mode == "generate":
         summary = generate(gen, out_dir, n=int(c["n"]), **common)

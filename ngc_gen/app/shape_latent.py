@@ -22,6 +22,7 @@ from ngc_gen.data.atomic import atomic_write, atomic_write_text
 from ngc_gen.data.errors import DataError
 from ngc_gen.data.prepare import PreparedShape
 
+from .config import sparse_settings
 from .training import instantiate_group, start_run, train
 
 LATENTS_KIND = "ngc_gen.shape_latents"
@@ -111,15 +112,17 @@ def evaluate(module, dm, batches: int = 20) -> dict:
     return out
 
 
-def preview(module, run_dir: Path, n: int, resolution: int) -> list[str]:
-    """Meshes of the first n training shapes decoded from their latents (decoded GCs + codes)."""
+def preview(module, run_dir: Path, n: int, resolution: int, settings=None) -> list[str]:
+    """Meshes of the first n training shapes decoded from their latents (decoded GCs + codes);
+    settings: the sparse refinement (`SparseSettings`; None: the library's)."""
     from ngc_gen.generate.shapes import auto_chunk, decode_shapes
 
     names = module.names[:n]
     shapes = decode_shapes(module, module.latents.weight[:n], names)
     out = []
     for shape in shapes:
-        mesh = shape.mesh(resolution, chunk=auto_chunk(resolution), progress=False).mesh
+        mesh = shape.mesh(resolution, chunk=auto_chunk(resolution), settings=settings,
+                          progress=False).mesh
         path = run_dir / "meshes" / f"{shape.name}.ply"
         atomic_write(path, lambda f, m=mesh: f.write(m.export(file_type="ply")))
         out.append(str(path))
@@ -156,7 +159,8 @@ def run_shape_latent(cfg: DictConfig) -> dict:
     if n_prev > 0:
         with torch.no_grad():
             metrics["preview"] = preview(module, run_dir, n_prev,
-                                         int(cfg.shape_latent.preview_resolution))
+                                         int(cfg.shape_latent.preview_resolution),
+                                         sparse_settings(cfg.extract.sparse))
     atomic_write_text(run_dir / "metrics.json", json.dumps(metrics, indent=2))
     p = metrics["params"]
     print(f"\nshape latents: {len(prepared)} shapes x {module.latents.weight.shape[1]} dims, "

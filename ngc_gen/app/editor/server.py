@@ -19,6 +19,7 @@ import numpy as np
 
 from ngc_gen.viz.gc_mesh import gc_surface
 
+from ..config import sparse_settings
 from .meshing import MeshLoop
 from .session import POSE_AXES, EditorSession, Outcome
 
@@ -75,10 +76,12 @@ class EditorServer:
         self._drawn: dict = {}  # GC name -> (GC drawn, scene node)
         self._dragging = False
         self._build_gui()
+        sparse = {} if editor.get("sparse") is None else {
+            "settings": sparse_settings(editor.sparse)}
         self.loop = MeshLoop(session, editor.preview_resolution, editor.refine_resolution,
                              editor.refine_delay_s, self._show_mesh, self.say,
-                             _plain(editor.get("preview_extract")),
-                             _plain(editor.get("refine_extract")))
+                             {**_plain(editor.get("preview_extract")), **sparse},
+                             {**_plain(editor.get("refine_extract")), **sparse})
         self._draw_gcs()
         self._sync_controls()
         self.say(session.message)
