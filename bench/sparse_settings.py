@@ -44,16 +44,6 @@ def same_mesh(a, b) -> bool:
     return bool(np.array_equal(a.vertices, b.vertices) and np.array_equal(a.faces, b.faces))
 
 
-def fitted_shapes(module):
-    """(name, gcs, rows_fn) of every shape of a trained AutoDecoder."""
-    from ngc_gen.shape import Shape, recorded_gcs
-
-    for meta in module.hparams.meta["shapes"]:
-        codes = module.codes.weight[meta["code_offset"]:meta["code_offset"] + meta["n_codes"]]
-        gcs = recorded_gcs(meta)
-        yield meta["name"], gcs, Shape(gcs, codes.detach(), module.decoder).rows
-
-
 def parse_variant(text: str):
     """'label:key=value,...' -> (label, SparseSettings kwargs); values are numbers or booleans."""
     label, _, rest = text.partition(":")
@@ -83,6 +73,7 @@ def main():
     from ngc_gen.eval import mesh_chamfer
     from ngc_gen.extract import SparseSettings, extract_mesh
     from ngc_gen.lit.checkpoint import load_autodecoder
+    from ngc_gen.shape import shapes_from_autodecoder
 
     torch.set_num_threads(args.threads)
     load0 = os.getloadavg()[0]
@@ -95,7 +86,8 @@ def main():
     cases, timing_input = [], None
     for fit_name, ckpt in fits.items():
         module = load_autodecoder(ckpt)
-        for name, gcs, rows in fitted_shapes(module):
+        for name, shape in shapes_from_autodecoder(module).items():
+            gcs, rows = shape.gcs, shape.rows
             if fit_name == "deform" and name == "creature_0000":
                 timing_input = (gcs, rows)
             for R in args.resolutions:

@@ -18,6 +18,7 @@ from tqdm import tqdm
 from ngc_gen.data.atomic import atomic_write, atomic_write_text
 from ngc_gen.data.prepare import PreparedShape
 
+from .config import sparse_settings
 from .prepare import prepare_dataset
 from .training import instantiate_group, start_run, train
 
@@ -75,8 +76,6 @@ def score_fit(cfg: DictConfig, module, prepared: list[PreparedShape], run_dir: P
     """(metrics, ground truth): every shape of a trained AutoDecoder meshed into
     run_dir/meshes and scored against its prepared mesh (`reconstruct`), settings from the
     `extract` group and `metrics_seed`."""
-    from .config import sparse_settings
-
     gt = {s.name: (s.mesh_vertices, s.mesh_faces) for s in prepared}
     mesh_kwargs = ({} if module.hparams.kind == "deepsdf"   # its own world-space extractor
                    else {"settings": sparse_settings(cfg.extract.sparse)})
