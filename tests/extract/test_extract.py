@@ -282,3 +282,19 @@ def test_tracking_grows_the_surface_along_a_rod_no_even_lattice_point_sees():
     assert ref.mesh.body_count == 2
     band = extract_mesh([gc], apart, R, settings=SparseSettings(track=False), progress=False)
     assert np.array_equal(band.mesh.faces, ref.mesh.faces)
+
+
+def test_a_block_inside_another_gcs_deep_block_is_found_at_every_step():
+    """`inside_deep` drops a block (any step) lying in a block some GC found deep, and only
+    those: a wrong parent key would keep evaluating the inside of the shape (or drop surface)."""
+    from ngc_gen.extract.sparse import Keys, inside_deep
+
+    keys = Keys(64)
+    deep = {4: keys.encode(np.array([[8, 12, 4], [20, 0, 16]])),      # sorted: 8... < 20...
+            2: keys.encode(np.array([[40, 40, 40]]))}
+    blocks = np.array([[8, 12, 4], [10, 14, 6], [11, 15, 7],          # in the first step-4 block
+                       [12, 12, 4], [8, 16, 4], [7, 12, 4],           # just past it
+                       [22, 2, 18], [41, 41, 41], [42, 40, 40], [0, 0, 0]])
+    hit = inside_deep(keys.encode(blocks), deep, keys)
+    assert hit.tolist() == [True, True, True, False, False, False, True, True, False, False]
+    assert not inside_deep(keys.encode(blocks), {4: np.zeros(0, np.int64)}, keys).any()
