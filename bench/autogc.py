@@ -53,8 +53,8 @@ METHODS = ("auto", "annotated", "axis")
 def single_gc_shares(true_gcs, auto_gcs, points) -> np.ndarray:
     """(T,) per true GC: the largest share of its surface samples inside one automatic GC. A
     sample belongs to the true GC it is relatively nearest to (smallest rho)."""
-    from ngc_gen.data.coverage import rho_matrix
-    from ngc_gen.data.sampling import gc_membership
+    from ngc_gen.data.autogc.coverage import rho_matrix
+    from ngc_gen.data.mesh.sampling import gc_membership
 
     part = rho_matrix(true_gcs, points)[0].argmin(axis=0)
     pp, pg, _ = gc_membership(points, auto_gcs)
@@ -67,7 +67,7 @@ def single_gc_shares(true_gcs, auto_gcs, points) -> np.ndarray:
 def warm_up(mesh: str) -> float:
     """One untimed annotation first: the process's one-time start (numba loading its compiled
     kernels, CGAL's module) is not a mesh's time. -> its seconds, reported apart."""
-    from ngc_gen.data.auto_gc import auto_annotation
+    from ngc_gen.data.autogc.auto import auto_annotation
 
     t0 = time.perf_counter()
     auto_annotation(mesh, name="warm_up", bound=0.8)
@@ -79,10 +79,10 @@ def warm_up(mesh: str) -> float:
 def annotate_all(names: dict, hand: dict) -> tuple[list[dict], dict]:
     """Automatic annotations of every mesh (written to RUNS/annotations) and their figures."""
     from ngc_gen.data.annotations import load_annotation, save_annotation
-    from ngc_gen.data.auto_gc import AutoGCSettings, auto_annotation
-    from ngc_gen.data.coverage import coverage_stats
-    from ngc_gen.data.mesh_io import load_mesh, normalize
-    from ngc_gen.data.sampling import sample_surface
+    from ngc_gen.data.autogc.auto import AutoGCSettings, auto_annotation
+    from ngc_gen.data.autogc.coverage import coverage_stats
+    from ngc_gen.data.mesh.io import load_mesh, normalize
+    from ngc_gen.data.mesh.sampling import sample_surface
     from ngc_gen.app.config import compose_config
 
     cfg = compose_config(overrides=["run_dir=/tmp"])
@@ -118,8 +118,8 @@ def annotate_all(names: dict, hand: dict) -> tuple[list[dict], dict]:
 
 def single_gc_best(true_gcs, auto_gcs, points, part_name: str) -> str:
     """Name of the automatic GC holding the largest share of a true part's samples."""
-    from ngc_gen.data.coverage import rho_matrix
-    from ngc_gen.data.sampling import gc_membership
+    from ngc_gen.data.autogc.coverage import rho_matrix
+    from ngc_gen.data.mesh.sampling import gc_membership
 
     k = [g.name for g in true_gcs].index(part_name)
     part = rho_matrix(true_gcs, points)[0].argmin(axis=0) == k
@@ -216,7 +216,7 @@ def edits(checkpoint: str, anns: dict, resolution: int) -> list[dict]:
 
     from bench.deform import Case, run_case
     from ngc_gen.data.annotations import annotation_from_dict, load_annotation
-    from ngc_gen.data.mesh_io import load_mesh, normalize
+    from ngc_gen.data.mesh.io import load_mesh, normalize
     from ngc_gen.lit.checkpoint import load_autodecoder
 
     module = load_autodecoder(checkpoint)
@@ -249,7 +249,7 @@ def edits(checkpoint: str, anns: dict, resolution: int) -> list[dict]:
 def picture(anns: dict, names: list[str], path: Path) -> None:
     import trimesh
 
-    from ngc_gen.data.mesh_io import load_mesh, normalize
+    from ngc_gen.data.mesh.io import load_mesh, normalize
     from ngc_gen.viz import gcs_surface, render_grid
 
     rows, labels = [], []
@@ -281,7 +281,7 @@ def main():
     import torch
 
     from ngc_gen.data.atomic import atomic_write_text
-    from ngc_gen.data.creatures import build_creatures
+    from ngc_gen.data.procedural.creatures import build_creatures
 
     torch.set_num_threads(1)  # a shared 2-core machine: one thread is faster
     build_creatures(CREATURES, 64, seed=0)

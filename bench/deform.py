@@ -446,7 +446,7 @@ def main():
 
     from ngc_gen.data.annotations import annotation_from_dict
     from ngc_gen.data.atomic import atomic_write_text
-    from ngc_gen.data.mesh_io import load_mesh, normalize
+    from ngc_gen.data.mesh.io import load_mesh, normalize
     from ngc_gen.lit.checkpoint import load_autodecoder
 
     fit = fitted(args.steps, args.refit)

@@ -166,7 +166,7 @@ def ceiling(resolution: int) -> dict:
 
     from ngc_gen.app.config import compose_config
     from ngc_gen.app.prepare import prepare_dataset
-    from ngc_gen.data.sdf import signed_distance
+    from ngc_gen.data.mesh.sdf import signed_distance
     from ngc_gen.eval import reconstruction_metrics
     from ngc_gen.extract.world import extract_world_mesh
 

@@ -107,15 +107,15 @@ def bench_relcoords(n=1_000_000):
 
 def bench_prepare():
     from ngc_gen.data.annotations import load_annotation
-    from ngc_gen.data.auto_gc import AutoGCSettings, auto_annotation
+    from ngc_gen.data.autogc.auto import AutoGCSettings, auto_annotation
     from ngc_gen.data.prepare import PrepareSettings, prepare_shape
 
     shapes = [load_annotation(ROOT / "datasets/ant/ant.yaml"),
               load_annotation(ROOT / "datasets/airplane/airplane.yaml"),
               auto_annotation("pyvista:ant.ply", settings=AutoGCSettings(method="axis"))]
     try:
-        from ngc_gen.data.creatures import make_creature  # noqa: F401
-        from ngc_gen.data.creatures import build_creatures
+        from ngc_gen.data.procedural.creatures import make_creature  # noqa: F401
+        from ngc_gen.data.procedural.creatures import build_creatures
         with tempfile.TemporaryDirectory() as d:
             build_creatures(Path(d), 2, seed=0)
             shapes += [load_annotation(p) for p in sorted(Path(d).glob("*.yaml"))]

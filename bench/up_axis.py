@@ -51,8 +51,8 @@ def main() -> None:
     ap.add_argument("--creatures-dir", default=str(ROOT / ".cache/datasets/creatures_n64_s0"))
     args = ap.parse_args()
 
-    from ngc_gen.data.creatures import build_creatures
-    from ngc_gen.data.mesh_io import load_mesh
+    from ngc_gen.data.procedural.creatures import build_creatures
+    from ngc_gen.data.mesh.io import load_mesh
     from ngc_gen.viz.camera import detect_up
 
     meshes = [("ant", "pyvista:ant.ply", "+y"), ("airplane", "pyvista:airplane.ply", "+z")]

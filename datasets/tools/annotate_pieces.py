@@ -4,7 +4,7 @@
 
 Both meshes are made of separate pieces (the ant: 15 intersecting closed pieces; the airplane:
 fuselage, wings, stabilisers, fins). Each piece gets one curved GC fitted by
-`ngc_gen.data.fit_gc.fit_gc`; the names come from where each piece sits (rules below, checked
+`ngc_gen.data.autogc.fit_gc.fit_gc`; the names come from where each piece sits (rules below, checked
 by looking at the meshes: the ant faces +z with y up, the airplane's nose points to -y with z up).
 """
 from __future__ import annotations
@@ -18,9 +18,9 @@ ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
 from ngc_gen.data.annotations import Annotation, save_annotation  # noqa: E402
-from ngc_gen.data.fit_gc import fit_gc  # noqa: E402
-from ngc_gen.data.mesh_io import load_mesh, normalize  # noqa: E402
-from ngc_gen.data.sampling import sample_surface  # noqa: E402
+from ngc_gen.data.autogc.fit_gc import fit_gc  # noqa: E402
+from ngc_gen.data.mesh.io import load_mesh, normalize  # noqa: E402
+from ngc_gen.data.mesh.sampling import sample_surface  # noqa: E402
 from ngc_gen.geometry import GeneralizedCylinder  # noqa: E402
 
 

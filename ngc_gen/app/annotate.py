@@ -19,10 +19,10 @@ from omegaconf import DictConfig, OmegaConf
 
 from ngc_gen.data.annotations import Annotation
 from ngc_gen.data.atomic import atomic_write_text
-from ngc_gen.data.auto_gc import AutoGCSettings, auto_annotation
-from ngc_gen.data.coverage import coverage_stats
-from ngc_gen.data.mesh_io import load_mesh, normalize
-from ngc_gen.data.sampling import sample_surface
+from ngc_gen.data.autogc.auto import AutoGCSettings, auto_annotation
+from ngc_gen.data.autogc.coverage import coverage_stats
+from ngc_gen.data.mesh.io import load_mesh, normalize
+from ngc_gen.data.mesh.sampling import sample_surface
 
 from .training import start_run
 

@@ -1,7 +1,8 @@
-"""Data layer: meshes, GC annotations, SDF sampling and per-shape caches (DESIGN.md section 1).
+"""Data layer: meshes, GC annotations, SDF sampling and per-shape caches (docs/architecture.md).
 
-The public entry points are re-exported here; dataset builders and DataModules live in their
-own modules of this package.
+The public entry points are re-exported here. Rooms: ``mesh/`` (I/O, proxy, SDF, samplers),
+``procedural/`` (the creatures), ``autogc/`` (automatic GCs); annotations, preparation, datasets
+and the DataModule sit at the top.
 """
 
 import importlib
@@ -10,11 +11,11 @@ import importlib
 # mesh_folder) does not pull in trimesh and torch: train.py checks a bad data.path in a second
 _HOMES = {"Annotation": "annotations", "annotation_from_dict": "annotations",
           "load_annotation": "annotations", "save_annotation": "annotations",
-          "AutoGCSettings": "auto_gc", "auto_annotation": "auto_gc", "auto_gc": "auto_gc",
-          "auto_gcs": "auto_gc", "DataError": "errors", "load_mesh": "mesh_io",
-          "normalize": "mesh_io", "resolve_mesh_path": "mesh_io", "PreparedShape": "prepare",
+          "AutoGCSettings": "autogc.auto", "auto_annotation": "autogc.auto", "autogc.auto": "autogc.auto",
+          "auto_gcs": "autogc.auto", "DataError": "errors", "load_mesh": "mesh.io",
+          "normalize": "mesh.io", "resolve_mesh_path": "mesh.io", "PreparedShape": "prepare",
           "PrepareSettings": "prepare", "load_prepared": "prepare", "prepare_shape": "prepare",
-          "signed_distance": "sdf"}
+          "signed_distance": "mesh.sdf"}
 
 
 def __getattr__(name: str):
@@ -25,6 +26,6 @@ def __getattr__(name: str):
 
 __all__ = [
     "Annotation", "AutoGCSettings", "DataError", "PrepareSettings", "PreparedShape", "annotation_from_dict",
-    "auto_annotation", "auto_gc", "auto_gcs", "load_annotation", "load_mesh", "load_prepared", "normalize",
+    "auto_annotation", "autogc.auto", "auto_gcs", "load_annotation", "load_mesh", "load_prepared", "normalize",
     "prepare_shape", "resolve_mesh_path", "save_annotation", "signed_distance",
 ]

@@ -22,7 +22,7 @@ import yaml
 
 from ngc_gen.data.atomic import atomic_write_text
 from ngc_gen.data.errors import DataError
-from ngc_gen.data.mesh_io import is_resource, resolve_mesh_path
+from ngc_gen.data.mesh.io import is_resource, resolve_mesh_path
 from ngc_gen.geometry import GeneralizedCylinder, GeometryError
 
 TOP_KEYS = {"name", "mesh", "normalize", "gcs"}

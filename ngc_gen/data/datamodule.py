@@ -11,7 +11,7 @@ import numpy as np
 import torch
 from torch.utils.data import DataLoader, Dataset
 
-from .prepare import PreparedShape
+from ngc_gen.data.prepare import PreparedShape
 
 
 def training_rows(shapes: list[PreparedShape], mode: str):

@@ -7,10 +7,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .annotations import Annotation, load_annotation
-from .auto_gc import AutoGCSettings, auto_annotation
-from .errors import DataError
-from .mesh_folder import mesh_files
+from ngc_gen.data.annotations import Annotation, load_annotation
+from ngc_gen.data.autogc.auto import AutoGCSettings, auto_annotation
+from ngc_gen.data.errors import DataError
+from ngc_gen.data.mesh_folder import mesh_files
 
 
 
@@ -89,7 +89,7 @@ class Creatures:
         self.split, self.test_fraction, self.limit = split, test_fraction, limit
 
     def shapes(self) -> list[Annotation]:
-        from .creatures import build_creatures, creature_names, creature_split
+        from ngc_gen.data.procedural.creatures import build_creatures, creature_names, creature_split
 
         split = creature_split(creature_names(self.n), self.seed, self.test_fraction)
         names = split["train"] + split["test"] if self.split == "all" else split[self.split]

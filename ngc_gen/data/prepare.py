@@ -27,9 +27,9 @@ import yaml
 from ngc_gen.data.annotations import Annotation, annotation_from_dict, load_annotation
 from ngc_gen.data.atomic import atomic_write
 from ngc_gen.data.errors import DataError
-from ngc_gen.data.mesh_io import load_mesh, normalize
-from ngc_gen.data.sampling import gc_membership, sample_surface, sample_volume
-from ngc_gen.data.sdf import signed_distance
+from ngc_gen.data.mesh.io import load_mesh, normalize
+from ngc_gen.data.mesh.sampling import gc_membership, sample_surface, sample_volume
+from ngc_gen.data.mesh.sdf import signed_distance
 from ngc_gen.geometry import GeneralizedCylinder
 
 log = logging.getLogger(__name__)

@@ -19,7 +19,7 @@ import yaml
 
 from ngc_gen.data.annotations import rounded_gc_dict, similar_gc_dict
 from ngc_gen.data.atomic import atomic_write, atomic_write_text
-from ngc_gen.data.mesh_io import normalize
+from ngc_gen.data.mesh.io import normalize
 from ngc_gen.geometry import GeneralizedCylinder
 from ngc_gen.shape import Shape
 
@@ -46,7 +46,7 @@ def auto_chunk(resolution: int) -> int:
 
 def normalise(mesh: trimesh.Trimesh, gcs: list[dict], bound: float = BOUND):
     """Map mesh and GC dicts by x -> (x - center) * scale, the similarity `normalize` applies to
-    the mesh (`ngc_gen.data.mesh_io.normalize`). An empty mesh is returned unchanged (scale 1)."""
+    the mesh (`ngc_gen.data.mesh.io.normalize`). An empty mesh is returned unchanged (scale 1)."""
     if len(mesh.vertices) == 0:
         return mesh, gcs, np.zeros(3), 1.0
     out, center, scale = normalize(mesh, bound)

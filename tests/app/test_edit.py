@@ -5,7 +5,7 @@ import pytest
 import yaml
 
 from ngc_gen.data.annotations import load_annotation
-from ngc_gen.data.creatures import CREATURE_PARTS
+from ngc_gen.data.procedural.creatures import CREATURE_PARTS
 from ngc_gen.edit.program import EditProgram
 from ngc_gen.edit import EditError
 from ngc_gen.app.edit import available_programs, run_edit

@@ -258,7 +258,7 @@ def test_reconstruct_a_held_out_creature_and_interpolate_to_a_generated_one(runs
 def test_condition_mode_takes_the_given_gcs(runs, tmp_path, write_yaml):
     """`sample.py mode=condition gcs=<held-out creature's annotation>`: shapes + YAMLs whose GCs
     are the given ones (replace), in the given frame, plus the picture and an edit checkpoint."""
-    from ngc_gen.data.creatures import build_creatures
+    from ngc_gen.data.procedural.creatures import build_creatures
 
     data = runs["sl"].parent / "data"
     split = json.loads((data / "split.json").read_text())

@@ -12,7 +12,7 @@ import yaml
 
 from ngc_gen.data import prepare as prepare_module
 from ngc_gen.data.annotations import load_annotation
-from ngc_gen.data.auto_gc import AutoGCSettings, auto_annotation
+from ngc_gen.data.autogc.auto import AutoGCSettings, auto_annotation
 from ngc_gen.data.errors import DataError
 from ngc_gen.data.prepare import PrepareSettings, cache_path, load_prepared, prepare_shape
 from ngc_gen.geometry import GeneralizedCylinder

@@ -4,8 +4,8 @@ import pytest
 
 from ..helpers import ROOT
 from ngc_gen.data.annotations import load_annotation
-from ngc_gen.data.mesh_io import load_mesh, normalize
-from ngc_gen.data.sampling import sample_surface
+from ngc_gen.data.mesh.io import load_mesh, normalize
+from ngc_gen.data.mesh.sampling import sample_surface
 
 EXPECTED = {
     "ant": {"abdomen", "thorax", "head", "antenna_l", "antenna_r", "eye_l", "eye_r",

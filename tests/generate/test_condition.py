@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import torch
 
-from ngc_gen.data.creatures import CREATURE_TEMPLATE, KEY_TS, _enclosing_gc, sample_parts
+from ngc_gen.data.procedural.creatures import CREATURE_TEMPLATE, KEY_TS, _enclosing_gc, sample_parts
 from ngc_gen.data.errors import DataError
 from ngc_gen.generate import ShapeGenerator
 from ngc_gen.generate.condition import (condition_from_gcs, conditional_latents, gc_error,

@@ -8,7 +8,7 @@ import pytest
 import torch
 import yaml
 
-from ngc_gen.data.creatures import make_creature
+from ngc_gen.data.procedural.creatures import make_creature
 from ngc_gen.data.datamodule import PreparedDataModule
 from ngc_gen.data.errors import DataError
 from ngc_gen.data.prepare import PrepareSettings, prepare_shape

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import torch
 
-from ngc_gen.data.creatures import CREATURE_TEMPLATE, KEY_TS, make_creature
+from ngc_gen.data.procedural.creatures import CREATURE_TEMPLATE, KEY_TS, make_creature
 from ngc_gen.data.errors import DataError
 from ngc_gen.geometry import GeneralizedCylinder
 from ngc_gen.models.shape_decoder import GCTemplate, ShapeDecoder, param_errors

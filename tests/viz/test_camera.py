@@ -75,7 +75,7 @@ def test_rules_for_flat_and_baseless_shapes():
 
 
 def test_the_shipped_y_up_ant_is_detected_y_up():
-    from ngc_gen.data.mesh_io import load_mesh
+    from ngc_gen.data.mesh.io import load_mesh
 
     ant = load_mesh("pyvista:ant.ply")  # the ant of datasets/ant: legs toward -y
     assert np.allclose(detect_up(ant.vertices), Y)

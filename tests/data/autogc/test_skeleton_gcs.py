@@ -7,19 +7,19 @@ import pytest
 import trimesh
 import yaml
 
-from ngc_gen.data import skeleton as skeleton_mod
-from ngc_gen.data.auto_gc import AutoGCSettings, auto_annotation, auto_gcs
-from ngc_gen.data.branch_gc import split_bulb
-from ngc_gen.data.branches import THROUGH_THIN, Branch, branch_graph, pass_through
-from ngc_gen.data.coverage import coverage_stats, grow_to_cover
+from ngc_gen.data.autogc import skeleton as skeleton_mod
+from ngc_gen.data.autogc.auto import AutoGCSettings, auto_annotation, auto_gcs
+from ngc_gen.data.autogc.branch_gc import split_bulb
+from ngc_gen.data.autogc.branches import THROUGH_THIN, Branch, branch_graph, pass_through
+from ngc_gen.data.autogc.coverage import coverage_stats, grow_to_cover
 from ngc_gen.data.errors import DataError
-from ngc_gen.data.gc_names import gc_names
-from ngc_gen.data.mesh_io import normalize
-from ngc_gen.data.sampling import sample_surface
-from ngc_gen.data.skeleton_gcs import skeleton_gcs
+from ngc_gen.data.autogc.names import gc_names
+from ngc_gen.data.mesh.io import normalize
+from ngc_gen.data.mesh.sampling import sample_surface
+from ngc_gen.data.autogc.skeleton_gcs import skeleton_gcs
 from ngc_gen.geometry import GeneralizedCylinder
 
-from ..helpers import ROOT
+from ...helpers import ROOT
 
 pytestmark = pytest.mark.usefixtures("single_thread")
 FAST = dict(resolution=64, samples=8000)  # coarser than the defaults: keeps each mesh ~1-2 s
@@ -128,7 +128,7 @@ def test_voxel_fallback_when_cgal_is_missing(monkeypatch):
 
 def _creature(seed: int, resolution: int):
     """A procedural creature: its mesh, true GCs and 20k surface samples."""
-    from ngc_gen.data.creatures import make_creature
+    from ngc_gen.data.procedural.creatures import make_creature
 
     mesh, ann = make_creature(seed, resolution=resolution, check_samples=0)
     true = [GeneralizedCylinder.from_dict(g) for g in ann["gcs"]]
@@ -138,7 +138,7 @@ def _creature(seed: int, resolution: int):
 
 def _shipped_creature(i: int):
     """Creature i of the shipped set (seed 0, resolution 128): mesh, true GCs, samples."""
-    from ngc_gen.data.creatures import shape_seed
+    from ngc_gen.data.procedural.creatures import shape_seed
 
     return _creature(shape_seed(0, i), 128)
 
@@ -146,8 +146,8 @@ def _shipped_creature(i: int):
 def _part_shares(true, gcs, points) -> np.ndarray:
     """(T, G): the share of each true part's samples (a sample belongs to the true GC it is
     relatively nearest to) inside each GC."""
-    from ngc_gen.data.coverage import rho_matrix
-    from ngc_gen.data.sampling import gc_membership
+    from ngc_gen.data.autogc.coverage import rho_matrix
+    from ngc_gen.data.mesh.sampling import gc_membership
 
     part = rho_matrix(true, points)[0].argmin(axis=0)
     pp, pg, _ = gc_membership(points, gcs)
@@ -220,7 +220,7 @@ def test_a_head_with_a_snout_and_ears_is_not_cut_at_the_ears(monkeypatch):
     """creature_0013 of the shipped set: its skeleton meets the ears in the middle of the head
     (neck -> junction -> snout), which cut the head between the neck's GC and the snout's (at
     most 77% of it inside one GC). Joined through that junction, the head lies in one GC."""
-    from ngc_gen.data import skeleton_gcs as module
+    from ngc_gen.data.autogc import skeleton_gcs as module
 
     mesh, true, points = _shipped_creature(13)
 

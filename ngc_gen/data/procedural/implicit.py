@@ -1,7 +1,7 @@
 """Small implicit-modelling toolkit for procedural shapes: non-elliptic profiles, smooth union,
 and a watertight single-piece mesh from a sampled field.
 
-Used by the procedural creatures (``ngc_gen.data.creatures``); kept separate because nothing in
+Used by the procedural creatures (``ngc_gen.data.procedural.creatures``); kept separate because nothing in
 it knows about creatures. Convention: fields are negative inside, positive outside.
 """
 from __future__ import annotations

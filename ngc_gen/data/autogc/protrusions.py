@@ -20,7 +20,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from .branches import Branch
+from ngc_gen.data.autogc.branches import Branch
 
 FAR = 1.5           # a sample is far from the skeleton past this x the node's thickness
 THIN = 2.5          # ... and past this x the surface's own half-thickness there

@@ -18,8 +18,8 @@ import numpy as np
 from scipy.spatial import cKDTree
 from skimage.morphology import skeletonize
 
-from .errors import DataError
-from .proxy import Proxy, decimated
+from ngc_gen.data.errors import DataError
+from ngc_gen.data.mesh.proxy import Proxy, decimated
 
 log = logging.getLogger(__name__)
 

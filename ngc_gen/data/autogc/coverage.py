@@ -13,7 +13,7 @@ import numpy as np
 
 from ngc_gen.geometry import GeneralizedCylinder
 
-from .sampling import gc_membership
+from ngc_gen.data.mesh.sampling import gc_membership
 
 
 def rho_matrix(gcs: Sequence[GeneralizedCylinder], points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -12,16 +12,16 @@ from scipy.spatial import cKDTree
 
 from ngc_gen.geometry import GeneralizedCylinder
 
-from .branch_gc import branch_gc, resample, split_bulb, split_curved
-from .branches import Branch, branch_graph, junction_key, pass_through
-from .coverage import grow_to_cover
-from .gc_names import gc_names
-from .protrusions import THINNER as protrusion_thinner
-from .protrusions import half_thickness, protrusion_branches
-from .proxy import closed_proxy
-from .sampling import sample_surface
-from .errors import DataError
-from .skeleton import BACKENDS, local_thickness, proxy_skeleton
+from ngc_gen.data.autogc.branch_gc import branch_gc, resample, split_bulb, split_curved
+from ngc_gen.data.autogc.branches import Branch, branch_graph, junction_key, pass_through
+from ngc_gen.data.autogc.coverage import grow_to_cover
+from ngc_gen.data.autogc.names import gc_names
+from ngc_gen.data.autogc.protrusions import THINNER as protrusion_thinner
+from ngc_gen.data.autogc.protrusions import half_thickness, protrusion_branches
+from ngc_gen.data.mesh.proxy import closed_proxy
+from ngc_gen.data.mesh.sampling import sample_surface
+from ngc_gen.data.errors import DataError
+from ngc_gen.data.autogc.skeleton import BACKENDS, local_thickness, proxy_skeleton
 
 CURVE_TOLERANCE = 0.05  # split a branch when its cubic strays more than this x its length
 

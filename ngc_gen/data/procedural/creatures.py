@@ -32,10 +32,10 @@ import yaml
 
 from ngc_gen.data.atomic import atomic_write, atomic_write_text
 from ngc_gen.data.errors import DataError
-from ngc_gen.data.implicit import (block_points, grid_axes, mesh_from_field, profile_envelope,
+from ngc_gen.data.procedural.implicit import (block_points, grid_axes, mesh_from_field, profile_envelope,
                                    profile_norm)
 from ngc_gen.data.annotations import rounded_gc_dict, similar_gc_dict
-from ngc_gen.data.mesh_io import normalize
+from ngc_gen.data.mesh.io import normalize
 from ngc_gen.data.workers import map_shapes
 from ngc_gen.geometry import GeneralizedCylinder, bernstein_basis, smooth_min
 
@@ -382,7 +382,7 @@ def _make_parts(seed: int, resolution: int, name: str | None, check_samples: int
         if coverage < MIN_COVERAGE:
             raise DataError(f"creature seed {seed}: its GCs cover only {coverage:.5f} of the "
                             f"surface (need {MIN_COVERAGE})",
-                            fix="grow the GC margins in ngc_gen.data.creatures._enclosing_gc")
+                            fix="grow the GC margins in ngc_gen.data.procedural.creatures._enclosing_gc")
     return mesh, annotation, coverage
 
 

@@ -9,12 +9,12 @@ import torch
 import trimesh
 
 from ngc_gen.data.annotations import load_annotation
-from ngc_gen.data.creatures import (CREATURE_PARTS, CREATURE_TEMPLATE, KEY_TS, build_creatures,
+from ngc_gen.data.procedural.creatures import (CREATURE_PARTS, CREATURE_TEMPLATE, KEY_TS, build_creatures,
                                     creature_split, gc_coverage, make_creature, sample_parts)
 from ngc_gen.data.errors import DataError
-from ngc_gen.data.implicit import grid_axes, mesh_from_field, profile_envelope, profile_norm
+from ngc_gen.data.procedural.implicit import grid_axes, mesh_from_field, profile_envelope, profile_norm
 from ngc_gen.geometry import smooth_min
-from ngc_gen.data.mesh_io import load_mesh, normalize
+from ngc_gen.data.mesh.io import load_mesh, normalize
 from ngc_gen.geometry import GeneralizedCylinder
 
 SEEDS = (0, 1, 2)

@@ -16,8 +16,8 @@ import torch
 
 from ngc_gen.geometry import BezierCurve, GeneralizedCylinder
 
-from .auto_gc import _ellipse_radii
-from .branches import Branch
+from ngc_gen.data.autogc.radii import ellipse_radii
+from ngc_gen.data.autogc.branches import Branch
 
 OUTLIER = 1.6  # a point farther out than this x the median of its key window is not held
 
@@ -176,7 +176,7 @@ def branch_gc(branch: Branch, points: np.ndarray, name: str, n_keys: int = 5,
             r = np.hypot(rel[:, 1], rel[:, 2])
             sel &= r <= OUTLIER * np.median(r[sel])
         if sel.sum() >= 3:
-            radii[k] = _ellipse_radii(rel[sel, 1], rel[sel, 2], floor)
+            radii[k] = ellipse_radii(rel[sel, 1], rel[sel, 2], floor)
     have = np.flatnonzero(~np.isnan(radii[:, 0]))
     for k in np.flatnonzero(np.isnan(radii[:, 0])):  # no points there: the nearest key's radii
         radii[k] = radii[have[np.argmin(np.abs(have - k))]] if len(have) else max(float(thick[k]), floor)

@@ -10,9 +10,9 @@ import pytest
 import trimesh
 
 from ngc_gen.data.errors import DataError
-from ngc_gen.data.mesh_io import load_mesh, normalize, resolve_mesh_path
+from ngc_gen.data.mesh.io import load_mesh, normalize, resolve_mesh_path
 
-from ..helpers import PLY_TRIANGLE_HEADER
+from ...helpers import PLY_TRIANGLE_HEADER
 
 
 @pytest.mark.parametrize("ext", ["obj", "ply", "stl", "off", "glb"])

@@ -21,34 +21,12 @@ import trimesh
 
 from ngc_gen.data.annotations import Annotation
 from ngc_gen.data.errors import DataError
-from ngc_gen.data.mesh_io import is_resource, load_mesh, normalize
+from ngc_gen.data.mesh.io import is_resource, load_mesh, normalize
+from ngc_gen.data.autogc.radii import ellipse_radii, principal_axes
+from ngc_gen.data.autogc.skeleton_gcs import skeleton_gcs
 from ngc_gen.geometry import GeneralizedCylinder
 
 log = logging.getLogger(__name__)
-
-
-def principal_axes(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Mean (3,) and principal axes (3, 3), rows by decreasing variance, right-handed, each
-    with its largest component positive so the result does not depend on SVD sign choices."""
-    center = points.mean(axis=0)
-    _, _, vt = np.linalg.svd(points - center, full_matrices=False)
-    axes = vt * np.sign(vt[np.arange(3), np.argmax(np.abs(vt), axis=1)])[:, None]
-    axes[2] = np.cross(axes[0], axes[1])
-    return center, axes
-
-
-def _ellipse_radii(y: np.ndarray, z: np.ndarray, floor: float, n: int = 64) -> tuple[float, float]:
-    """Smallest-area axis-aligned ellipse (r_y, r_z), centred at 0, that holds all (y, z).
-
-    For an aspect k = r_z/r_y the tight r_y is max sqrt(y^2 + (z/k)^2); scan k on a log grid
-    around the extent ratio (a loop over n aspects, each vectorised over points)."""
-    ym, zm = max(np.abs(y).max(), floor), max(np.abs(z).max(), floor)
-    best = (np.inf, ym * np.sqrt(2.0), zm * np.sqrt(2.0))  # the box's circumscribed ellipse
-    for k in (zm / ym) * np.geomspace(1 / 8, 8, n):
-        ry = max(float(np.sqrt((y * y + (z / k) ** 2).max())), floor, floor / k)
-        if ry * ry * k < best[0]:
-            best = (ry * ry * k, ry, ry * k)
-    return best[1], best[2]
 
 
 def _cap(s: np.ndarray, slack: np.ndarray, ends: np.ndarray, floor: float) -> tuple[float, float]:
@@ -92,7 +70,7 @@ def auto_gc(mesh: trimesh.Trimesh | np.ndarray, name: str = "body", margin: floa
     origin = center + mid[1] * axes[1] + mid[2] * axes[2]  # axis through the cross-section box centre
     y, z = S[:, 1] - mid[1], S[:, 2] - mid[2]
     floor = 1e-3 * size  # keeps radii/caps positive for flat or line-like meshes
-    ry, rz = (r * (1.0 + margin) for r in _ellipse_radii(y, z, floor))
+    ry, rz = (r * (1.0 + margin) for r in ellipse_radii(y, z, floor))
     slack = np.sqrt(np.clip(1.0 - (y / ry) ** 2 - (z / rz) ** 2, 1e-12, None))
     half = (hi[0] - lo[0]) / 2.0
     # Tube ends no closer than 60% of the half extent: a GC that is mostly cap squeezes the
@@ -167,7 +145,6 @@ def auto_gcs(mesh: trimesh.Trimesh, settings: AutoGCSettings | None = None) -> l
     settings = settings or AutoGCSettings()
     if settings.method == "axis":
         return [auto_gc(mesh, margin=settings.margin)]
-    from .skeleton_gcs import skeleton_gcs  # imports this module's helpers
 
     gcs, _ = skeleton_gcs(mesh, **{k: v for k, v in dataclasses.asdict(settings).items() if k != "method"})
     return gcs

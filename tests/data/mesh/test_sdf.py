@@ -6,7 +6,7 @@ import numpy as np
 import torch
 import trimesh
 
-from ngc_gen.data.sdf import signed_distance
+from ngc_gen.data.mesh.sdf import signed_distance
 
 
 def box_sdf(p: np.ndarray, half: np.ndarray) -> np.ndarray:

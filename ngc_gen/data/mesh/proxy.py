@@ -23,8 +23,8 @@ from scipy import ndimage
 
 from ngc_gen.extract.marching import marching_cubes_grid
 
-from .errors import DataError
-from .sampling import sample_surface
+from ngc_gen.data.errors import DataError
+from ngc_gen.data.mesh.sampling import sample_surface
 
 BAND = 3.0  # voxels of exact distance around the surface
 

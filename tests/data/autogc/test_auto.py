@@ -7,9 +7,9 @@ import pytest
 import trimesh
 from scipy.spatial.transform import Rotation
 
-from ngc_gen.data.auto_gc import AutoGCSettings, auto_annotation, auto_gc
-from ngc_gen.data.mesh_io import load_mesh, normalize
-from ngc_gen.data.sampling import sample_surface
+from ngc_gen.data.autogc.auto import AutoGCSettings, auto_annotation, auto_gc
+from ngc_gen.data.mesh.io import load_mesh, normalize
+from ngc_gen.data.mesh.sampling import sample_surface
 
 
 @pytest.mark.parametrize("spec", ["pyvista:ant.ply", "pyvista:airplane.ply"])

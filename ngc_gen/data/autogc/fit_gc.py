@@ -11,8 +11,8 @@ import numpy as np
 
 from ngc_gen.geometry import GeneralizedCylinder, bernstein_basis
 
-from .auto_gc import _ellipse_radii, principal_axes
-from .errors import DataError
+from ngc_gen.data.autogc.radii import ellipse_radii, principal_axes
+from ngc_gen.data.errors import DataError
 
 
 def _bezier_lsq(points: np.ndarray, degree: int) -> np.ndarray:
@@ -64,7 +64,7 @@ def fit_gc(points: np.ndarray, name: str, degree: int = 3, n_keys: int = 5, marg
         w = 1.0 / (n_keys - 1)
         sel = np.abs(t - tk) <= w * 1.0001
         y, z = (rel[sel, 1], rel[sel, 2]) if sel.any() else (np.zeros(1), np.zeros(1))
-        ry, rz = _ellipse_radii(y, z, min_radius)
+        ry, rz = ellipse_radii(y, z, min_radius)
         keys.append({"t": float(tk), "radii": [ry * (1 + margin), rz * (1 + margin)]})
     d = {**base, "keys": keys}
     gc = GeneralizedCylinder.from_dict(d)
