@@ -1,4 +1,4 @@
-"""Automatic GCs (DESIGN.md section 8, issue 11): what a user gets on meshes no one annotated.
+"""Automatic GCs (docs/autogc.md, issue 11): what a user gets on meshes no one annotated.
 
     python bench/autogc.py [--creatures 16] [--fit-creatures 4] [--steps 1500] [--resolution 128]
 

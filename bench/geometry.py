@@ -7,7 +7,7 @@ Bezier GC, best of 3 after a warm-up: relcoords_points_per_s in CPU seconds of o
 (time.process_time, robust to other jobs), relcoords_points_per_s_wall_all_cores in wall
 seconds with every core (the fused kernel follows torch's thread count; target >= 1e7 on 2
 cores, meaningful on an idle machine: the load average is recorded). Baseline in the same run:
-the plain polyline projection over all 128 segments (DESIGN.md's alternative), with its
+the plain polyline projection over all 128 segments (the alternative docs/gcs.md describes), with its
 round-trip error next to ours; round trips of float64 and of float32 points (target < 1e-5).
 Preparation: `prepare_shape` from scratch (empty cache) for 100k samples on the shipped shapes.
 """

@@ -1,4 +1,4 @@
-"""The package's layering (DESIGN.md section 1): imports point down the layer list (import-linter's
+"""The package's layering (docs/architecture.md): imports point down the layer list (import-linter's
 contract in pyproject.toml), and only the runner layer changes process-wide state."""
 import os
 import re

@@ -1,4 +1,4 @@
-"""GC annotation files: load, validate and save the YAML of DESIGN.md section 2.
+"""GC annotation files: load, validate and save the YAML of docs/gcs.md.
 
 ```yaml
 name: ant
@@ -101,7 +101,7 @@ def similar_gc_dict(d: dict, center, scale: float) -> dict:
 
 def rounded_gc_dict(d: dict, decimals: int = 7) -> dict:
     """A GC dict with its numbers rounded (readable YAML; 1e-7 is far below a voxel), in the
-    field order of DESIGN.md section 2."""
+    field order of docs/gcs.md."""
     r = lambda x: float(round(float(x), decimals))  # noqa: E731
     return {"name": d["name"],
             "curve": {"type": d["curve"].get("type", "bezier"),
@@ -187,7 +187,7 @@ def _parse_gc(d, index: int, path) -> GeneralizedCylinder:
         if fix is None and e.field and e.field.startswith("keys"):
             fix = "give every key t in [0, 1], positive radii [r_y, r_z] and a finite twist"
         raise DataError(_strip_where(e), path=path, gc=e.gc_name or name, field=e.field,
-                        fix=fix or "correct the GC entry (schema in DESIGN.md section 2)") from e
+                        fix=fix or "correct the GC entry (schema in docs/gcs.md)") from e
 
 
 def _strip_where(e: GeometryError) -> str:

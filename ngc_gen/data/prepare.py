@@ -1,4 +1,4 @@
-"""Turn an annotated mesh into cached training samples (DESIGN.md section 3).
+"""Turn an annotated mesh into cached training samples (docs/fitting.md).
 
 Per shape: normalise the mesh, check that the GC union covers its surface, sample near-surface
 points (surface + normal * N(0, offset_std)) and volume points uniform in the GC union, compute

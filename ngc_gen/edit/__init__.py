@@ -1,5 +1,4 @@
-"""Editing: pure GC -> GC edits, handle deformation, part mixing, edit programs (DESIGN.md
-section 4).
+"""Editing: pure GC -> GC edits, handle deformation, part mixing, edit programs (docs/editing.md).
 
 The neural codes never change: an edit only changes GCs (and part mixing only blends features),
 so a fitted shape is deformed with no re-training. `ops`, `handles`, `blend` and `program` use

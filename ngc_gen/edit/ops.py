@@ -1,4 +1,4 @@
-"""Pure edits of one generalized cylinder: GC -> new GC (DESIGN.md section 4).
+"""Pure edits of one generalized cylinder: GC -> new GC (docs/editing.md).
 
 An NGC's SDF lives in the GC's relative coordinates (u, a, b), so changing the GC deforms the
 shape while the neural codes stay untouched. Every op validates its arguments first and raises

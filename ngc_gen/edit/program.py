@@ -1,4 +1,4 @@
-"""Edit programs: a YAML list of ops applied to one fitted shape's GCs (DESIGN.md section 4).
+"""Edit programs: a YAML list of ops applied to one fitted shape's GCs (docs/editing.md).
 
 ```yaml
 name: bent_tail                 # used for the output folder

@@ -2,7 +2,7 @@
 per-GC value cache for incremental edits, bricked marching cubes.
 
 Takes the network as `rows_fn(gc_index (M,), rel (M, 3)) -> (M,)`; imports only
-ngc_gen.geometry (DESIGN.md sections 1, 3 and 7)."""
+ngc_gen.geometry (docs/architecture.md, 3 and 7)."""
 from .extractor import METHODS, ExtractionResult, extract_mesh
 from .grid import Grid
 from .marching import empty_mesh, marching_cubes_grid, marching_cubes_mesh

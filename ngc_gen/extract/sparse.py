@@ -1,4 +1,4 @@
-"""Sparse multi-level extraction: work that follows the surface, not the volume (DESIGN.md 7).
+"""Sparse multi-level extraction: work that follows the surface, not the volume (docs/extraction.md).
 
 The field is F(x) = min (or smooth-min) of f_i(x) over the GCs i that contain x, a positive
 background elsewhere; marching cubes only needs F at the corners of cells whose corners change

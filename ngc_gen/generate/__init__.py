@@ -1,5 +1,5 @@
 """Generation: decode shape latents to GCs + codes, sample new shapes with the latent diffusion,
-interpolate and mix them (DESIGN.md section 5). Writing them as editable shapes on disk is
+interpolate and mix them (docs/generation.md). Writing them as editable shapes on disk is
 sample.py's runner (ngc_gen.app.sample)."""
 from .latents import latent_path, latent_seed, lerp, slerp
 from .model import ShapeGenerator, load_generator

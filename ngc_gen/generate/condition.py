@@ -1,4 +1,4 @@
-"""Generation from a skeleton (DESIGN.md section 5): sample shapes whose decoded GCs match
+"""Generation from a skeleton (docs/generation.md): sample shapes whose decoded GCs match
 target GCs given for some or all of the template's GCs.
 
 A condition fixes the parameters theta* of a subset of GCs (control points, log key radii, key

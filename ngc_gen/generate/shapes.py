@@ -54,7 +54,7 @@ def normalise(mesh: trimesh.Trimesh, gcs: list[dict], bound: float = BOUND):
 
 
 def annotation_yaml(name: str, mesh: str, gcs: list[dict], bound: float | None = BOUND) -> str:
-    """Annotation YAML of DESIGN.md section 2 (mesh path as given); bound None writes
+    """Annotation YAML of docs/gcs.md (mesh path as given); bound None writes
     `normalize: false` (mesh and GCs in the decoder's frame, not normalised)."""
     d = {"name": name, "mesh": mesh,
          "normalize": False if bound is None else {"bound": float(bound)},

@@ -1,6 +1,6 @@
 """Pure geometry: curves, rotation-minimising frames, generalized cylinders, relative coords.
 
-Imports nothing else of ngc_gen (DESIGN.md section 1)."""
+Imports nothing else of ngc_gen (docs/architecture.md)."""
 from .arrays import GeometryShapeError
 from .curves import BezierCurve, Curve, SplineCurve, curve_from_dict
 from .curves import bernstein_basis

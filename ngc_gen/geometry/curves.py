@@ -1,6 +1,6 @@
 """Continuously differentiable space curves on their own parameter s in [0, 1].
 
-Two kinds, as DESIGN.md section 2 asks: Bezier curves of any degree (control points are the
+Two kinds, as docs/gcs.md asks: Bezier curves of any degree (control points are the
 editing handles) and C2 cubic splines through polyline points (the reference code's skeleton
 format, chord-length parameterised). Both evaluate position and first two derivatives in
 closed form, which the Newton closest-point refinement needs.

@@ -1,6 +1,6 @@
 """Generalized cylinder: a curve, a frame field, key radii/twists and end caps.
 
-Relative coordinates (u, a, b) of a world point q (DESIGN.md section 2): t* = argmin |q - C(t)|
+Relative coordinates (u, a, b) of a world point q (docs/gcs.md): t* = argmin |q - C(t)|
 over normalised arc length, p = C(t*), a = (q - p).y / r_y(t*), b = (q - p).z / r_z(t*), u = 2t* - 1;
 past an end, s = distance along the end tangent and u = -1 - s/l0 or 1 + s/l1. Inside iff
 max(|u| - 1, 0)^2 + a^2 + b^2 <= 1.
@@ -158,7 +158,7 @@ class GeneralizedCylinder:
     # ---- construction / serialisation -------------------------------------------------------
     @classmethod
     def from_dict(cls, d: dict, **kwargs) -> "GeneralizedCylinder":
-        """Build from the annotation dict of DESIGN.md (twist in degrees)."""
+        """Build from the annotation dict of docs/gcs.md (twist in degrees)."""
         if not isinstance(d, dict):
             raise GeometryError(f"a GC must be a mapping, got {type(d).__name__}")
         name = str(d.get("name", "gc"))

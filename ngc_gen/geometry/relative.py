@@ -1,6 +1,6 @@
 """Relative coordinates of many points in one fused pass (numba, all CPU cores).
 
-Per point, in float64 whatever the input dtype (DESIGN.md section 2):
+Per point, in float64 whatever the input dtype (docs/gcs.md):
 1. seed: the nearest vertex of a coarse polyline (every `stride`-th vertex of the dense one),
    then the nearest dense vertex between that vertex's two coarse neighbours. Where q is close
    enough to the coarse vertex for |C(t) - q|^2 to be convex over that window

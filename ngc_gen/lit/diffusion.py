@@ -1,4 +1,4 @@
-"""EDM latent diffusion over one latent vector per shape (DESIGN.md section 5).
+"""EDM latent diffusion over one latent vector per shape (docs/generation.md).
 
 Latents are standardised per dimension with the training set's mean and std (buffers, so they
 travel in the checkpoint); the EDM works in that space with sigma_data = 1 (the std of the

@@ -1,4 +1,4 @@
-"""Shape-latent auto-decoder (DESIGN.md section 5; paper Sec. 4.4): one latent s per shape, a
+"""Shape-latent auto-decoder (docs/generation.md; paper Sec. 4.4): one latent s per shape, a
 shape decoder s -> (template GC parameters, one NGC code per GC) and a shared NGC decoder.
 
     loss = mean |F(code_k(s_i), rel) - sdf|                       NGC SDF L1 (rel from the

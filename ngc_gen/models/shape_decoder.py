@@ -1,4 +1,4 @@
-"""Shape decoder for generation (DESIGN.md section 5): one latent per shape -> the GC parameters
+"""Shape decoder for generation (docs/generation.md): one latent per shape -> the GC parameters
 of a shared template and one NGC code per GC.
 
 The template (`GCTemplate`) fixes what every shape shares: the GC names and order, each curve's

@@ -1,4 +1,4 @@
-"""The interactive GC editor (DESIGN.md section 9): `EditorSession` is the document (an edit
+"""The interactive GC editor (docs/editor.md): `EditorSession` is the document (an edit
 program) and its state machine, testable without a browser; `EditorServer` shows it in the
 browser with viser; `serve(cfg)` is `edit.py viewer=true`."""
 from .library import ShapeLibrary

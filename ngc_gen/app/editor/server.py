@@ -1,4 +1,4 @@
-"""The editor in the browser: a viser server on an `EditorSession` (DESIGN.md section 9).
+"""The editor in the browser: a viser server on an `EditorSession` (docs/editor.md).
 
 Scene: the shape's mesh, its GCs drawn translucent, every control point as a dot and the
 selected GC's control points as draggable handles (transform controls). Panel: GC and key

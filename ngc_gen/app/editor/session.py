@@ -1,4 +1,4 @@
-"""The editor's document and state machine, with no GUI (DESIGN.md section 9).
+"""The editor's document and state machine, with no GUI (docs/editor.md).
 
 The document IS an edit program: a list of op dicts as `conf/edit/*.yaml` writes them. Every
 interaction builds one op from what the user set (a control point's new position, a key's

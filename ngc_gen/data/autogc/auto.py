@@ -1,6 +1,6 @@
 """Automatic GCs for a mesh that has no annotation: the two methods and their settings.
 
-- ``skeleton`` (the default, DESIGN.md section 8): one GC per limb or part from a curve
+- ``skeleton`` (the default, docs/autogc.md): one GC per limb or part from a curve
   skeleton (``skeleton_gcs``).
 - ``axis``: one straight GC along the mesh's principal axis (PCA of the vertices) with an
   elliptic profile along the 2nd/3rd principal axes, and end caps sized so every vertex lies

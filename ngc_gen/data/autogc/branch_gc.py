@@ -1,4 +1,4 @@
-"""One generalized cylinder per skeleton branch (DESIGN.md section 8.4).
+"""One generalized cylinder per skeleton branch (docs/autogc.md).
 
 Curve: a least-squares cubic Bezier through the branch polyline, parameterised by normalised arc
 length, ends interpolated (the basis is ``geometry.curves.BezierCurve``'s: a curve is linear in

@@ -1,4 +1,4 @@
-"""The branch graph of a curve skeleton (DESIGN.md section 8.3).
+"""The branch graph of a curve skeleton (docs/autogc.md).
 
 A skeleton graph becomes a list of branches, each an ordered polyline between two nodes that are
 ends (degree 1) or junctions (degree >= 3), with degree-2 nodes merged into the branches:

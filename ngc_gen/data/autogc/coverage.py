@@ -1,4 +1,4 @@
-"""How well a set of GCs covers a surface, and local growth until it does (DESIGN.md 8.4).
+"""How well a set of GCs covers a surface, and local growth until it does (docs/autogc.md).
 
 rho(q, gc) = sqrt(max(|u|-1, 0)^2 + a^2 + b^2) of a point's relative coordinates is <= 1 inside
 the GC, and scaling the radii of the keys around the point's t (tube) or its end's cap (past an

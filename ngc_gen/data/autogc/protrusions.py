@@ -1,4 +1,4 @@
-"""Thin parts the curve skeleton missed (DESIGN.md section 8.3, second pass).
+"""Thin parts the curve skeleton missed (docs/autogc.md, second pass).
 
 A mean-curvature-flow skeleton contracts a thin flat protrusion (a creature's ear on its head)
 into the body it grows from, so no branch reaches it. Such a part shows on the surface: its

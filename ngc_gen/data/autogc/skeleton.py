@@ -1,4 +1,4 @@
-"""Curve skeletons of closed proxies (DESIGN.md section 8.2), as a graph of nodes and edges.
+"""Curve skeletons of closed proxies (docs/autogc.md), as a graph of nodes and edges.
 
 Two backends:
 - ``cgal``: CGAL's mean-curvature-flow skeleton (Tagliasacchi et al. 2012) through the

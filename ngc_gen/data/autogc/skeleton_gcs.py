@@ -1,4 +1,4 @@
-"""Automatic GCs, one per limb or part, from any mesh (DESIGN.md section 8).
+"""Automatic GCs, one per limb or part, from any mesh (docs/autogc.md).
 
 closed proxy (``proxy``) -> curve skeleton (``skeleton``) -> branch graph (``branches``) -> one
 cubic Bezier GC per branch (``branch_gc``) -> names (``gc_names``) -> local growth until the GCs

@@ -1,4 +1,4 @@
-"""A closed proxy of any triangle mesh: the input for curve skeletons (DESIGN.md section 8.1).
+"""A closed proxy of any triangle mesh: the input for curve skeletons (docs/autogc.md).
 
 A curve skeleton needs a closed, manifold, single-component surface. Real meshes are open
 (pyvista's airplane), made of intersecting pieces (the ant) or both. The proxy is the level set

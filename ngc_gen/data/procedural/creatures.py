@@ -321,7 +321,7 @@ def make_creature(seed: int, resolution: int = 128, name: str | None = None,
                   check_samples: int = 200_000) -> tuple[trimesh.Trimesh, dict]:
     """One creature from `seed`: (watertight single-piece mesh, annotation dict).
 
-    The annotation follows DESIGN.md (name, mesh = '<name>.ply', normalize {bound: 0.8}, gcs in
+    The annotation follows docs/gcs.md (name, mesh = '<name>.ply', normalize {bound: 0.8}, gcs in
     ``CREATURE_PARTS`` order) and is already in the normalised frame of the mesh. `resolution`
     is the number of grid cells along the creature's longest side. Checks the surface coverage
     of the GCs on `check_samples` surface points (0 skips it) and raises DataError below 0.999.
