@@ -1,0 +1,286 @@
+"""The benches' shared harness: one machine record, one atomic result writer, one keyed fit cache.
+
+Every script in bench/ writes its result through `Bench.write`, so every bench/results/<name>.json
+carries the same `machine` record, and every bench that trains a model goes through `FitCache`,
+so a fit is reused exactly when its whole recipe is unchanged. The module imports only the
+standard library (torch and omegaconf are imported inside the functions that need them):
+bench/demo.py runs it with a bare `python3`.
+
+Example (a new bench, bench/mybench.py)::
+
+    import sys
+    from pathlib import Path
+
+    ROOT = Path(__file__).resolve().parents[1]
+    sys.path.insert(0, str(ROOT))
+    from bench._harness import Bench, FitCache, config_recipe, file_identity
+
+    def main():
+        bench = Bench("mybench")             # load before, commit, date: taken now
+        from ngc_gen.app.config import compose_config
+        from ngc_gen.app.fit import run_fit
+
+        cfg = compose_config(overrides=["stage=fit", "data=demo", "model=small"])
+        recipe = {"config": config_recipe(cfg),          # the whole resolved config
+                  "data": file_identity([ROOT / "datasets/ant/ant.yaml"])}
+
+        def train(run_dir):                  # called only when no fit has this recipe
+            cfg.run_dir = str(run_dir)
+            m = run_fit(cfg)
+            return {"checkpoint": m["checkpoint"], "train_s": m["train_s"]}
+
+        fit = FitCache("mybench").get(recipe, train)     # fit.run_dir, fit.info, fit.reused
+        bench.write({"cd": 1.2e-4, "train_s": fit.info["train_s"]})
+        # -> bench/results/mybench.json: {"cd": ..., "train_s": ..., "machine": {...}}
+
+The machine record (`MACHINE_KEYS`, the same keys in every result):
+  cpus              os.cpu_count()
+  torch_threads     torch.get_num_threads() when the result is written (None: torch not loaded)
+  python, torch     versions (torch None when not loaded)
+  commit, dirty     `git rev-parse HEAD` of the checkout, and whether tracked files differed
+  date_utc          when the bench started, ISO 8601 UTC
+  load_1min_before  1-minute load average when the bench started (`Bench(...)`)
+  load_1min_after   the same when the result was written
+A bench that measures something else than this process (demo.py times a fresh clone) passes
+the right values to `write` (`commit=...`, `torch_threads=...`).
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import platform
+import shutil
+import subprocess
+import sys
+import tempfile
+from dataclasses import dataclass
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Callable
+
+ROOT = Path(__file__).resolve().parents[1]
+RESULTS = ROOT / "bench/results"
+FITS = ROOT / ".cache/bench/fits"   # gitignored (.cache/)
+
+MACHINE_KEYS = ("cpus", "torch_threads", "python", "torch", "commit", "dirty", "date_utc",
+                "load_1min_before", "load_1min_after")
+
+
+# ---- the machine ----------------------------------------------------------------------------
+def load_1min() -> float | None:
+    """The 1-minute load average now (None where the platform has none)."""
+    try:
+        return round(os.getloadavg()[0], 2)
+    except (AttributeError, OSError):
+        return None
+
+
+def git_commit(root: Path = ROOT) -> tuple[str | None, bool | None]:
+    """(HEAD's full hash, whether tracked files differ from it) of the checkout at `root`;
+    (None, None) outside a git checkout."""
+    try:
+        head = subprocess.run(["git", "-C", str(root), "rev-parse", "HEAD"], check=True,
+                              capture_output=True, text=True).stdout.strip()
+        status = subprocess.run(["git", "-C", str(root), "status", "--porcelain",
+                                 "--untracked-files=no"], check=True, capture_output=True,
+                                text=True).stdout
+    except (OSError, subprocess.CalledProcessError):
+        return None, None
+    return head, bool(status.strip())
+
+
+def now_utc() -> str:
+    return datetime.now(timezone.utc).replace(microsecond=0).isoformat().replace("+00:00", "Z")
+
+
+def machine(load_before: float | None = None, date_utc: str | None = None,
+            **overrides) -> dict:
+    """The machine record (MACHINE_KEYS), its after-load taken now. `overrides` replace
+    recorded values (only MACHINE_KEYS are accepted)."""
+    unknown = set(overrides) - set(MACHINE_KEYS)
+    if unknown:
+        raise KeyError(f"machine(): unknown keys {sorted(unknown)}; the record's keys are "
+                       f"{list(MACHINE_KEYS)}")
+    torch = sys.modules.get("torch")
+    commit, dirty = git_commit()
+    rec = {"cpus": os.cpu_count(),
+           "torch_threads": torch.get_num_threads() if torch is not None else None,
+           "python": platform.python_version(),
+           "torch": getattr(torch, "__version__", None) if torch is not None else None,
+           "commit": commit, "dirty": dirty, "date_utc": date_utc or now_utc(),
+           "load_1min_before": load_before, "load_1min_after": load_1min()}
+    rec.update(overrides)
+    return rec
+
+
+# ---- writing results ------------------------------------------------------------------------
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def write_atomic(path: str | os.PathLike, data: str | bytes) -> Path:
+    """Write `data` to `path` through a temp file in the same folder and `os.replace`: a reader
+    sees the old file or the whole new one; on an exception the temp file is removed and `path`
+    is untouched. The file gets the usual mode (0666 less the umask), not mkstemp's 0600.
+    The folder is created if needed. Returns the path."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    raw = data.encode("utf-8") if isinstance(data, str) else data
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(raw)
+            f.flush()
+            os.fsync(f.fileno())
+        os.chmod(tmp, 0o666 & ~_umask())
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+        raise
+    return path
+
+
+def dumps(result: dict) -> str:
+    """The results' JSON text: indented, one trailing newline (NaN refused: it is not JSON)."""
+    return json.dumps(result, indent=2, allow_nan=False) + "\n"
+
+
+class Bench:
+    """One bench run: `Bench(name)` at the start records the load, the date and the commit;
+    `write(result)` writes bench/results/<name>.json with the machine record added."""
+
+    def __init__(self, name: str, results: Path = RESULTS):
+        self.name, self.results = name, Path(results)
+        self.load_before, self.date_utc = load_1min(), now_utc()
+
+    @property
+    def path(self) -> Path:
+        return self.results / f"{self.name}.json"
+
+    def machine(self, **overrides) -> dict:
+        return machine(self.load_before, self.date_utc, **overrides)
+
+    def write(self, result: dict, path: str | os.PathLike | None = None,
+              **machine_overrides) -> Path:
+        """Atomically write `result` plus `machine` (taken now) to `path` (default
+        bench/results/<name>.json). The result must not carry its own `machine`."""
+        if "machine" in result:
+            raise ValueError(f"{self.name}: the result has its own 'machine' entry; the "
+                             "harness writes it (pass corrections as keyword arguments)")
+        out = {**result, "machine": self.machine(**machine_overrides)}
+        return write_atomic(self.path if path is None else path, dumps(out))
+
+
+# ---- the fit cache --------------------------------------------------------------------------
+def _normalise(x):
+    """A recipe as plain JSON values, paths inside the checkout as '<repo>/...' (a key does
+    not depend on where the checkout is)."""
+    if isinstance(x, dict):
+        return {str(k): _normalise(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_normalise(v) for v in x]
+    if isinstance(x, os.PathLike):
+        x = os.fspath(x)
+    if isinstance(x, str):
+        return x.replace(str(ROOT), "<repo>")
+    if x is None or isinstance(x, (bool, int, float)):
+        return x
+    raise TypeError(f"a fit recipe holds JSON values only; got {type(x).__name__}: {x!r}")
+
+
+def recipe_key(recipe: dict) -> str:
+    """16 hex digits of sha256 over the recipe's canonical JSON (keys sorted)."""
+    text = json.dumps(_normalise(recipe), sort_keys=True, allow_nan=False)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def file_identity(paths) -> dict:
+    """{path: sha256 of its bytes} for files, and for folders over every file below them
+    (relative names and bytes). A missing path raises: build the data before keying a fit on
+    it, or the key would change once the fit has built it."""
+    out = {}
+    for p in map(Path, paths):
+        h = hashlib.sha256()
+        if p.is_dir():
+            for f in sorted(q for q in p.rglob("*") if q.is_file()):
+                h.update(str(f.relative_to(p)).encode() + b"\0" + f.read_bytes() + b"\0")
+        elif p.is_file():
+            h.update(p.read_bytes())
+        else:
+            raise FileNotFoundError(f"fit recipe: {p} does not exist (build the data first)")
+        out[str(_normalise(str(p.resolve())))] = h.hexdigest()[:16]
+    return out
+
+
+def config_recipe(cfg) -> dict:
+    """A composed Hydra config as a recipe: resolved, with `run_dir` (where the fit goes, which
+    the cache chooses) replaced by a placeholder."""
+    import copy
+
+    from omegaconf import OmegaConf, open_dict
+
+    c = copy.deepcopy(cfg)
+    with open_dict(c):
+        c.run_dir = "<run_dir>"
+    return OmegaConf.to_container(c, resolve=True)
+
+
+@dataclass
+class Fit:
+    run_dir: Path      # what the fit wrote (its checkpoints, meshes, metrics)
+    key: str
+    info: dict         # what the fit function returned
+    recipe: dict
+    reused: bool       # True: found in the cache; False: fitted in this call
+
+
+class FitCache:
+    """Fits of one bench keyed by their recipe: <root>/<bench>/<key>/, complete once its
+    fit.json is written. `get` reuses a complete fit of the same recipe and otherwise fits
+    again into a fresh folder, so a changed recipe (config, data bytes, steps, seed) can never
+    pick up an old fit; an interrupted fit (no fit.json) is discarded."""
+
+    def __init__(self, bench: str, root: Path = FITS):
+        self.dir = Path(root) / bench
+
+    def run_dir(self, recipe: dict) -> Path:
+        return self.dir / recipe_key(recipe)
+
+    def get(self, recipe: dict, fit: Callable[[Path], dict], refit: bool = False) -> Fit:
+        """The fit of `recipe`: from the cache, or `fit(run_dir)` (which trains into run_dir
+        and returns a JSON-able dict, e.g. checkpoint path and train_s) run now."""
+        key = recipe_key(recipe)
+        run_dir = self.dir / key
+        done = run_dir / "fit.json"
+        if done.is_file() and not refit:
+            rec = json.loads(done.read_text())
+            if rec.get("key") == key:
+                return Fit(run_dir, key, rec["info"], rec["recipe"], True)
+        shutil.rmtree(run_dir, ignore_errors=True)   # an interrupted or forced fit
+        run_dir.mkdir(parents=True)
+        info = fit(run_dir)
+        commit, dirty = git_commit()
+        rec = {"key": key, "recipe": _normalise(recipe), "info": _normalise(info),
+               "date_utc": now_utc(), "commit": commit, "dirty": dirty}
+        write_atomic(done, dumps(rec))
+        return Fit(run_dir, key, rec["info"], rec["recipe"], False)
+
+    def entries(self) -> list[Fit]:
+        """Every complete fit in this bench's cache, oldest first."""
+        out = []
+        for done in self.dir.glob("*/fit.json"):
+            rec = json.loads(done.read_text())
+            out.append((rec.get("date_utc", ""), Fit(done.parent, rec["key"], rec["info"],
+                                                     rec["recipe"], True)))
+        return [f for _, f in sorted(out, key=lambda x: x[0])]
+
+
+def repo_path(text: str) -> Path:
+    """A path recorded by the cache ('<repo>/...') as a path in this checkout."""
+    return Path(text.replace("<repo>", str(ROOT)))

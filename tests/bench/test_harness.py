@@ -1,0 +1,153 @@
+"""bench/_harness.py: the atomic result writer, the machine record and the keyed fit cache."""
+from __future__ import annotations
+
+import json
+import os
+import stat
+
+import pytest
+
+from bench import _harness as h
+
+
+@pytest.fixture
+def umask():
+    """Set a umask for one test and restore the old one."""
+    old = os.umask(0o022)
+    os.umask(old)
+    yield lambda m: os.umask(m)
+    os.umask(old)
+
+
+def leftovers(folder):
+    return sorted(p.name for p in folder.iterdir() if p.name.endswith(".tmp"))
+
+
+def test_write_atomic_leaves_no_partial_file_on_an_exception(tmp_path, monkeypatch):
+    out = tmp_path / "r.json"
+    h.write_atomic(out, "old\n")
+
+    def broken_fsync(*args):
+        raise OSError(28, "No space left on device")   # mid-write: bytes written, not synced
+
+    monkeypatch.setattr(h.os, "fsync", broken_fsync)
+    with pytest.raises(OSError):
+        h.write_atomic(out, "new and longer\n")
+    assert out.read_text() == "old\n"          # the old file, whole
+    assert leftovers(tmp_path) == []           # and no temp file beside it
+    monkeypatch.undo()
+    h.write_atomic(tmp_path / "fresh.json", "x")
+    with pytest.raises(OSError):
+        monkeypatch.setattr(h.os, "replace", broken_fsync)
+        h.write_atomic(tmp_path / "never.json", "y")
+    assert not (tmp_path / "never.json").exists() and leftovers(tmp_path) == []
+
+
+def test_bench_write_refuses_a_result_that_is_not_json_and_keeps_the_old_one(tmp_path):
+    b = h.Bench("x", results=tmp_path)
+    b.write({"a": 1})
+    with pytest.raises((TypeError, ValueError)):
+        b.write({"a": object()})
+    with pytest.raises(ValueError):
+        b.write({"a": float("nan")})
+    assert json.loads((tmp_path / "x.json").read_text())["a"] == 1
+    assert leftovers(tmp_path) == []
+
+
+@pytest.mark.parametrize("mask,mode", [(0o022, 0o644), (0o077, 0o600), (0o002, 0o664)])
+def test_write_atomic_mode_follows_the_umask(tmp_path, umask, mask, mode):
+    umask(mask)
+    out = h.write_atomic(tmp_path / "r.json", b"{}")
+    assert stat.S_IMODE(out.stat().st_mode) == mode
+
+
+def test_every_result_carries_the_same_machine_record(tmp_path):
+    b = h.Bench("demo", results=tmp_path)
+    path = b.write({"wall_s": 1.0}, commit="abc", torch_threads=1)
+    res = json.loads(path.read_text())
+    assert path == tmp_path / "demo.json" and res["wall_s"] == 1.0
+    m = res["machine"]
+    assert tuple(m) == h.MACHINE_KEYS
+    assert m["commit"] == "abc" and m["torch_threads"] == 1 and m["cpus"] == os.cpu_count()
+    assert m["date_utc"].endswith("Z") and m["date_utc"] == b.date_utc
+    assert isinstance(m["load_1min_before"], float) and isinstance(m["load_1min_after"], float)
+    with pytest.raises(KeyError):
+        b.write({}, load_avg_start=[1, 2, 3])          # not a machine key
+    with pytest.raises(ValueError):
+        b.write({"machine": {}})                        # the harness writes it
+
+
+def test_the_harness_imports_with_the_standard_library_only():
+    """bench/demo.py runs it under a bare python3: no torch, numpy or omegaconf at import."""
+    import subprocess
+    import sys
+
+    code = ("import sys; sys.path.insert(0, %r); import bench._harness; "
+            "bad = {'torch', 'numpy', 'omegaconf'} & set(sys.modules); "
+            "assert not bad, bad" % str(h.ROOT))
+    subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def counting_fit(calls):
+    def fit(run_dir):
+        calls.append(run_dir)
+        (run_dir / "checkpoint").write_text("weights")
+        return {"checkpoint": str(run_dir / "checkpoint"), "train_s": 1.5}
+    return fit
+
+
+def test_fit_cache_reuses_a_matching_recipe_and_refits_a_changed_one(tmp_path):
+    cache = h.FitCache("editor", root=tmp_path)
+    calls = []
+    recipe = {"config": {"trainer": {"max_steps": 1500}, "seed": 0}, "data": {"ant": "aa"}}
+    a = cache.get(recipe, counting_fit(calls))
+    assert not a.reused and len(calls) == 1 and a.info["train_s"] == 1.5
+    same = json.loads(json.dumps(recipe))             # an equal recipe built anew
+    b = cache.get(same, counting_fit(calls))
+    assert b.reused and len(calls) == 1 and b.run_dir == a.run_dir
+    # the editor's old bug: a fit with other steps was reused. Any change refits, elsewhere.
+    for changed in ({**recipe, "config": {"trainer": {"max_steps": 300}, "seed": 0}},
+                    {**recipe, "config": {"trainer": {"max_steps": 1500}, "seed": 1}},
+                    {**recipe, "data": {"ant": "ab"}}):
+        c = cache.get(changed, counting_fit(calls))
+        assert not c.reused and c.run_dir != a.run_dir
+    assert len(calls) == 4
+    assert cache.get(recipe, counting_fit(calls)).reused and len(calls) == 4
+    assert not cache.get(recipe, counting_fit(calls), refit=True).reused and len(calls) == 5
+    assert len(cache.entries()) == 4
+
+
+def test_fit_cache_refits_when_the_data_bytes_change(tmp_path):
+    data = tmp_path / "data"
+    data.mkdir()
+    (data / "ant.yaml").write_text("gcs: [leg]\n")
+    cache, calls = h.FitCache("deform", root=tmp_path / "fits"), []
+    key = lambda: {"steps": 10, "data": h.file_identity([data, data / "ant.yaml"])}  # noqa: E731
+    cache.get(key(), counting_fit(calls))
+    assert cache.get(key(), counting_fit(calls)).reused
+    (data / "ant.yaml").write_text("gcs: [leg, tail]\n")     # a re-done annotation
+    assert not cache.get(key(), counting_fit(calls)).reused and len(calls) == 2
+    with pytest.raises(FileNotFoundError):
+        h.file_identity([data / "missing.yaml"])
+
+
+def test_an_interrupted_fit_is_not_reused(tmp_path):
+    cache, calls = h.FitCache("x", root=tmp_path), []
+
+    def dies(run_dir):
+        (run_dir / "half.ckpt").write_text("partial")
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        cache.get({"a": 1}, dies)
+    f = cache.get({"a": 1}, counting_fit(calls))
+    assert not f.reused and len(calls) == 1 and not (f.run_dir / "half.ckpt").exists()
+
+
+def test_recipe_keys_ignore_key_order_and_the_checkout_location():
+    a = {"x": 1, "p": str(h.ROOT / "datasets/ant/ant.yaml")}
+    b = {"p": "<repo>/datasets/ant/ant.yaml", "x": 1}
+    assert h.recipe_key(a) == h.recipe_key(b)
+    assert h.recipe_key(a) != h.recipe_key({**a, "x": 2})
+    with pytest.raises(TypeError):
+        h.recipe_key({"x": object()})
