@@ -127,7 +127,7 @@ def mesh_shapes(gen, shapes, out_dir: Path, resolution: int):
     returns (meshes, seconds per mesh)."""
     import trimesh
 
-    from ngc_gen.app.sample import extract_and_write
+    from ngc_gen.app.outputs import extract_and_write
 
     written, secs = extract_and_write(gen, shapes, out_dir, resolution, normalised=False,
                                       progress=False)

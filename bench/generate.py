@@ -87,7 +87,7 @@ def mesh_set(gen, latents, names, out_dir, resolution):
     """Decode and mesh latents like sample.py does; returns (meshes, seconds per mesh)."""
     import trimesh
 
-    from ngc_gen.app.sample import extract_and_write
+    from ngc_gen.app.outputs import extract_and_write
     from ngc_gen.generate.shapes import decode_shapes
 
     shapes = decode_shapes(gen.shape_latent, latents, names)

@@ -36,3 +36,40 @@ def test_only_the_runner_layer_sets_process_wide_state():
                  if PROCESS_WIDE.search(line)
                  and not line.rstrip().endswith((RESTORES, WORKER))]
     assert not offenders, offenders
+
+
+def import_cycles(graph) -> list[list[str]]:
+    """The circles of a grimp import graph: its strongly connected components of more than one
+    module (a module importing itself does not count). Every import statement counts, the
+    function-local ones included, so a circle broken only at run time is still found."""
+    import numpy as np
+    from scipy.sparse import csr_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    modules = sorted(graph.modules)
+    index = {m: i for i, m in enumerate(modules)}
+    edges = [(index[m], index[d]) for m in modules
+             for d in graph.find_modules_directly_imported_by(m) if d != m]
+    rows, cols = zip(*edges) if edges else ((), ())
+    adjacency = csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(len(modules),) * 2)
+    _, label = connected_components(adjacency, directed=True, connection="strong")
+    sizes = np.bincount(label)
+    return [sorted(modules[i] for i in np.flatnonzero(label == k))
+            for k in np.flatnonzero(sizes > 1)]
+
+
+def test_no_import_circle_between_modules():
+    import grimp
+
+    graph = grimp.build_graph("ngc_gen", include_external_packages=False)
+    assert import_cycles(graph) == [], "import circles (break them by moving the shared code " \
+                                       "into a module both can import)"
+
+
+def test_a_circle_is_found_when_one_is_added():
+    import grimp
+
+    graph = grimp.build_graph("ngc_gen", include_external_packages=False)
+    graph.add_import(importer="ngc_gen.geometry.curves", imported="ngc_gen.app.pipeline")
+    found = import_cycles(graph)
+    assert len(found) == 1 and {"ngc_gen.geometry.curves", "ngc_gen.app.pipeline"} <= set(found[0])

@@ -21,143 +21,12 @@ import yaml
 
 # light imports only: the program and out_dir are checked before torch loads (`run_edit`)
 from ngc_gen.edit.errors import EditError
-from ngc_gen.edit.spec import check_program
 
+from .checkpoints import fit_checkpoint
 from .checks import check_writable
 from .config import sparse_settings
-
-PROGRAMS = "ngc_gen/conf/edit"  # the shipped programs: package data, Hydra group `edit`
-
-
-def available_programs() -> list[str]:
-    """Names of the shipped edit programs (found in the installed package, not the checkout)."""
-    import importlib.resources
-
-    folder = importlib.resources.files("ngc_gen.conf").joinpath("edit")
-    return sorted(f.name[:-5] for f in folder.iterdir() if f.name.endswith(".yaml"))
-
-
-def fit_checkpoint(run) -> Path:
-    """The checkpoint edit.py reads: a fit run directory (its checkpoints/last.ckpt), a
-    checkpoint file, or a sample.py output directory (its shapes.ckpt)."""
-    from ngc_gen.lit.checkpoint import resolve_checkpoint
-
-    if run is not None and Path(run).is_dir() and (Path(run) / "shapes.ckpt").is_file() \
-            and not (Path(run) / "checkpoints").is_dir():
-        return Path(run) / "shapes.ckpt"
-    return resolve_checkpoint(run, what="fit run",
-                              fix="pass run=<dir> (or its checkpoints/last.ckpt) of a `train.py "
-                                  "stage=fit` run, or run=<a sample.py output directory>")
-
-
-def load_program_file(path) -> dict:
-    """A program read from a YAML file, its structure checked (`spec.check_program`: parts
-    and the source); EditError naming the file if it is not one."""
-    path = Path(path)
-    if not path.is_file():
-        raise EditError("program file not found", program=str(path),
-                        fix=f"give an existing YAML file, or edit=<name> with one of "
-                            f"{available_programs()}")
-    try:
-        d = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except yaml.YAMLError as e:
-        mark = getattr(e, "problem_mark", None)
-        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
-        problem = getattr(e, "problem", None) or " ".join(str(e).split())
-        raise EditError(f"malformed YAML{where}: {problem}", program=str(path),
-                        fix="correct the YAML syntax there (indentation, brackets, "
-                            "'key: value')") from None
-    return {**check_program(d, source=str(path)), "source": str(path)}
-
-
-def program_from_config(cfg) -> dict:
-    """The program of an edit config, its structure checked (the parts of an EditProgram):
-    `edit` (a shipped program composed by Hydra) or `program_file` (any YAML path); exactly
-    one of them."""
-    from omegaconf import OmegaConf
-
-    file, composed = cfg.get("program_file"), cfg.get("edit")
-    if (file is None) == (composed is None):
-        raise EditError("give exactly one program: edit=<name> (one of "
-                        f"{available_programs()}) or program_file=<path.yaml>"
-                        + (" (got both)" if file is not None else ""))
-    if file is not None:
-        return load_program_file(file)
-    source = PROGRAMS + "/<edit>.yaml"
-    try:
-        from hydra.core.hydra_config import HydraConfig
-
-        choice = HydraConfig.get().runtime.choices.get("edit")
-        if choice:  # None when composed inside another app (the pipeline stage)
-            source = f"{PROGRAMS}/{choice}.yaml"
-    except ValueError:  # composed outside @hydra.main (tests, notebooks)
-        pass
-    return {**check_program(OmegaConf.to_container(composed, resolve=True), source=source),
-            "source": source}
-
-
-def same_decoder(a, b) -> bool:
-    """True if two decoders have the same configuration and identical weights."""
-    import torch
-
-    if getattr(a, "config", None) != getattr(b, "config", None):
-        return False
-    sa, sb = a.state_dict(), b.state_dict()
-    return sa.keys() == sb.keys() and all(torch.equal(sa[k], sb[k]) for k in sa)
-
-
-class CheckpointSources:
-    """Resolves mix sources: (shape, gc, ckpt) -> code and GC, from the edited checkpoint or
-    another checkpoint of the same network (checked: features only mix within one network)."""
-
-    def __init__(self, module, ckpt_path, shape: str):
-        self.module, self.path, self.shape = module, Path(ckpt_path).resolve(), shape
-        self._loaded: dict[Path, object] = {}
-
-    def _module(self, ckpt):
-        from ngc_gen.data.errors import DataError
-        from ngc_gen.lit.checkpoint import load_autodecoder
-
-        if ckpt is None:
-            return self.module
-        try:
-            path = fit_checkpoint(ckpt).resolve()  # a run directory or a checkpoint file
-        except DataError as e:
-            raise EditError(str(e), field="source.ckpt", value=str(ckpt)) from None
-        if path == self.path:
-            return self.module
-        if path not in self._loaded:
-            try:
-                other = load_autodecoder(path)
-            except DataError as e:
-                raise EditError(str(e), field="source.ckpt", value=str(ckpt)) from None
-            if other.hparams.kind != "ngc" or not same_decoder(other.decoder, self.module.decoder):
-                raise EditError("this checkpoint's network differs from the edited one's, so "
-                                "its part features do not mean the same", field="source.ckpt",
-                                value=str(ckpt),
-                                fix="mix parts fitted with one network (the same run, or a "
-                                    "codes-only fit with the decoder frozen)")
-            self._loaded[path] = other
-        return self._loaded[path]
-
-    def __call__(self, shape: str | None, gc: str, ckpt: str | None):
-        from ngc_gen.edit.program import MixSource
-        from ngc_gen.shape import shapes_from_autodecoder
-
-        module = self._module(ckpt)
-        shapes = shapes_from_autodecoder(module)
-        shape = shape or self.shape
-        if shape not in shapes:
-            raise EditError(f"unknown shape; the checkpoint holds {sorted(shapes)}",
-                            field="source.shape", value=shape)
-        src = shapes[shape]
-        if gc not in src.gc_names:
-            raise EditError(f"shape '{shape}' has no GC named so; its GCs are {src.gc_names}",
-                            field="source.gc", value=gc)
-        j = src.index(gc)
-        label = f"{shape}/{gc}" + ("" if module is self.module else f" ({ckpt})")
-        return MixSource(src.codes[j].clone(), src.gcs[j], label)
-
+from .mix_sources import MixSources
+from .programs import program_from_config
 
 def _json_safe(x):
     import numpy as np
@@ -223,7 +92,7 @@ def run_edit(cfg) -> dict:
     gcs = original.gcs
 
     t0 = time.perf_counter()
-    edited = original.edited(program, CheckpointSources(module, ckpt, shape))
+    edited = original.edited(program, MixSources(shapes, original, checkpoint=ckpt))
     t_edit = time.perf_counter() - t0
     log = edited.info["edit_log"]
     mixes = {original.gc_names[j]: m.label for j, m in edited.mixes.items()}

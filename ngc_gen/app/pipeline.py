@@ -24,6 +24,8 @@ from omegaconf import DictConfig, OmegaConf
 from ngc_gen.data.atomic import atomic_write_text
 from ngc_gen.data.errors import DataError
 
+from .stages import resolve, run_stage
+
 
 # step -> (config name, the key that holds its output directory)
 STEPS = {"fit": ("train", "run_dir"), "edit": ("edit", "out_dir"),
@@ -33,6 +35,10 @@ STEPS = {"fit": ("train", "run_dir"), "edit": ("edit", "out_dir"),
 LINKS = {"edit": ("fit", "run={}"),
          "diffusion": ("shape_latent", "shape_latent_run={}"),
          "sample": ("diffusion", "run={}")}
+
+
+# the pipeline's steps that are not train.py stages (those go through `run_stage`)
+STEP_RUNNERS = {"edit": "ngc_gen.app.edit:run_edit", "sample": "ngc_gen.app.sample:run_sample"}
 
 
 def _fail(what: str, step: str | None = None, fix: str = "") -> DataError:
@@ -93,13 +99,8 @@ def run_step(step: str, cfg: DictConfig) -> dict:
     from .cli import set_threads
 
     set_threads(cfg.get("threads"))
-    if step == "edit":
-        from .edit import run_edit
-        return run_edit(cfg)
-    if step == "sample":
-        from .sample import run_sample
-        return run_sample(cfg)
-    from .stages import run_stage
+    if step in STEP_RUNNERS:
+        return resolve(STEP_RUNNERS[step])(cfg)
     return run_stage(cfg)
 
 

@@ -13,7 +13,7 @@ from omegaconf import OmegaConf
 from ngc_gen.app import diffusion as diffusion_stage
 from ngc_gen.app import prepare as prepare_stage
 from ngc_gen.app import shape_latent as shape_latent_stage
-from ngc_gen.app.edit import available_programs
+from ngc_gen.app.programs import available_programs
 from ngc_gen.app.prepare import settings_from_config
 from ngc_gen.app.training import build_callbacks, instantiate_group
 

@@ -10,23 +10,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import torch
-
 from ngc_gen.data.annotations import rounded_gc_dict
 from ngc_gen.edit import EditError
-from ngc_gen.edit.program import MixSource
 from ngc_gen.geometry import GeneralizedCylinder
 from ngc_gen.shape import Shape
 
-
-def same_network(a, b) -> bool:
-    """True if two NGC decoders are one object or have the same config and equal weights."""
-    if a is b:
-        return True
-    if getattr(a, "config", None) != getattr(b, "config", None):
-        return False
-    sa, sb = a.state_dict(), b.state_dict()
-    return sa.keys() == sb.keys() and all(torch.equal(sa[k], sb[k]) for k in sa)
+from ..mix_sources import MixSources
 
 
 def as_written(shape: Shape) -> Shape:
@@ -65,29 +54,10 @@ class ShapeLibrary:
         self.stored.discard(shape.name)
         return shape
 
-    def resolver(self, target: Shape):
-        """`SourceResolver` for mixes into `target`: (shape, gc, ckpt) -> MixSource from this
-        library (shape None: the target's own name)."""
-        def resolve(shape: str | None, gc: str, ckpt: str | None) -> MixSource:
-            if ckpt is not None:
-                raise EditError("the editor mixes parts of the shapes it has open, not of other "
-                                "checkpoints", field="source.ckpt", value=ckpt,
-                                fix="drop source.ckpt (edit.py runs such programs)")
-            name = shape or target.name
-            if name not in self.shapes:
-                raise EditError(f"unknown shape; the editor has {self.names}",
-                                field="source.shape", value=name)
-            src = self.shapes[name]
-            if gc not in src.gc_names:
-                raise EditError(f"shape '{name}' has no GC named so; its GCs are "
-                                f"{src.gc_names}", field="source.gc", value=gc)
-            if not same_network(src.decoder, target.decoder):
-                raise EditError(f"shape '{name}' comes from another network, so its part "
-                                "features do not mean the same", field="source.shape",
-                                value=name, fix="mix parts of shapes of one run")
-            j = src.index(gc)
-            return MixSource(src.codes[j].clone(), src.gcs[j], f"{name}/{gc}")
-        return resolve
+    def resolver(self, target: Shape) -> MixSources:
+        """`SourceResolver` for mixes into `target` from this library's shapes (the one
+        resolver edit.py uses too; sources in other checkpoints are refused)."""
+        return MixSources(self.shapes, target, checkpoint=None, where="the editor has")
 
     def needs_checkpoint(self, names) -> bool:
         """True if a program naming these shapes cannot replay on `checkpoint` as it is."""

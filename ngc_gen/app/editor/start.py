@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from ngc_gen.data.errors import DataError
 
+from ..checkpoints import fit_checkpoint
+from ..programs import program_from_config
 from .latent import LatentShapes
 from .library import ShapeLibrary
 from .limits import Limits
@@ -19,7 +21,6 @@ def limits_from_config(editor) -> Limits:
 def open_session(cfg) -> tuple[EditorSession, LatentShapes | None]:
     """(session, latent shapes or None) for `edit.py viewer=true run=... [shape=...]`
     [`editor.generator=<diffusion run>`] [`program_file=... | edit=...`: the starting program]."""
-    from ngc_gen.app.edit import fit_checkpoint, program_from_config
     from ngc_gen.shape import load_shapes
 
     editor = cfg.editor
