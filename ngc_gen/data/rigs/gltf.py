@@ -9,7 +9,6 @@ skins are ignored. Anything malformed is a DataError naming the file and what is
 from __future__ import annotations
 
 import os
-import warnings
 from pathlib import Path
 
 import numpy as np
@@ -105,9 +104,7 @@ def load_gltf_rig(path: str | os.PathLike) -> Rig:
         raise DataError("rig file not found", path=source, fix="check the path")
     pygltflib = _gltf_module()
     try:
-        with warnings.catch_warnings():  # its warnings about odd chunks: our error says more
-            warnings.simplefilter("ignore")
-            g = pygltflib.GLTF2().load(source)
+        g = pygltflib.GLTF2().load(source)
     except Exception as e:  # pygltflib raises many kinds on a bad file
         raise DataError(f"could not read the glTF ({type(e).__name__}: {str(e)[:120]})",
                         path=source, fix=_FIX) from None
