@@ -12,7 +12,7 @@ from ngc_gen.app.stages import run_stage
 from ngc_gen.app.annotate import HEADER
 
 from ..helpers import compose_config
-from ..data.test_skeleton_gcs import tube_union
+from ..data.autogc.test_skeleton_gcs import tube_union
 
 pytestmark = pytest.mark.usefixtures("single_thread")
 SMALL = ["annotate.resolution=48", "annotate.samples=3000"]
