@@ -19,6 +19,9 @@ VIEW_ANGLE = 30.0
 AZIMUTH, ELEVATION = 32.0, 25.5
 #: The lowest elevation an edit picture goes down to in order to look across the motion.
 MIN_ELEVATION = 10.0
+#: How much more of the motion (a fraction of its squared length) an edit picture may hide in
+#: order to look from the moved part's side rather than across the rest of the shape.
+SIDE_TOLERANCE = 1e-2
 
 _AXES = {"x": 0, "y": 1, "z": 2}
 
@@ -96,8 +99,8 @@ def detect_up(vertices: np.ndarray, min_base: float = 0.15, flat: float = 0.5) -
        one, up is + that axis (a plate or an airplane seen from above; the sign is a guess).
     3. Else +z (the project's convention; the creatures are z-up).
 
-    Measured (README): pyvista's ant -> +y (rule 1), airplane -> +z (rule 2), 64 creatures
-    -> +z (rule 1); each also when turned to x-, y- or -z-up (bench/up_axis.py), except that
+    Measured by bench/up_axis.py: pyvista's ant -> +y (rule 1), airplane -> +z (rule 2), 64
+    creatures -> +z (rule 1); each also when turned to x-, y- or -z-up, except that
     an upside-down airplane is still called +z. Shapes without a base, neither flat nor z-up (a
     pole along x, a cube) get +z, and boxy shapes whose flat sides count as bases too (a
     cupboard) fall through to rules 2-3: set `viz.up` for those.
@@ -177,17 +180,20 @@ def side_view(points: np.ndarray, up, azimuth: float = AZIMUTH,
 
 
 def least_motion_view(displacements: np.ndarray, up, reference: np.ndarray,
-                      min_elevation: float = MIN_ELEVATION) -> np.ndarray:
+                      min_elevation: float = MIN_ELEVATION, toward=None) -> np.ndarray:
     """The camera direction that shows a motion best: the one along which the displacements
     move least, so their motion lies in the image plane.
 
     With M = sum of d d^T over the displacements d, minimise v^T M v over directions v between
     `min_elevation` and the reference's elevation above the horizon (grid of 0.1 degree in
     azimuth, 0.25 degree in elevation). Of the directions within 1e-4 trace(M) of the least,
-    take the highest, then the one nearest `reference`. A motion within the reachable band is
-    then perpendicular to v (to grid precision); no motion returns `reference`.
+    keep those on the side `toward` points to (v . toward > 0: the camera stands on the moved
+    part's side, so the rest of the shape does not hide it), if any of them is within
+    SIDE_TOLERANCE trace(M) of the least; then take the highest, then the one nearest
+    `reference`. A motion within the reachable band is then perpendicular to v (to grid
+    precision); no motion returns `reference`.
 
-    displacements: (K, 3) float. Returns a unit (3,) vector."""
+    displacements: (K, 3) float; toward: (3,) float or None. Returns a unit (3,) vector."""
     u = np.asarray(up, dtype=np.float64)
     u = u / np.linalg.norm(u)
     ref = np.asarray(reference, dtype=np.float64)
@@ -206,22 +212,52 @@ def least_motion_view(displacements: np.ndarray, up, reference: np.ndarray,
     V = (np.cos(elev)[:, None, None] * H[None] + np.sin(elev)[:, None, None] * u)  # (E, A, 3)
     f = np.einsum("eai,ij,eaj->ea", V, M, V)
     ok = f <= f.min() + 1e-4 * tr
+    if toward is not None and np.linalg.norm(toward) > 0:
+        facing = V @ np.asarray(toward, dtype=np.float64) > 0
+        if facing.any() and f[facing].min() <= f.min() + SIDE_TOLERANCE * tr:
+            ok = facing & (f <= f[facing].min() + 1e-4 * tr)
     e = int(np.argmax(ok.any(1)))  # elevations run from the top down
     cand = np.flatnonzero(ok[e])
     best = cand[int(np.argmax(V[e, cand] @ ref))]
     return V[e, best] / np.linalg.norm(V[e, best])
 
 
+def _curve_motion(before, after, n: int = 33) -> tuple[np.ndarray, np.ndarray]:
+    """(points, displacements), both (K, 3): the curve points of GCs in `before` (n per curve
+    at equal normalised arc length, paired with `after` by name) and how far each moved."""
+    u = np.stack([np.linspace(-1.0, 1.0, n), np.zeros(n), np.zeros(n)], 1)
+    by_name = {g.name: g for g in after}
+    pairs = [(np.asarray(g.to_world(u), dtype=np.float64),
+              np.asarray(by_name[g.name].to_world(u), dtype=np.float64))
+             for g in before if g.name in by_name]
+    if not pairs:
+        return np.zeros((0, 3)), np.zeros((0, 3))
+    return (np.concatenate([p for p, _ in pairs]),
+            np.concatenate([q - p for p, q in pairs]))
+
+
 def curve_displacements(before, after, n: int = 33) -> np.ndarray:
     """(K, 3) float: how the curve points of GCs moved from `before` to `after` (GC lists,
     paired by name; n points per curve at equal normalised arc length). GCs that did not move
     give zero rows."""
-    u = np.stack([np.linspace(-1.0, 1.0, n), np.zeros(n), np.zeros(n)], 1)
-    by_name = {g.name: g for g in after}
-    out = [np.asarray(by_name[g.name].to_world(u), dtype=np.float64)
-           - np.asarray(g.to_world(u), dtype=np.float64)
-           for g in before if g.name in by_name]
-    return np.concatenate(out) if out else np.zeros((0, 3))
+    return _curve_motion(before, after, n)[1]
+
+
+def moved_side(points: np.ndarray, before, after, up, n: int = 33) -> np.ndarray | None:
+    """The horizontal direction from the centre of `points` (their bounding box) to where the
+    GCs moved: the curve points before and after, weighted by how far each moved, projected
+    off `up`. None when nothing moved or the motion is centred. (3,) float64."""
+    P, D = _curve_motion(before, after, n)
+    w = np.linalg.norm(D, axis=1)
+    if not len(w) or not w.sum() > 0:
+        return None
+    Q = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    centre = (Q.min(0) + Q.max(0)) / 2 if len(Q) else np.zeros(3)
+    at = ((P + D / 2) * w[:, None]).sum(0) / w.sum()
+    u = np.asarray(up, dtype=np.float64)
+    u = u / np.linalg.norm(u)
+    side = (at - centre) - ((at - centre) @ u) * u
+    return side if np.linalg.norm(side) > 1e-9 else None
 
 
 def camera_distance(points: np.ndarray, center: np.ndarray, direction: np.ndarray, up,
@@ -256,10 +292,13 @@ def camera_distance(points: np.ndarray, center: np.ndarray, direction: np.ndarra
 
 def edit_view(points: np.ndarray, gcs_before, gcs_after, up) -> np.ndarray:
     """The camera direction of an edit's before/after picture: `least_motion_view` of the GCs'
-    curve displacements (`curve_displacements`), from the side view of `points` (before and
-    after together). Unit (3,) vector."""
+    curve displacements (`curve_displacements`), from the side the moved GCs are on
+    (`moved_side`), the side view of `points` (before and after together) breaking ties.
+    Looking across the motion shows it at its full length: a leg raised by handles turns in
+    the plane the camera faces, not toward it. Unit (3,) vector."""
     return least_motion_view(curve_displacements(gcs_before, gcs_after), up,
-                             side_view(points, up))
+                             side_view(points, up),
+                             toward=moved_side(points, gcs_before, gcs_after, up))
 
 
 def frame_points(points: np.ndarray, direction: np.ndarray, up, aspect: float,

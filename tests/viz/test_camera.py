@@ -136,6 +136,36 @@ def test_edit_view_follows_the_moved_gcs():
     assert abs(ref @ shift) / np.linalg.norm(shift) > 0.8  # the old camera looked along it
 
 
+
+def _leg(name, points):
+    return GeneralizedCylinder.from_dict(
+        {"name": name, "curve": {"type": "bezier", "points": np.asarray(points).tolist()},
+         "up": [1.0, 0.0, 0.0], "keys": [{"t": 0.0, "radii": [0.05, 0.05], "twist": 0.0}],
+         "caps": [0.05, 0.05]})
+
+
+def test_edit_view_stands_on_the_moved_parts_side():
+    """A back leg (out along +y, then down) raised by 45 degrees about x turns in the (y, z)
+    plane: the cameras across it look from +x or from -x. The side view's tie-break takes +x,
+    across the body that hides the leg; the edit view takes the -x side, where the leg is, and
+    hides no more of the motion."""
+    body = GeneralizedCylinder.from_dict(straight_gc("body", -0.6, 0.6, (0.2, 0.2), (0.1, 0.1)))
+    hip, a = np.array([-0.3, 0.1, 0.0]), math.radians(45)
+    R = np.array([[1, 0, 0], [0, math.cos(a), -math.sin(a)], [0, math.sin(a), math.cos(a)]])
+    leg = hip + np.array([[0, 0, 0], [0, 0.3, 0], [0, 0.5, -0.3]])
+    before = [body, _leg("leg", leg)]
+    after = [body, _leg("leg", hip + (leg - hip) @ R.T)]
+    points = np.array([[-0.7, -0.2, -0.4], [0.7, 0.6, 0.5]])
+    disp = curve_displacements(before, after)
+    ref = side_view(points, Z)
+    across = least_motion_view(disp, Z, ref)  # without the side: across the body
+    d = edit_view(points, before, after, Z)
+    assert across @ X > 0.5 and d @ X < -0.5
+    M = disp.T @ disp  # the motion is mirror-symmetric in x: as little of it is hidden
+    assert d @ M @ d <= across @ M @ across + 1e-4 * np.trace(M)
+    assert math.isclose(_elevation(d, Z), MIN_ELEVATION, abs_tol=0.3)
+
+
 @pytest.mark.parametrize("seed", range(4))
 def test_framing_keeps_every_point_inside_the_image(seed):
     rng = np.random.default_rng(seed)
