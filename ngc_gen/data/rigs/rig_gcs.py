@@ -10,8 +10,9 @@
    extended to the surface past the ends the template marks free; the frame starts from the
    template's `up`; radii per key are the smallest ellipses holding the GC's own samples near
    the key, caps the extent of those past the ends.
-4. Coverage repair (`grow_to_cover`) until every fitting sample is inside a GC, then coverage
-   and purity (the share of a GC's own samples inside it) measured on fresh samples.
+4. Coverage repair (`grow_to_cover`): each GC first grows to hold its own samples near it,
+   then every fitting sample left outside goes to the relatively nearest GC; coverage and
+   purity (the share of a GC's own samples inside it) are measured on fresh samples.
 """
 from __future__ import annotations
 
@@ -23,7 +24,7 @@ import trimesh
 from scipy.spatial import cKDTree
 
 from ngc_gen.data.annotations import rounded_gc_dict
-from ngc_gen.data.autogc.coverage import grow_to_cover
+from ngc_gen.data.autogc.coverage import grow_to_cover, rho_matrix
 from ngc_gen.data.autogc.radii import ellipse_radii
 from ngc_gen.data.autogc.template import Template, TemplateGC
 from ngc_gen.data.errors import DataError
@@ -35,6 +36,9 @@ from ngc_gen.geometry import GeneralizedCylinder, GeometryError, bernstein_basis
 from .rig import Rig
 
 OUTLIER = 1.6  # a sample farther out than this x its key window's median is left to growth
+#: a GC first grows to hold its own samples within this relative distance (rho) of it; the rest
+#: of the surface then goes to whichever GC is relatively nearest
+OWN_REACH = 2.0
 
 
 @dataclass(frozen=True)
@@ -289,6 +293,10 @@ def pose_shape(rig: Rig, template: Template, clip: str | None = None, time: floa
         own = fit_pts[owner == g]
         poly = chain_polyline(joints[resolved[tgc.name]["chain"]], own, tgc.extend)
         gcs.append(template_gc(tgc, poly, own, st.margin, floor, where))
+    for g in range(G):  # alone: a sample inside another GC must still end up in its own
+        own = fit_pts[owner == g]
+        rho, _ = rho_matrix([gcs[g]], own)
+        gcs[g] = grow_to_cover([gcs[g]], own[rho[0] <= OWN_REACH])[0]
     gcs = grow_to_cover(gcs, fit_pts)
     check, _ = sample_surface(MV, MF, st.check_samples, np.random.default_rng([st.seed, 1]))
     check_owner = ref_owner[tree.query(check, k=1)[1]]
