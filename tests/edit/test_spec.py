@@ -1,6 +1,6 @@
 """The edit-op reference (ngc_gen/edit/spec.py) is the one source of op fields: it agrees with
-the ops' signatures and the blends, its examples are valid programs, the README's table is
-generated from it, and checking a program against it needs no torch."""
+the ops' signatures and the blends, its examples are valid programs, the table of
+docs/edit_ops.md is generated from it, and checking a program against it needs no torch."""
 import inspect
 import re
 import subprocess
@@ -16,7 +16,8 @@ from ngc_gen.edit.spec import BLEND_NAMES, OPS, TYPES, check_op, reference, refe
 
 from ..helpers import ROOT
 
-README_START, README_END = "<!-- edit-ops:start -->", "<!-- edit-ops:end -->"
+TABLE_START, TABLE_END = "<!-- edit-ops:start -->", "<!-- edit-ops:end -->"
+OPS_PAGE = "docs/edit_ops.md"
 
 
 @pytest.mark.parametrize("op", sorted(GC_OPS))
@@ -66,13 +67,18 @@ def test_unknown_op_brings_the_whole_reference():
     assert e.value.help == reference() and all(f"  {op}: " in e.value.help for op in OPS)
 
 
-def test_readme_table_is_generated_from_the_spec():
-    text = (ROOT / "README.md").read_text()
-    block = re.search(re.escape(README_START) + r"\n(.*?)\n" + re.escape(README_END), text,
-                      re.S)
-    assert block, f"README.md has no {README_START} ... {README_END} block"
+def test_docs_table_is_generated_from_the_spec():
+    text = (ROOT / OPS_PAGE).read_text()
+    block = re.search(re.escape(TABLE_START) + r"\n(.*?)\n" + re.escape(TABLE_END), text, re.S)
+    assert block, f"{OPS_PAGE} has no {TABLE_START} ... {TABLE_END} block"
     assert block.group(1) == reference_markdown(), \
-        "README's edit-op table is stale: paste the output of `python -m ngc_gen.edit.spec`"
+        f"{OPS_PAGE}'s edit-op table is stale: paste the output of `python -m ngc_gen.edit.spec`"
+
+
+def test_the_docs_example_program_is_valid():
+    text = (ROOT / OPS_PAGE).read_text()
+    program = yaml.safe_load(re.search(r"```yaml\n(.*?)```", text, re.S).group(1))
+    assert EditProgram.from_dict(program).name == program["name"]
 
 
 def test_checking_a_program_needs_no_torch():
