@@ -281,6 +281,63 @@ class FitCache:
         return [f for _, f in sorted(out, key=lambda x: x[0])]
 
 
+def link_latest(link: Path, target: Path) -> bool:
+    """Point the symlink `link` at `target` (a cached fit's folder), so a fixed name such as
+    bench/runs/generate/diffusion always opens the fit the bench last used. A real file or
+    folder at `link` is left alone (returns False)."""
+    link = Path(link)
+    if link.exists() and not link.is_symlink():
+        print(f"note: {link} is a folder of its own, not a link to the fit cache: left as it is")
+        return False
+    link.parent.mkdir(parents=True, exist_ok=True)
+    tmp = link.with_name(f".{link.name}.link.tmp")
+    if tmp.is_symlink() or tmp.exists():
+        tmp.unlink()
+    os.symlink(os.path.relpath(target, link.parent), tmp)
+    os.replace(tmp, link)
+    return True
+
+
 def repo_path(text: str) -> Path:
     """A path recorded by the cache ('<repo>/...') as a path in this checkout."""
     return Path(text.replace("<repo>", str(ROOT)))
+
+
+def dataset_identity(cfg) -> dict:
+    """What a fit config's dataset is made of: per shape its annotation (GCs, normalisation,
+    mesh reference) and the sha256 of its mesh file's bytes. Instantiating the dataset builds
+    missing procedural shapes first, so the identity is the same before and after a fit."""
+    from hydra.utils import instantiate
+
+    out = {}
+    for ann in instantiate(cfg.data).shapes():
+        out[ann.name] = {"annotation": ann.to_dict(),
+                         "mesh_sha256": hashlib.sha256(ann.mesh_path.read_bytes()).hexdigest()}
+    return out
+
+
+def cached_run_fit(bench: str, cfg, refit: bool = False, extra: dict | None = None,
+                   label: str | None = None) -> Fit:
+    """`ngc_gen.app.fit.run_fit(cfg)` through the bench's FitCache: the recipe is the whole
+    resolved config (`config_recipe`), the dataset's identity (`dataset_identity`) and
+    `extra` (settings of the bench that shape the fit but are not in the config). The fit's
+    run_dir is the cache folder (its metrics.json, checkpoints/last.ckpt, meshes/); info holds
+    train_s, steps, wall_s (run_fit's wall seconds: preparation, training, scoring) and
+    `label` (a name for listings, e.g. `FitCache(bench).entries()`; not part of the key)."""
+    recipe = {"config": config_recipe(cfg), "data": dataset_identity(cfg), **(extra or {})}
+
+    def fit(run_dir: Path) -> dict:
+        import time
+
+        from omegaconf import open_dict
+
+        from ngc_gen.app.fit import run_fit
+
+        with open_dict(cfg):
+            cfg.run_dir = str(run_dir)
+        t0 = time.perf_counter()
+        m = run_fit(cfg)
+        return {"train_s": m["train_s"], "steps": m["steps"],
+                "wall_s": time.perf_counter() - t0, "label": label}
+
+    return FitCache(bench).get(recipe, fit, refit=refit)

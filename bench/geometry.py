@@ -13,9 +13,7 @@ Preparation: `prepare_shape` from scratch (empty cache) for 100k samples on the 
 """
 from __future__ import annotations
 
-import json
 import os
-import platform
 import sys
 import tempfile
 import time
@@ -27,6 +25,7 @@ import torch
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from bench._harness import Bench, load_1min  # noqa: E402
 from ngc_gen.geometry import GeneralizedCylinder  # noqa: E402
 
 GC = {"name": "bench", "curve": {"type": "bezier", "points": [[-0.6, 0, 0], [-0.2, 0.4, 0.1],
@@ -84,7 +83,7 @@ def bench_relcoords(n=1_000_000):
         gc.to_relative(q)
         walls.append(time.perf_counter() - t0)
     wall_all = min(walls)
-    load_wall = os.getloadavg()[0]
+    load_wall = load_1min()
     torch.set_num_threads(1)
     qt = torch.from_numpy(q)
     base = best_of(lambda: polyline_relative(gc, qt), repeats=1)
@@ -138,13 +137,11 @@ def _time_prepare(shapes, settings, prepare_shape):
 
 def main():
     torch.set_num_threads(1)  # one thread, CPU seconds: robust to other jobs on the machine
-    res = {"machine": {"cpus": os.cpu_count(), "torch_threads": torch.get_num_threads(),
-                       "omp_wait_policy": os.environ.get("OMP_WAIT_POLICY"),
-                       "python": platform.python_version(), "torch": torch.__version__,
-                       "load_avg_1min_at_start": os.getloadavg()[0]}}
+    bench = Bench("geometry")   # the machine record (bench/_harness.py) is added on writing
+    res = {"omp_wait_policy": os.environ.get("OMP_WAIT_POLICY")}
     res.update(bench_relcoords())
     res.update(bench_prepare())
-    print(f"machine load (1 min average) at start: {res['machine']['load_avg_1min_at_start']:.1f}"
+    print(f"machine load (1 min average) at start: {bench.load_before}"
           f" on {os.cpu_count()} cores: timings are only meaningful on an idle machine")
     print(f"relative coords : {res['relcoords_points_per_s'] / 1e6:.2f} M points/s per core "
           f"(CPU time, float32, 1M points, 128 segments)")
@@ -159,11 +156,7 @@ def main():
           f"{res['prepare_n_samples']} samples (target <= 2)")
     for k, v in res["prepare_shapes"].items():
         print(f"  {k:28s} {v['s']:.2f} s  coverage {v['coverage']:.5f}")
-    out = ROOT / "bench/results/geometry.json"
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_suffix(".json.tmp")
-    tmp.write_text(json.dumps(res, indent=2))
-    os.replace(tmp, out)
+    out = bench.write(res)
     print(f"saved {out.relative_to(ROOT)}")
 
 
