@@ -5,8 +5,13 @@ VENV ?= .venv
 TORCH_SPEC ?= torch==2.13.0
 BIN := $(VENV)/bin
 
-.PHONY: setup chromium test test-all bench bench-geometry bench-fit bench-deform bench-generate \
-	bench-editor bench-autogc bench-condition bench-up bench-reconstruct bench-demo bench-sparse-settings demo clean
+# the benches, in the order `make bench` runs them (sparse-settings reads deform's and autogc's
+# fits; condition and reconstruct reuse generate's; fit-ablation reads fit's ceiling)
+BENCHES := geometry up-axis fit fit-ablation deform extract autogc sparse-settings editor \
+	generate condition reconstruct ddp demo
+
+.PHONY: setup chromium test test-all bench bench-report $(addprefix bench-,$(BENCHES)) bench-up \
+	demo clean
 
 $(BIN)/activate:
 	$(PY) -m venv $(VENV)
@@ -50,8 +55,14 @@ test-all: setup
 demo: $(VENV)/.installed  # (no browser needed) the whole pipeline: fit, edit, shape latents, diffusion, sample (conf/experiment/demo.yaml)
 	$(BIN)/python train.py experiment=demo
 
-bench: bench-geometry bench-fit bench-deform bench-generate bench-editor bench-autogc bench-condition \
-	bench-up bench-reconstruct bench-demo bench-sparse-settings
+# every bench one after another (never side by side: they time themselves), then the tables of
+# bench/README.md from bench/results/*.json
+bench: setup
+	@for b in $(BENCHES); do $(MAKE) --no-print-directory bench-$$b || exit 1; done
+	$(MAKE) --no-print-directory bench-report
+
+bench-report:  # bench/README.md's tables from bench/results/*.json (stdlib only)
+	$(PY) bench/report.py
 
 bench-geometry: setup
 	$(BIN)/python bench/geometry.py
@@ -59,8 +70,14 @@ bench-geometry: setup
 bench-fit: setup
 	$(BIN)/python bench/fit.py
 
+bench-fit-ablation: setup  # the table of bench/fit.py --tag screening runs in bench/runs/fit
+	$(BIN)/python bench/fit_ablation.py
+
 bench-deform: setup
 	$(BIN)/python bench/deform.py
+
+bench-extract: setup  # dense, prefiltered and sparse extraction of bench-deform's fit
+	$(BIN)/python bench/extract.py --threads 2
 
 bench-generate: setup
 	$(BIN)/python bench/generate.py
@@ -83,8 +100,13 @@ bench-condition: setup  # reuses bench-generate's runs (trains them if missing)
 bench-demo:  # make demo on a fresh clone of HEAD, timed (stdlib only: the clone sets itself up)
 	$(PY) bench/demo.py
 
-bench-up: setup  # the pictures' up-axis rule on the ant, airplane and creatures
+bench-up-axis: setup  # the pictures' up-axis rule on the ant, airplane and creatures
 	$(BIN)/python bench/up_axis.py
+
+bench-up: bench-up-axis  # its former name
+
+bench-ddp: setup  # one training process against two (gloo) on CPU
+	$(BIN)/python bench/ddp.py
 
 clean:
 	rm -rf $(VENV) outputs .pytest_cache

@@ -76,6 +76,15 @@ def load_1min() -> float | None:
         return None
 
 
+def load_avg() -> list[float]:
+    """The 1-, 5- and 15-minute load averages now, rounded to 0.01 ([] where the platform has
+    none): for a bench that records the load around each of its runs (bench/fit.py)."""
+    try:
+        return [round(x, 2) for x in os.getloadavg()]
+    except (AttributeError, OSError):
+        return []
+
+
 def git_commit(root: Path = ROOT) -> tuple[str | None, bool | None]:
     """(HEAD's full hash, whether tracked files differ from it) of the checkout at `root`;
     (None, None) outside a git checkout."""

@@ -24,14 +24,15 @@
    and ant: eps_V, eps_A of the deformed against the undeformed NGC mesh.
 Writes bench/results/autogc.json ({meshes: [{name, n_gcs, coverage, overlap, time_s, cd_auto,
 cd_annotated, cd_axis, nc_auto, ...}], creatures: {count_err_mean, count_err_max,
-part_single_gc_mean, part_single_gc_worst}, ant, airplane, edits, settings}) and
-bench/results/autogc.png (automatic GCs over the ant, the airplane and two creatures).
+part_single_gc_mean, part_single_gc_worst}, ant, airplane, edits, settings, machine};
+bench/_harness.py) and bench/results/autogc.png (automatic GCs over the ant, the airplane and two
+creatures). The fits are kept in the bench's fit cache (.cache/bench/fits/autogc), keyed by
+their whole recipe (config, annotations, meshes): rerunning with the same settings reuses them.
 """
 from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 import time
 from pathlib import Path
@@ -40,6 +41,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+from bench._harness import Bench, cached_run_fit, load_1min  # noqa: E402
 
 RUNS = ROOT / "bench/runs/autogc"
 RESULTS = ROOT / "bench/results"
@@ -112,7 +114,7 @@ def annotate_all(names: dict, hand: dict) -> tuple[list[dict], dict]:
         rows.append(row)
         anns[name] = ann
         print(f"{name:16s} {len(ann.gcs):3d} GCs  coverage {100 * st['coverage']:7.3f}%  overlap "
-              f"{st['overlap']:.3f}  {seconds:6.2f} s  load {os.getloadavg()[0]:.1f}", flush=True)
+              f"{st['overlap']:.3f}  {seconds:6.2f} s  load {load_1min()}", flush=True)
     return rows, anns
 
 
@@ -128,36 +130,23 @@ def single_gc_best(true_gcs, auto_gcs, points, part_name: str) -> str:
     return auto_gcs[int(np.argmax(counts))].name
 
 
+FIT_DIRS: dict = {}   # (method, seed) -> the fit's folder in the fit cache, set by fit()
+
+
 def run_dir_of(method: str, seed: int = 0) -> Path:
-    return RUNS / (f"fit_{method}" if seed == 0 else f"fit_{method}_seed{seed}")
+    return FIT_DIRS[method, seed]
 
 
 def fit(method: str, names: list[str], hand: dict, steps: int, resolution: int,
         seed: int = 0) -> dict:
     """One NGC fit of the shapes with `method` GCs (auto | annotated | axis) from training seed
     `seed`; per-shape metrics."""
-    import shutil
-
     from omegaconf import OmegaConf, open_dict
 
     from ngc_gen.app.config import compose_config
-    from ngc_gen.app.fit import run_fit
 
-    import hashlib
-
-    run_dir = run_dir_of(method, seed)
     files = [str(RUNS / "annotations" / f"{n}.yaml") if method == "auto" else str(hand[n])
              for n in names]
-    h = hashlib.sha256(f"{method} {steps} {resolution} {names}{f' seed {seed}' if seed else ''}"
-                       .encode())
-    for f in files:
-        h.update(Path(f).read_bytes())
-    key = h.hexdigest()[:16]
-    done = run_dir / "metrics.json"
-    if done.exists() and (run_dir / "bench_key.txt").exists() and \
-            (run_dir / "bench_key.txt").read_text() == key:  # the same fit already ran
-        return json.loads(done.read_text())
-    shutil.rmtree(run_dir / "checkpoints", ignore_errors=True)  # else Lightning saves last-v1
     data = {"_target_": "ngc_gen.data.datasets.AnnotatedShapes", "name": f"autogc_{method}",
             "annotations": files}
     if method == "axis":
@@ -165,13 +154,15 @@ def fit(method: str, names: list[str], hand: dict, steps: int, resolution: int,
                 "base": {**data, "name": "autogc_hand"}}
     cfg = compose_config(overrides=[
         "stage=fit", "model=small", f"trainer.max_steps={steps}", f"extract.resolution={resolution}",
-        f"run_dir={run_dir}", "trainer.enable_progress_bar=false", "logger=csv", f"seed={seed}"])
+        "trainer.enable_progress_bar=false", "logger=csv", f"seed={seed}"])
     with open_dict(cfg):
         cfg.data = OmegaConf.create(data)
-    t0 = time.perf_counter()
-    metrics = run_fit(cfg)
-    metrics["wall_s"] = time.perf_counter() - t0
-    (run_dir / "bench_key.txt").write_text(key)
+    label = f"fit_{method}" if seed == 0 else f"fit_{method}_seed{seed}"
+    # the fit cache: reused while the config and the annotations' and meshes' bytes match
+    f = cached_run_fit("autogc", cfg, label=label)
+    FIT_DIRS[method, seed] = f.run_dir
+    metrics = json.loads((f.run_dir / "metrics.json").read_text())
+    metrics["wall_s"] = f.info["wall_s"]
     return metrics
 
 
@@ -275,12 +266,11 @@ def main():
                          "creature's auto/axis ratio by up to 0.1)")
     ap.add_argument("--skip-fits", action="store_true")
     args = ap.parse_args()
-    load_at_start = os.getloadavg()
+    bench = Bench("autogc")
     t_start = time.perf_counter()
 
     import torch
 
-    from ngc_gen.data.atomic import atomic_write_text
     from ngc_gen.data.procedural.creatures import build_creatures
 
     torch.set_num_threads(1)  # a shared 2-core machine: one thread is faster
@@ -351,7 +341,6 @@ def main():
            "settings": {"steps": args.steps, "resolution": args.resolution, "seeds": args.seeds,
                         "fit_shapes": fit_names, "edit_resolution": args.edit_resolution,
                         "warmup_s": warmup_s,
-                        "load_avg_at_start": load_at_start, "load_avg_at_end": os.getloadavg(),
                         "total_s": time.perf_counter() - t_start,
                         "conventions": "coverage/overlap: share of 50k surface samples inside >= 1 / "
                                        ">= 2 GCs; cd: DeepSDF Chamfer (30k points each way, squared, "
@@ -360,8 +349,7 @@ def main():
                                        "cd_surface_*: the same against the other "
                                        "mesh's surface (exact distances, mesh_chamfer); nc: normal "
                                        "consistency; eps_V = |V'-V|/V"}}
-    RESULTS.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(RESULTS / "autogc.json", json.dumps(res, indent=2))
+    bench.write(res)
     picture(anns, ["ant", "airplane", creatures[0], creatures[1]], RESULTS / "autogc.png")
     print_summary(res)
 
@@ -408,8 +396,7 @@ def print_summary(res: dict) -> None:
     print(f"ant: every leg its own GC: {res['ant']['legs_own_gc']} {res['ant']['leg_gcs']}")
     print(f"airplane: fuselage / wings / tail separate: {res['airplane']['separate']} "
           f"{res['airplane']['best_auto_gc']}")
-    print(f"load average at start {res['settings']['load_avg_at_start'][0]:.1f}, total "
-          f"{res['settings']['total_s']:.0f} s")
+    print(f"total {res['settings']['total_s']:.0f} s")
 
 
 if __name__ == "__main__":

@@ -1,6 +1,6 @@
 """Generation from a skeleton benchmark (issue 15): the GCs of the 16 held-out creatures (never
 trained on) as conditions, 4 samples each, on the generation recipe of bench/generate.py (its
-runs in bench/runs/generate are reused, or trained once).
+runs from that bench's fit cache, trained if the recipe has none).
 
     python bench/condition.py [--strength S] [--project-steps K] [--sweep]
 
@@ -20,14 +20,13 @@ distances; every mesh in the held-out creatures' frame, no renormalisation):
                    plain sampler, same run); mesh_s_per_sample the extraction at --resolution
 --sweep adds the GC error and the spread of the decoded GCs across samples against strength
 (latents only, no meshes), and the same for a partial condition (the four legs).
-Writes bench/results/condition.json and condition.png (a drawn skeleton, four shapes for it;
-the legs-only condition below).
+Writes bench/results/condition.json (with the machine record, bench/_harness.py) and
+condition.png (a drawn skeleton, four shapes for it; the legs-only condition below).
 """
 from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 import time
 from pathlib import Path
@@ -37,6 +36,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "bench"))
+from bench._harness import Bench  # noqa: E402
 RUNS = ROOT / "bench/runs/condition"
 RESULTS = ROOT / "bench/results"
 LEGS = ("leg_fl", "leg_fr", "leg_bl", "leg_br")
@@ -221,7 +221,7 @@ def main():
     ap.add_argument("--sweep-per-condition", type=int, default=2)
     ap.add_argument("--threads", type=int, default=1)
     args = ap.parse_args()
-    load_at_start = os.getloadavg()
+    bench = Bench("condition")
 
     import torch
     import trimesh
@@ -229,7 +229,6 @@ def main():
 
     torch.set_num_threads(args.threads)
 
-    from generate import RUNS as GEN_RUNS
     from generate import compose_batch_size, train
 
     from ngc_gen.data.annotations import load_annotation
@@ -257,15 +256,13 @@ def main():
     held = split["test"][:args.limit]
     print(f"{len(held)} held-out creatures as conditions, {args.per_condition} samples each; "
           f"strength {strength}, project_steps {project}")
-    args.reuse = True
-    train(args)                                   # bench/generate.py's runs (reused if there)
-    gen = load_generator(GEN_RUNS / "diffusion")
+    runs = train(args)                    # bench/generate.py's runs (from its fit cache)
+    gen = load_generator(runs["diffusion_dir"])
     sd, template = gen.shape_latent.shape_decoder, gen.shape_latent.template
     conds = [(n, load_condition(data.out_dir / f"{n}.yaml", template)) for n in held]
-    res = {"n_conditions": len(held), "per_condition": args.per_condition,
+    res = {"n_conditions": len(held), "samples_per_condition": args.per_condition,
            "strength": strength, "project_steps": project, "resolution": args.resolution,
            "points": args.points, "seed": args.seed, "threads": args.threads,
-           "load_avg_at_start": list(load_at_start),
            "convention": "gc_err: rms over the conditioned GC parameters that vary in training, "
                          "std units, before replace; Chamfer: 2048 surface points, squared, sum "
                          "of the two means, in the held-out creatures' frame (no "
@@ -356,7 +353,6 @@ def main():
                           for n, e, f, c, u, r, d in zip(held, errs, floors, cd_c, cd_u,
                                                          cd_r, div_c)},
         "empty_meshes": empty, "total_s": time.perf_counter() - t_start,
-        "load_avg_at_end": list(os.getloadavg()),
     })
     res["targets"] = {"gc_err <= 0.1": res["gc_err"] <= 0.1,
                       "cd_conditional * 3 <= cd_unconditional":
@@ -373,9 +369,7 @@ def main():
                     [f"{name0}: legs only"] + [f"sample {i}" for i in range(n_per)]))
     RESULTS.mkdir(parents=True, exist_ok=True)
     render(picture, RESULTS / "condition.png")
-    tmp = RESULTS / "condition.json.tmp"
-    tmp.write_text(json.dumps(res, indent=2))
-    os.replace(tmp, RESULTS / "condition.json")
+    path = bench.write(res)
     print(f"\ngc_err {res['gc_err']:.3f} std (max {res['gc_err_max']:.3f}, unconditional "
           f"{res['gc_err_unconditional']:.3f}, decoder floor {res['gc_err_decoder_floor']:.3f}); "
           f"Chamfer (x1e-3) "
@@ -384,9 +378,8 @@ def main():
           f"{1e3 * res['diversity']:.3f} (unconditional "
           f"{1e3 * res['diversity_unconditional']:.3f}); "
           f"{1e3 * res['s_per_sample']:.0f} ms/sample guided vs "
-          f"{1e3 * res['s_per_sample_unconditional']:.0f} plain; load {load_at_start[0]:.1f}")
-    print(f"targets: {res['targets']}; total {res['total_s'] / 60:.1f} min; "
-          f"{RESULTS / 'condition.json'}")
+          f"{1e3 * res['s_per_sample_unconditional']:.0f} plain; load {bench.load_before}")
+    print(f"targets: {res['targets']}; total {res['total_s'] / 60:.1f} min; {path}")
 
 
 if __name__ == "__main__":

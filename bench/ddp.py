@@ -8,9 +8,10 @@ the wall time of every optimizer step on every rank, and the first `warmup` step
 One process and two processes run alternately `repeats` times, so both see the same drift of
 the machine's load. Writes bench/results/ddp.json: step_s_1proc, step_s_2proc (median seconds
 per optimizer step), step_ratio_2_to_1, samples_per_s_1proc / _2proc (batch x processes /
-step time), speedup_samples_per_s, per-run medians, loadavg_before / loadavg_after
-(os.getloadavg()), cpu_count, batch_per_process, steps_timed. The machine is shared: compare the
-ratio, which both settings measured in the same minutes, not absolute times.
+step time), speedup_samples_per_s, per-run medians, batch_per_process, steps_timed and the
+machine record (bench/_harness.py; torch_threads: the 1 thread of each training process). The
+machine is shared: compare the ratio, which both settings measured in the same minutes, not
+absolute times.
 """
 from __future__ import annotations
 
@@ -27,6 +28,8 @@ from pathlib import Path
 from lightning.pytorch.callbacks import Callback
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+from bench._harness import Bench, load_1min  # noqa: E402
 
 
 class StepTimer(Callback):
@@ -79,8 +82,7 @@ def main() -> None:
     ap.add_argument("--batch", type=int, default=4096)
     ap.add_argument("--repeats", type=int, default=2)
     a = ap.parse_args()
-
-    load_before = os.getloadavg()
+    bench = Bench("ddp")
     runs = {"cpu": [], "ddp": []}
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
@@ -90,25 +92,24 @@ def main() -> None:
                 dt = run(trainer, work, f"{trainer}{k}", a.steps + a.warmup + 1, a.batch)
                 runs[trainer].append(statistics.median(dt[a.warmup:]))
                 print(f"{trainer} run {k}: {runs[trainer][-1] * 1e3:.1f} ms/step "
-                      f"(load {os.getloadavg()[0]:.2f})", flush=True)
+                      f"(load {load_1min()})", flush=True)
     one, two = statistics.median(runs["cpu"]), statistics.median(runs["ddp"])
     result = {
         "step_s_1proc": one, "step_s_2proc": two, "step_ratio_2_to_1": two / one,
         "samples_per_s_1proc": a.batch / one, "samples_per_s_2proc": 2 * a.batch / two,
         "speedup_samples_per_s": (2 * a.batch / two) / (a.batch / one),
         "runs_step_s": runs, "batch_per_process": a.batch, "steps_timed": a.steps,
-        "warmup_steps": a.warmup, "threads_per_process": 1, "cpu_count": os.cpu_count(),
-        "loadavg_before": list(load_before), "loadavg_after": list(os.getloadavg()),
+        "warmup_steps": a.warmup, "threads_per_process": 1,
         "model": "small (conf/model/small.yaml), 2 shapes (torus 1 GC, ball 1 GC)",
         "convention": "median wall seconds per optimizer step of rank 0 after warm-up; "
                       "2 processes: gloo all-reduce of the gradients each step",
     }
-    path = ROOT / "bench" / "results" / "ddp.json"
-    path.write_text(json.dumps(result, indent=2))
+    path = bench.write(result, torch_threads=1)
+    m = bench.machine()
     print(f"1 process: {one * 1e3:.1f} ms/step ({a.batch / one:.0f} samples/s); 2 processes: "
           f"{two * 1e3:.1f} ms/step ({2 * a.batch / two:.0f} samples/s); step time x"
           f"{two / one:.2f}, throughput x{result['speedup_samples_per_s']:.2f}; load "
-          f"{load_before[0]:.2f} -> {result['loadavg_after'][0]:.2f} on {os.cpu_count()} cores")
+          f"{m['load_1min_before']} -> {m['load_1min_after']} on {m['cpus']} cores")
     print(f"wrote {path}")
 
 

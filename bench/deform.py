@@ -2,11 +2,12 @@
 
     python bench/deform.py [--steps 1500] [--resolution 224] [--refit] [--arap-iters 100]
 
-Inputs: a square bar (generated here, one straight GC along it), a procedural creature and the
-ant, fitted together once with NGC (small preset; the fit is cached in bench/runs/deform and
-reused unless --refit). Each case drags the handle vertices of one GC region (mesh vertices in
-the GC over a t-range) by a rigid motion and pins the fixed vertices (every vertex outside that
-GC, plus the GC's own start region t <= 0.1):
+Inputs: a square bar (generated here, one straight GC along it), a procedural creature and the ant,
+fitted together once with NGC (small preset; the fit is kept in the bench's fit cache,
+.cache/bench/fits/deform, keyed by its whole recipe: config and the three shapes' data; reused while
+that is unchanged, unless --refit). Each case drags the handle vertices of one GC region (mesh
+vertices in the GC over a t-range) by a rigid motion and pins the fixed vertices (every vertex
+outside that GC, plus the GC's own start region t <= 0.1):
 - NGC: `deform_by_handles` with those handle vertices and targets; its fixed region is the
   fixed vertices plus the curve points of the other GCs (the fixed parts' skeletons: a tail
   root sits deep inside the torso, far from the torso's surface vertices); the deformed and
@@ -23,15 +24,15 @@ shape extracted first, so only the GCs the solve moved are evaluated again), and
 libigl ARAP with the same handle region and motion on the undeformed NGC 256^3 mesh.
 
 Writes bench/results/deform.json ({cases: [{name, ngc: {eps_v, eps_a, time_s, ...}, arap:
-{...}}], mean: {...}, edit_to_mesh_s_128, edit_to_mesh_s_256, arap_s_matched, settings}), bench/results/deform.md and bench/results/deform.png (before / NGC /
-ARAP for the cases marked `picture`, the camera on the edited part).
+{...}}], mean: {...}, edit_to_mesh_s_128, edit_to_mesh_s_256, arap_s_matched, settings, machine};
+bench/_harness.py) and bench/results/deform.png (before / NGC / ARAP for the cases marked
+`picture`, the camera on the edited part); its tables are bench/README.md's (bench/report.py).
 """
 from __future__ import annotations
 
 import argparse
 import json
 import math
-import os
 import sys
 import time
 from dataclasses import dataclass
@@ -41,8 +42,8 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+from bench._harness import Bench, cached_run_fit  # noqa: E402
 
-RUN_DIR = ROOT / "bench/runs/deform"
 BAR_DIR = ROOT / ".cache/bench/deform/bars"
 RESULTS = ROOT / "bench/results"
 CREATURE = "creature_0000"
@@ -92,8 +93,7 @@ def fit_config(steps: int, resolution: int):
 
     cfg = compose_config(overrides=[
         "stage=fit", "data=demo", "model=small", f"trainer.max_steps={steps}",
-        f"extract.resolution={resolution}", f"run_dir={RUN_DIR}",
-        "trainer.enable_progress_bar=false", "logger=csv"])
+        f"extract.resolution={resolution}", "trainer.enable_progress_bar=false", "logger=csv"])
     with open_dict(cfg):
         cfg.data = OmegaConf.create({
             "_target_": "ngc_gen.data.datasets.Combined", "name": "deformbench", "parts": [
@@ -107,37 +107,15 @@ def fit_config(steps: int, resolution: int):
     return cfg
 
 
-def inputs_key(steps: int) -> str:
-    """Identifies a fit: the step count and the three annotation files (a changed annotation,
-    e.g. a re-done ant, means a new fit)."""
-    import hashlib
-
-    h = hashlib.sha256(str(steps).encode())
-    for path in (make_bar(), ROOT / f".cache/datasets/creatures_n64_s0/{CREATURE}.yaml",
-                 ROOT / "datasets/ant/ant.yaml"):
-        h.update(path.read_bytes() if path.exists() else b"missing")
-    return h.hexdigest()[:16]
-
-
 def fitted(steps: int, refit: bool) -> dict:
-    """The fit (cached while inputs_key matches): {checkpoint, train_s, steps, key}."""
-    info = RUN_DIR / "fit_info.json"
-    ckpt = RUN_DIR / "checkpoints/last.ckpt"
-    if not refit and info.exists() and ckpt.exists():
-        d = json.loads(info.read_text())
-        if d.get("key") == inputs_key(steps):
-            return d
-    from ngc_gen.data.atomic import atomic_write_text
-    from ngc_gen.app.fit import run_fit
-
-    import shutil
-
-    shutil.rmtree(RUN_DIR / "checkpoints", ignore_errors=True)  # else Lightning saves last-v1
-    m = run_fit(fit_config(steps, 128))
-    d = {"checkpoint": str(ckpt), "train_s": m["train_s"], "steps": steps,
-         "key": inputs_key(steps), "fit_cd": {k: v["cd"] for k, v in m["shapes"].items()}}
-    atomic_write_text(info, json.dumps(d, indent=2))
-    return d
+    """The fit, from the bench's fit cache while its recipe (the whole config, the bar's, the
+    creature's and the ant's annotations and meshes) is unchanged, else fitted now:
+    {checkpoint, train_s, steps, key, fit_cd}."""
+    fit = cached_run_fit("deform", fit_config(steps, 128), refit=refit)
+    metrics = json.loads((fit.run_dir / "metrics.json").read_text())
+    return {"checkpoint": str(fit.run_dir / "checkpoints/last.ckpt"),
+            "train_s": fit.info["train_s"], "steps": fit.info["steps"], "key": fit.key,
+            "fit_cd": {k: v["cd"] for k, v in metrics["shapes"].items()}}
 
 
 # ---- cases -----------------------------------------------------------------------------------
@@ -343,39 +321,6 @@ def matched_means(cases: list[dict]) -> dict:
     return {k: float(np.mean([c["ngc"][k] for c in cases if k in c["ngc"]])) for k in keys}
 
 
-def markdown(res: dict) -> str:
-    lines = ["| case | NGC eps_V | NGC eps_A | NGC time (s) (solve) | ARAP eps_V | ARAP eps_A | "
-             "ARAP time (s) |", "|---|---|---|---|---|---|---|"]
-    for c in res["cases"] + [{"name": "**mean**", **res["mean"]}]:
-        n, a = c["ngc"], c["arap"]
-        solve = f" ({n['solve_s']:.2f})" if "solve_s" in n else ""
-        lines.append(f"| {c['name']} | {100 * n['eps_v']:.2f}% | {100 * n['eps_a']:.2f}% | "
-                     f"{n['time_s']:.2f}{solve} | {100 * a['eps_v']:.2f}% | "
-                     f"{100 * a['eps_a']:.2f}% | {a['time_s']:.2f} |")
-    s = res["settings"]
-    mv = res["mean"]
-    matched = {k: v for k, v in res.items() if k.startswith("edit_to_mesh_s_")}
-    if matched:
-        lines += ["", "| edit to mesh (handle solve + incremental extraction) | seconds |",
-                  "|---|---|"]
-        lines += [f"| NGC at {k.rsplit('_', 1)[1]}^3 | {v:.2f} |" for k, v in matched.items()]
-        if "arap_s_matched" in res:
-            nv = np.mean([c["ngc"]["arap_matched_vertices"] for c in res["cases"]])
-            lines.append(f"| libigl ARAP on the undeformed NGC 256^3 mesh (mean {nv:.0f} "
-                         f"vertices), precomputation + solve | {res['arap_s_matched']:.2f} |")
-    lines += ["", f"eps_V = |V'-V|/V, eps_A = |A'-A|/A in percent (paper Tables 2-3: NGC "
-              f"0.1-2.6% vs ARAP 5-46% volume change). NGC: deformed vs undeformed NGC mesh, "
-              f"both marching cubes at {s['resolution']}^3 over [-{BOUND}, {BOUND}]^3, fitted "
-              f"{s['steps']} steps (small preset); time = handle solve (in brackets) + "
-              f"extraction of the deformed mesh (2 CPU cores, 1-minute load average "
-              f"{s.get('load_avg_1min_at_start', float('nan')):.1f} at start). ARAP: libigl spokes-and-rims, {s['arap_iters']} iterations, on "
-              f"the input mesh with the same handle and fixed vertices; time = precomputation "
-              f"+ solve. NGC mean eps_V / ARAP mean eps_V = "
-              f"{mv['ngc']['eps_v'] / mv['arap']['eps_v']:.2f}; eps_A ratio "
-              f"{mv['ngc']['eps_a'] / mv['arap']['eps_a']:.2f}."]
-    return "\n".join(lines) + "\n"
-
-
 def picture(results: list[dict], path: Path, cell=(330, 250)) -> None:
     """Rows of cases, columns NGC before / NGC after / ARAP after; one camera per row, aimed at
     the handle GC before and after, so before and after compare directly. pyvista off screen
@@ -437,15 +382,15 @@ def main():
     ap.add_argument("--threads", default="auto", help="torch threads: auto (as the entry "
                     "points: the cores the load leaves free), N or null")
     args = ap.parse_args()
-    load_at_start = os.getloadavg()[0]  # timings need an idle machine: record how idle it was
+    bench = Bench("deform", results=args.results)  # timings need an idle machine: its load
     from ngc_gen.app.cli import set_threads
 
     threads = set_threads(None if args.threads == "null" else args.threads)
 
     import yaml
 
+    from bench.report import table
     from ngc_gen.data.annotations import annotation_from_dict
-    from ngc_gen.data.atomic import atomic_write_text
     from ngc_gen.data.mesh.io import load_mesh, normalize
     from ngc_gen.lit.checkpoint import load_autodecoder
 
@@ -477,16 +422,11 @@ def main():
                         "arap_iters": args.arap_iters, "fixed_t": FIXED_T,
                         "train_s": fit["train_s"],
                         "checkpoint": str(Path(fit["checkpoint"]).relative_to(ROOT)),
-                        "load_avg_1min_at_start": load_at_start, "threads": threads,
-                        "load_avg_1min_at_end": os.getloadavg()[0]}}
-    out = args.results
-    out.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(out / "deform.json", json.dumps(res, indent=2))
-    md = markdown(res)
-    atomic_write_text(out / "deform.md", md)
-    picture(results, out / "deform.png")
+                        "threads": threads}}
+    path = bench.write(res)
+    picture(results, args.results / "deform.png")
     print()
-    print(md)
+    print(table("deform", json.loads(path.read_text())))
 
 
 if __name__ == "__main__":

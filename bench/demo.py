@@ -5,24 +5,25 @@
 Clones this repository at `--commit` into a new folder, runs `make demo` there (a new .venv:
 torch from the local wheel, then the package; then the five pipeline steps), and writes
 bench/results/demo.json: the run's summary.json (per step: seconds and headline numbers), the
-wall time of `make demo`, the part of it outside the steps (setup), the machine's load before and
-after, and the commit. The previous result is kept under `previous`. Run it on an idle machine:
-two torch threads beside another busy process run several times slower.
+wall time of `make demo`, the part of it outside the steps (setup), and the machine record
+(bench/_harness.py: load before and after `make demo`; commit: the clone's). The previous result
+is kept under `previous`. Run it on an idle machine: two torch threads beside another busy
+process run several times slower. Standard library only: the clone sets itself up.
 """
 from __future__ import annotations
 
 import argparse
 import json
-import os
 import subprocess
 import sys
 import tempfile
 import time
-from datetime import date
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-RESULTS = ROOT / "bench/results"
+sys.path.insert(0, str(ROOT))
+from bench._harness import Bench  # noqa: E402  (standard library only)
+
 TARGET_S = 600.0  # issue: make demo within 10 minutes on 2 idle cores
 
 
@@ -31,14 +32,14 @@ def main(argv=None) -> dict:
     ap.add_argument("--commit", default="HEAD", help="what to clone (default: HEAD)")
     ap.add_argument("--workdir", default=None, help="where the clone goes (default: a temp dir)")
     args = ap.parse_args(argv)
-    commit = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", args.commit],
+    commit = subprocess.run(["git", "-C", str(ROOT), "rev-parse", args.commit],
                             check=True, capture_output=True, text=True).stdout.strip()
     work = Path(tempfile.mkdtemp(prefix="ngc_demo_", dir=args.workdir))
     clone = work / "clone"
     subprocess.run(["git", "clone", "-q", str(ROOT), str(clone)], check=True)
     subprocess.run(["git", "-C", str(clone), "checkout", "-q", commit], check=True)
-    load_before = os.getloadavg()
-    print(f"make demo in {clone} (commit {commit}, load {load_before[0]:.2f}) ...", flush=True)
+    bench = Bench("demo")   # the load before make demo
+    print(f"make demo in {clone} (commit {commit[:7]}, load {bench.load_before}) ...", flush=True)
     start = time.perf_counter()
     with open(work / "make_demo.log", "w") as log:
         rc = subprocess.run(["make", "demo"], cwd=clone, stdout=log, stderr=subprocess.STDOUT).returncode
@@ -56,21 +57,14 @@ def main(argv=None) -> dict:
             "within_target": wall <= TARGET_S,
             "includes": "a new .venv (torch from local disk, then the package), building the "
                         "creatures, preparing 4 + 48 shapes, numba's first compile",
-            "machine": f"{os.cpu_count()} CPU cores, no GPU",
-            "load_avg_1min_before": round(load_before[0], 2),
-            "load_avg_1min_after": round(os.getloadavg()[0], 2),
-            "date": date.today().isoformat(),
-            "commit": commit,
         },
     }
-    out = RESULTS / "demo.json"
-    if out.is_file():
-        old = json.loads(out.read_text())
+    if bench.path.is_file():
+        old = json.loads(bench.path.read_text())
         old.pop("previous", None)
         result["previous"] = old
-    tmp = out.with_suffix(".json.tmp")
-    tmp.write_text(json.dumps(result, indent=2) + "\n")
-    tmp.replace(out)
+    # the measured code is the clone's (clean, at `commit`), not this checkout's
+    out = bench.write(result, commit=commit, dirty=False)
     print(f"make demo: {wall:.0f} s wall ({wall - summary['total_s']:.0f} s setup); "
           + ", ".join(f"{k} {v['seconds']:.0f} s" for k, v in summary["steps"].items())
           + f" -> {out}")

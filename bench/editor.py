@@ -4,7 +4,8 @@
                            [--no-screenshot]
 
 Input: the ant and a procedural creature fitted together (`train.py stage=fit data=demo
-model=small`; the fit is cached in bench/runs/editor, or pass --ckpt of such a fit). An
+model=small`; the fit is kept in the bench's fit cache, .cache/bench/fits/editor, keyed by its
+whole recipe: config, data, steps; --refit fits again; or pass --ckpt of such a fit). An
 `EditorServer` runs in this process (no browser during the timings: a software-GL browser would
 take the same cores), and each interaction goes through the code path of its GUI callback
 (session interaction, then the server's overlay / controls / mesh loop):
@@ -23,12 +24,11 @@ Baseline measured in the same run: extract_preview_s, the preview extraction alo
 editor), so preview_s / extract_preview_s is the editor's overhead on a loaded machine.
 
 Writes bench/results/editor.json: {cases: [{shape, interaction, preview_s, refine_s, n_faces,
-extract_preview_s}], settings, load_avg_start, load_avg_end}.
+extract_preview_s}], settings, machine} (bench/_harness.py).
 """
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import statistics
 import sys
@@ -39,25 +39,22 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+from bench._harness import Bench, cached_run_fit  # noqa: E402
 
 RUN_DIR = ROOT / "bench/runs/editor"
 RESULTS = ROOT / "bench/results"
 SHAPES = {"ant": "leg_l1", "creature_0000": "leg_fl"}  # shape -> the GC the interactions edit
 
 
-def fitted(steps: int) -> Path:
-    """The ant + 3 creatures fit of `make demo` (cached in bench/runs/editor)."""
-    ckpt = RUN_DIR / "checkpoints/last.ckpt"
-    if ckpt.exists():
-        return ckpt
+def fitted(steps: int, refit: bool = False, resolution: int = 64) -> Path:
+    """The ant + 3 creatures fit of `make demo` at `steps` steps: from the bench's fit cache
+    while its recipe (the whole config, the shapes' data) is unchanged, else fitted now."""
     from ngc_gen.app.config import compose_config
-    from ngc_gen.app.fit import run_fit
 
-    run_fit(compose_config(overrides=[
+    cfg = compose_config(overrides=[
         "stage=fit", "data=demo", "model=small", f"trainer.max_steps={steps}",
-        "extract.resolution=64", f"run_dir={RUN_DIR}", "trainer.enable_progress_bar=false",
-        "logger=csv"]))
-    return ckpt
+        f"extract.resolution={resolution}", "trainer.enable_progress_bar=false", "logger=csv"])
+    return cached_run_fit("editor", cfg, refit=refit).run_dir / "checkpoints/last.ckpt"
 
 
 def interactions(session, gc: str):
@@ -138,11 +135,12 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--ckpt", default=None, help="a demo fit's checkpoint (default: fit once)")
     ap.add_argument("--steps", type=int, default=1500)
+    ap.add_argument("--refit", action="store_true", help="fit again even if the cache has it")
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--no-screenshot", action="store_true")
     args = ap.parse_args()
-    load_start = os.getloadavg()
+    bench = Bench("editor")
 
     import torch
 
@@ -152,7 +150,7 @@ def main() -> None:
     from ngc_gen.app.editor.start import open_session
     from ngc_gen.app.config import compose_config
 
-    ckpt = Path(args.ckpt) if args.ckpt else fitted(args.steps)
+    ckpt = Path(args.ckpt) if args.ckpt else fitted(args.steps, args.refit)
     cases = []
     settings = None
     for shape, gc in SHAPES.items():
@@ -176,7 +174,6 @@ def main() -> None:
                       f"refine {r['refine_s']:.2f} s, {r['n_faces']} faces", flush=True)
         finally:
             server.stop()
-    load_end = os.getloadavg()
     out = {"cases": cases,
            "settings": {**settings, "threads": args.threads, "repeats": args.repeats,
                         "checkpoint": os.path.relpath(ckpt, ROOT),
@@ -184,15 +181,11 @@ def main() -> None:
                         "convention": "preview_s: interaction -> preview mesh in the scene; "
                                       "refine_s: release -> refined mesh in the scene; "
                                       "extract_preview_s: the preview extraction alone "
-                                      "(baseline, same run); medians"},
-           "load_avg_start": list(load_start), "load_avg_end": list(load_end),
-           "cpu_count": os.cpu_count()}
-    RESULTS.mkdir(parents=True, exist_ok=True)
-    from ngc_gen.data.atomic import atomic_write_text
-
-    atomic_write_text(RESULTS / "editor.json", json.dumps(out, indent=2))
-    print(f"load average {load_start[0]:.2f} -> {load_end[0]:.2f} (1 min) on "
-          f"{os.cpu_count()} cores; wrote {RESULTS / 'editor.json'}")
+                                      "(baseline, same run); medians"}}
+    path = bench.write(out)
+    m = bench.machine()
+    print(f"load average {m['load_1min_before']} -> {m['load_1min_after']} (1 min) on "
+          f"{m['cpus']} cores; wrote {path}")
     if not args.no_screenshot:
         cfg = compose_config("edit", [f"run={ckpt}", "viewer=true", "shape=ant",
                                       f"editor.port={browser.free_port()}",

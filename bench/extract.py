@@ -2,9 +2,9 @@
 
     python bench/extract.py [--resolutions 128 256 512] [--dense-max-evals 4e7] [--threads 2]
 
-Shapes: the deformation bench's fit (bench/deform.py: a one-GC square bar, creature_0000 with 10
-GCs and the ant with 15 GCs, small preset, 1500 steps; trained once into bench/runs/deform if
-absent). Per shape and resolution R (grid over [-1, 1]^3):
+Shapes: the deformation bench's fit (bench/deform.py: a one-GC square bar, creature_0000 with 10 GCs
+and the ant with 15 GCs, small preset, 1500 steps; from its fit cache, trained if absent). Per shape
+and resolution R (grid over [-1, 1]^3):
 - dense: the network at every grid point of the box for every GC, dense_evals = R^3 x n_gcs.
   Timed where dense_evals <= --dense-max-evals; elsewhere dense_s is the same shape's seconds
   per evaluation (timed at --dense-rate-resolution) times dense_evals, and the case says
@@ -21,12 +21,13 @@ absent). Per shape and resolution R (grid over [-1, 1]^3):
   radii, or the bar's, scaled by 1.1), against full_after_edit_s from scratch (resolutions up
   to --incremental-max-resolution).
 Wall times with --threads torch (and numba) threads, sparse also in CPU seconds of the process
-(sparse_cpu_s); the 1-minute load average at start and end and at each sparse timing is
-recorded, since the machine may be shared. decoder: the network's rows per second on random
-rows (wall with --threads, and per CPU second with one thread) in the same run, so
-sparse_network_floor_s = sparse_evals / rows per second is what the evaluations alone cost. Writes bench/results/extract.json
-({machine, settings, cases: [{shape, resolution, dense_evals, prefiltered_evals, sparse_evals,
-dense_s, prefiltered_s, sparse_s, cd_sparse_vs_prefiltered, ...}], targets}).
+(sparse_cpu_s); the 1-minute load average at each sparse timing is recorded, and at start and end in
+the machine record (bench/_harness.py), since the machine may be shared. decoder: the network's rows
+per second on random rows (wall with --threads, and per CPU second with one thread) in the same run,
+so sparse_network_floor_s = sparse_evals / rows per second is what the evaluations alone cost.
+Writes bench/results/extract.json ({machine, settings, cases: [{shape, resolution, dense_evals,
+prefiltered_evals, sparse_evals, dense_s, prefiltered_s, sparse_s, cd_sparse_vs_prefiltered, ...}],
+targets}).
 """
 from __future__ import annotations
 
@@ -34,7 +35,6 @@ import argparse
 import dataclasses
 import json
 import os
-import platform
 import sys
 import time
 from pathlib import Path
@@ -44,6 +44,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "bench"))
+from bench._harness import Bench, load_1min  # noqa: E402
 
 SHAPES = {"bar": "bar", "creature": "creature_0000", "ant": "ant"}   # label -> fitted name
 EDITED_GC = {"bar": "bar", "creature": "leg_fl", "ant": "leg_l1"}
@@ -89,7 +90,7 @@ def decoder_rate(module, threads: int, n: int = 200_000) -> dict:
                 best = min(best, clock() - t0)
         out[key] = n / best
     torch.set_num_threads(threads)
-    out["load_avg_1min"] = os.getloadavg()[0]
+    out["load_1min"] = load_1min()
     return out
 
 
@@ -143,7 +144,7 @@ def run_shape(label: str, module, resolutions, dense_max_evals: float, rate_reso
         extract_mesh(gcs, fn, R)                                           # warm-up
         runs = []
         for _ in range(repeats):        # best of `repeats`: the machine may be shared
-            load = os.getloadavg()[0]
+            load = load_1min()
             c0 = time.process_time()
             sp, s = timed(lambda: extract_mesh(gcs, fn, R))
             runs.append((s, time.process_time() - c0, load, sp))
@@ -151,7 +152,7 @@ def run_shape(label: str, module, resolutions, dense_max_evals: float, rate_reso
         st = sp.stats
         other = s - st["seconds_network"] - st["seconds_geometry"] - st["seconds_marching"]
         case.update(sparse_evals=st["n_network_evals"], sparse_s=s, sparse_cpu_s=cpu,
-                    sparse_load_avg_1min=load,
+                    sparse_load_1min=load,
                     sparse_seconds_network=st["seconds_network"],
                     sparse_seconds_geometry=st["seconds_geometry"],
                     sparse_seconds_marching=st["seconds_marching"],
@@ -203,7 +204,7 @@ def print_case(case: dict) -> None:
           f"{case['dense_s'] if case['dense_s'] is not None else float('nan'):7.1f}"
           f"{'*' if case['dense_s_extrapolated'] else ' '} prefiltered "
           f"{case['prefiltered_s']:6.2f} sparse {case['sparse_s']:6.2f} (cpu "
-          f"{case['sparse_cpu_s']:.2f}, load {case['sparse_load_avg_1min']:.1f}; network "
+          f"{case['sparse_cpu_s']:.2f}, load {case['sparse_load_1min']:.1f}; network "
           f"{case['sparse_seconds_network']:.2f} geometry {case['sparse_seconds_geometry']:.2f} "
           f"marching {case['sparse_seconds_marching']:.2f} other "
           f"{case['sparse_seconds_other']:.2f}; evals alone {case['sparse_network_floor_s']:.2f})"
@@ -225,22 +226,21 @@ def main():
     ap.add_argument("--repeats", type=int, default=2, help="sparse timings per case (best kept)")
     ap.add_argument("--out", type=Path, default=ROOT / "bench/results/extract.json")
     args = ap.parse_args()
+    bench = Bench("extract")
 
     import torch
 
     from deform import fitted
-    from ngc_gen.data.atomic import atomic_write_text
     from ngc_gen.extract import SparseSettings
     from ngc_gen.lit.checkpoint import load_autodecoder
 
     torch.set_num_threads(args.threads)
-    load0 = os.getloadavg()[0]
     fit = fitted(args.steps, refit=False)
     module = load_autodecoder(fit["checkpoint"])
     decoder = decoder_rate(module, args.threads)
     print(f"decoder: {decoder['rows_per_s_wall']:,.0f} rows/s wall ({args.threads} threads), "
           f"{decoder['rows_per_cpu_s_1_thread']:,.0f} rows per CPU second (1 thread), load "
-          f"{decoder['load_avg_1min']:.1f}", flush=True)
+          f"{decoder['load_1min']:.1f}", flush=True)
     cases = []
     for label in args.shapes:
         cases += run_shape(label, module, args.resolutions, args.dense_max_evals,
@@ -248,12 +248,10 @@ def main():
                            args.repeats)
     at = {c["shape"]: c for c in cases if c["resolution"] == TARGET_R}
     res = {
-        "machine": {"cpus": os.cpu_count(), "threads": args.threads,
-                    "omp_wait_policy": os.environ.get("OMP_WAIT_POLICY"),
-                    "python": platform.python_version(), "torch": torch.__version__,
-                    "load_avg_1min_at_start": load0, "load_avg_1min_at_end": os.getloadavg()[0]},
         "decoder": decoder,
-        "settings": {"bound": 1.0, "checkpoint": fit["checkpoint"], "fit_steps": fit["steps"],
+        "settings": {"bound": 1.0, "checkpoint": os.path.relpath(fit["checkpoint"], ROOT),
+                     "fit_steps": fit["steps"],
+                     "omp_wait_policy": os.environ.get("OMP_WAIT_POLICY"),
                      "sparse": dataclasses.asdict(SparseSettings()),
                      "dense_max_evals": args.dense_max_evals, "repeats": args.repeats,
                      "chamfer": "DeepSDF convention (30k samples each way, squared, means "
@@ -272,11 +270,10 @@ def main():
                     "creature_sparse_s_le_1": (at["creature"]["sparse_s"] <= 1.0
                                                if "creature" in at else None)},
     }
-    print(f"machine load (1 min) at start {load0:.1f}, at end {os.getloadavg()[0]:.1f} on "
+    print(f"machine load (1 min) at start {bench.load_before}, at end {load_1min()} on "
           f"{os.cpu_count()} cores; * = dense time extrapolated")
     print("targets at 256:", json.dumps(res["targets"]))
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(args.out, json.dumps(res, indent=2))
+    bench.write(res, path=args.out)
     print(f"saved {args.out.relative_to(ROOT) if args.out.is_relative_to(ROOT) else args.out}")
 
 

@@ -6,12 +6,13 @@ the same shapes with the same number of steps, batch size and samples per shape.
     python bench/fit.py --deepsdf-long 20000      # DeepSDF's recipe, long (resumable)
 
 Writes bench/results/fit.json ({methods: {ngc, ngc_1gc, deepsdf: {cd, hd, emd, nc, fscore,
-fragments, gt_fragments, train_s, load}}, shapes, ...}; nc = mean normal consistency, fscore =
-mean F-score@0.01, fragments = components under 1% of the faces summed over the shapes, load =
-os.getloadavg() before and after training) and bench/results/fit.md (the README table). Also
-checks on the fitted NGC that the extractor's GC prefilter is exact (identical grids with and
-without it) and records both evaluation counts. Runs go to bench/runs/fit/<method> and start
-fresh.
+fragments, gt_fragments, train_s, load}}, shapes, ..., machine}; nc = mean normal consistency,
+fscore = mean F-score@0.01, fragments = components under 1% of the faces summed over the shapes,
+load = the 1-, 5- and 15-minute load averages before and after that method's training; machine:
+bench/_harness.py); its table is bench/README.md's (bench/report.py). Also checks on the fitted
+NGC that the extractor's GC prefilter is exact (identical grids with and without it) and records
+both evaluation counts. Runs go to bench/runs/fit/<method> and start
+fresh: the training is what this bench measures, so it is never taken from a cache.
 
 Screening (ablations): `--tag NAME` writes runs and results to bench/runs/fit/NAME/ instead,
 `--set` adds overrides to the NGC methods, `--limit N` keeps N of the 6 creatures.
@@ -29,7 +30,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import shutil
 import sys
 import time
@@ -39,6 +39,8 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+from bench._harness import Bench, load_avg, write_atomic  # noqa: E402
+from bench.report import LABELS  # noqa: E402  (the table's method names)
 
 METHODS = {  # name -> (data config, model config, extra overrides)
     "ngc": ("fitbench", "small", []),
@@ -135,7 +137,8 @@ def deepsdf_long(steps: int, resolution: int, batch_size: int, ngc_seconds: floa
     metrics = score_checkpoint(cfg, last, run_dir / "meshes", **COARSE)
     out = method_summary({**metrics, "train_s": seconds, "steps": step})
     out.update(max_steps=steps, batch_size=batch_size, resolution=resolution,
-               clock_csv=str((run_dir / "clock.csv").relative_to(ROOT)))
+               clock_csv=str((run_dir / "clock.csv").relative_to(ROOT)),
+               loss_last_fifth=loss_last_fifth(run_dir / "clock.csv", step))
     # coarse-to-fine meshes equal dense ones where the field is 2-Lipschitz: check one shape
     module = load_autodecoder(last).eval()
     from ngc_gen.shape import autodecoder_mesh
@@ -234,80 +237,19 @@ def picture(res: dict, path: Path, run_root: Path, max_shapes: int = 4) -> None:
                 col_titles=["ground truth"] + [LABELS[m] for m in methods], cell=(300, 240))
 
 
-def gt_fragments(res: dict):
-    counts = {m.get("gt_fragments") for m in res["methods"].values()} - {None}
-    return counts.pop() if len(counts) == 1 else "-"
-
-
-LABELS = {"ngc": "NGC, multi-GC", "ngc_1gc": "NGC, one GC", "deepsdf": "DeepSDF"}
-
-
-def markdown(res: dict) -> str:
-    lines = ["| method | CD (x1e-4) | HD | EMD | NC | F@0.01 | fragments | train time (s) |",
-             "|---|---|---|---|---|---|---|---|"]
-    for name, label in LABELS.items():
-        if name not in res["methods"]:
-            continue
-        m = res["methods"][name]
-        lines.append(f"| {label} | {m['cd'] * 1e4:.2f} | {m['hd']:.4f} | {m['emd']:.4f} | "
-                     f"{m.get('nc', float('nan')):.3f} | {m.get('fscore', float('nan')):.3f} | "
-                     f"{m.get('fragments', '-')} | {m['train_s']:.0f} |")
-    long = res.get("deepsdf_long")
-    if long:
-        for label, m in ((f"DeepSDF, own recipe, at NGC's time", long.get("at_ngc_time")),
-                         (f"DeepSDF, own recipe, {long['steps']} steps", long)):
-            if m:
-                lines.append(f"| {label} | {m['cd'] * 1e4:.2f} | {m['hd']:.4f} | "
-                             f"{m['emd']:.4f} | {m['nc']:.3f} | {m['fscore']:.3f} | "
-                             f"{m['fragments']} | {m['train_s']:.0f} |")
-    r = (res["methods"]["ngc"]["cd"] / res["methods"]["deepsdf"]["cd"]
-         if {"ngc", "deepsdf"} <= set(res["methods"]) else float("nan"))
-    lines.append("")
-    lines.append(f"Mean over {len(res['shapes'])} shapes ({', '.join(res['shapes'])}); "
-                 f"{res['steps']} steps of {res['batch_size']} samples each, small presets "
-                 f"(~47k parameters each), meshes at {res['resolution']}^3. NGC CD / DeepSDF CD "
-                 f"= {r:.2f} (paper: 0.53). CD: 30k points each way, squared distances, means "
-                 f"summed (DeepSDF); HD: symmetric Hausdorff; EMD: exact assignment on 2048 "
-                 f"points, mean distance; NC: normal consistency and F@0.01: F-score at 0.01, "
-                 f"both of each mesh's samples against the other's surface (ngc_gen.eval); "
-                 f"fragments: connected components under 1% of the faces, summed over the "
-                 f"shapes (ground truth: {gt_fragments(res)}).")
-    if "ceiling" in res:
-        c = res["ceiling"]["mean"]
-        lines.append("")
-        lines.append(f"Ceiling at {res['ceiling']['resolution']}^3 (each shape's exact signed "
-                     f"distance meshed and scored the same way): CD {c['cd'] * 1e4:.2f}e-4, NC "
-                     f"{c['nc']:.3f}, F@0.01 {c['fscore']:.3f}, fragments {c['fragments']} "
-                     f"(thin parts under a grid cell break up; sharp creases are rounded).")
-    if long and "ngc" in res["methods"]:
-        lines.append("")
-        lines.append(f"DeepSDF, own recipe: 8 x 512, latent skip at 4, clamp 0.1, lr 5e-4 "
-                     f"(codes 1e-3) halved every quarter of {long['max_steps']} steps, same "
-                     f"batch; stopped at step {long['steps']}, meshes at "
-                     f"{long.get('resolution', res['resolution'])}^3 (coarse-to-fine). NGC CD / "
-                     f"its CD = {res['methods']['ngc']['cd'] / long['cd']:.2f} (paper: 0.53); "
-                     f"{long_status(long)}.")
-
-    return "\n".join(lines) + "\n"
-
-
-def long_status(long: dict) -> str:
-    """Where the long DeepSDF run stands: the end of its schedule or not, and how much its
-    training loss still fell over the last fifth of the steps (bench/runs/fit/.../clock.csv)."""
-    done = "it ran its whole schedule" if long["steps"] >= long["max_steps"] else \
-        f"it has not finished its schedule ({long['steps']} of {long['max_steps']} steps)"
-    path = ROOT / long.get("clock_csv", "")
-    if not path.is_file():
-        return done
-    rows = np.loadtxt(path, delimiter=",", ndmin=2)
-    rows = rows[rows[:, 0] <= long["steps"]]
-    late = rows[rows[:, 0] >= 0.8 * long["steps"]]
+def loss_last_fifth(clock_csv: Path, steps: int) -> list[float] | None:
+    """[first, last]: the mean training loss of the first and of the last quarter of the
+    clock rows over the last fifth of `steps` (bench/runs/fit/.../clock.csv), so the result
+    says whether the loss still fell at the end; None with too few rows."""
+    if not clock_csv.is_file():
+        return None
+    rows = np.loadtxt(clock_csv, delimiter=",", ndmin=2)
+    rows = rows[rows[:, 0] <= steps]
+    late = rows[rows[:, 0] >= 0.8 * steps]
     if len(late) < 4:
-        return done
-    k = max(1, len(late) // 4)   # means of the first and last quarter of those rows
-    a, b = late[:k, 2].mean(), late[-k:, 2].mean()
-    return (f"{done}; its training loss fell {100 * (a - b) / a:.0f}% over the last fifth of "
-            f"the steps ({a:.2e} -> {b:.2e})")
+        return None
+    k = max(1, len(late) // 4)
+    return [float(late[:k, 2].mean()), float(late[-k:, 2].mean())]
 
 
 def rescore(run_dir: Path, resolution: int) -> dict:
@@ -328,9 +270,7 @@ def rescore(run_dir: Path, resolution: int) -> dict:
     coarse = COARSE if cfg.model.decoder.get("_target_", "").endswith("DeepSDFDecoder") else {}
     metrics.update(score_checkpoint(cfg, checkpoint, run_dir / "meshes", **coarse),
                    checkpoint=str(checkpoint))
-    tmp = metrics_path.with_suffix(".tmp")
-    tmp.write_text(json.dumps(metrics, indent=2))
-    os.replace(tmp, metrics_path)
+    write_atomic(metrics_path, json.dumps(metrics, indent=2))
     return metrics
 
 
@@ -369,18 +309,25 @@ def main():
         torch.set_num_threads(args.threads)
     out = ROOT / "bench/results" if args.tag is None else ROOT / "bench/runs/fit" / args.tag
     run_root = ROOT / "bench/runs/fit" if args.tag is None else out
-    old = out / "fit.json"
+    bench = Bench("fit", results=out)
+    old = bench.path
+
+    def earlier() -> dict:  # the result on disk, less its machine record (written anew)
+        r = json.loads(old.read_text())
+        r.pop("machine", None)
+        return r
+
     res = {"methods": {}, "per_shape": {}}
     if (set(args.methods) != set(METHODS) or args.deepsdf_long or args.rescore) and old.exists():
-        res = json.loads(old.read_text())  # rerun some methods, keep the rest
+        res = earlier()  # rerun some methods, keep the rest
     if args.deepsdf_long:
-        load0 = os.getloadavg()
+        load0 = load_avg()
         ngc_s = res["methods"].get("ngc", {}).get("train_s", 42.0)
         long = deepsdf_long(args.deepsdf_long, args.resolution, args.batch_size, ngc_s, run_root,
                             args.score_only)
-        long["load"] = [round(x, 2) for x in load0 + os.getloadavg()]
+        long["load"] = load0 + load_avg()
         if old.exists():  # the other methods may have been rerun meanwhile (a long run)
-            res = json.loads(old.read_text())
+            res = earlier()
         res["deepsdf_long"] = long
         args.methods = []
     else:
@@ -391,7 +338,7 @@ def main():
         extra = list(args.set) if method.startswith("ngc") else []
         if args.limit:  # fitbench_1gc wraps fitbench as `base`
             extra.append(f"data.{'base.' * (method == 'ngc_1gc')}parts.1.limit={args.limit}")
-        load0 = os.getloadavg()
+        load0 = load_avg()
         if args.rescore:  # the training's own record stays: load and overrides
             metrics = rescore(run_root / method, args.resolution)
             kept = {k: res["methods"].get(method, {}).get(k) for k in ("load", "overrides")}
@@ -399,7 +346,7 @@ def main():
         else:
             metrics = run(method, args.steps, args.resolution, args.batch_size, run_root, extra)
             res["methods"][method] = method_summary(metrics)
-            res["methods"][method]["load"] = [round(x, 2) for x in load0 + os.getloadavg()]
+            res["methods"][method]["load"] = load0 + load_avg()
             res["methods"][method]["overrides"] = extra
         res["per_shape"][method] = metrics["shapes"]
         res["shapes"] = list(metrics["shapes"])
@@ -408,13 +355,11 @@ def main():
     if args.tag is None and not args.deepsdf_long and (
             args.rescore or res.get("ceiling", {}).get("resolution") != args.resolution):
         res["ceiling"] = ceiling(args.resolution)
-    out.mkdir(parents=True, exist_ok=True)
-    for name, text in (("fit.json", json.dumps(res, indent=2)), ("fit.md", markdown(res))):
-        tmp = out / (name + ".tmp")
-        tmp.write_text(text)
-        os.replace(tmp, out / name)
+    from bench.report import table
+
+    bench.write(res)
     picture(res, out / "fit.png", run_root)
-    print(markdown(res))
+    print(table("fit", earlier()))
     if "prefilter" in res:
         p = res["prefilter"]
         print(f"prefilter on {p['shape']} at {p['resolution']}^3: identical grid "

@@ -14,15 +14,16 @@ Chamfer, all meshes in the dataset's normalised frame: bounding box centred, lon
   train_recon the same training shapes' latents decoded and meshed like generated ones
   noise       the floor: latents ~ N(mean, std^2) per dimension of the trained latents, no
               diffusion, decoded and meshed the same way
-Writes bench/results/generate.json, generate.md and generate.png; runs go to
-bench/runs/generate/.
+Writes bench/results/generate.json (with the machine record, bench/_harness.py) and
+generate.png; its table is bench/README.md's (bench/report.py). The trained runs are kept in the
+bench's fit cache (keyed by their whole recipe; bench/runs/generate/shape_latent and diffusion
+link to the latest), the samples go to bench/runs/generate/.
 """
 from __future__ import annotations
 
 import argparse
 import json
 import os
-import shutil
 import sys
 import time
 from pathlib import Path
@@ -31,6 +32,8 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+from bench._harness import (Bench, FitCache, config_recipe, dataset_identity,  # noqa: E402
+                            link_latest)
 RUNS = ROOT / "bench/runs/generate"
 RESULTS = ROOT / "bench/results"
 
@@ -53,34 +56,49 @@ def compose_batch_size() -> int:
 
 
 def train(args) -> dict:
-    from ngc_gen.app.config import compose_config
+    """The recipe's shape-latent and diffusion runs from the bench's fit cache
+    (.cache/bench/fits/generate), each keyed by its stage's whole config and the dataset's
+    identity (the diffusion config names its shape-latent run, so a new shape-latent fit means
+    a new diffusion fit), else trained now; --refit trains both again. bench/runs/generate/
+    shape_latent and diffusion link to them. -> {shape_latent, diffusion (their metrics),
+    shape_latent_dir, diffusion_dir, shape_latent_stage_s (when trained in this call)}."""
+    from omegaconf import open_dict
 
+    from ngc_gen.app.config import compose_config
     from ngc_gen.app.diffusion import run_diffusion
     from ngc_gen.app.shape_latent import run_shape_latent
 
+    cache = FitCache("generate")
+
+    def stage(name: str, cfg, run):
+        def fit(run_dir: Path) -> dict:
+            with open_dict(cfg):
+                cfg.run_dir = str(run_dir)
+            t0 = time.perf_counter()
+            run(cfg)
+            return {"stage_s": time.perf_counter() - t0, "label": name}
+
+        recipe = {"stage": name, "config": config_recipe(cfg), "data": dataset_identity(cfg)}
+        f = cache.get(recipe, fit, refit=getattr(args, "refit", False))
+        link_latest(RUNS / name, f.run_dir)
+        return f
+
     times = {}
-    sl_dir, diff_dir = RUNS / "shape_latent", RUNS / "diffusion"
-    if not (args.reuse and (sl_dir / "metrics.json").is_file()):
-        # a fresh run: a run directory's last.ckpt would be resumed (or refused, if the recipe
-        # changed since)
-        shutil.rmtree(sl_dir, ignore_errors=True)
-        shutil.rmtree(diff_dir, ignore_errors=True)
-        t0 = time.perf_counter()
-        cfg = compose_config(overrides=overrides(args) + [
-            "stage=shape_latent", f"run_dir={sl_dir}",
-            "shape_latent.preview=0"] + ([f"shape_latent.max_steps={args.shape_latent_steps}"]
-                                         if args.shape_latent_steps else []))
-        run_shape_latent(cfg)
-        times["shape_latent_stage_s"] = time.perf_counter() - t0
-    if not (args.reuse and (diff_dir / "metrics.json").is_file()):
-        shutil.rmtree(diff_dir, ignore_errors=True)
-        cfg = compose_config(overrides=overrides(args) + [
-            "stage=diffusion", f"run_dir={diff_dir}", f"shape_latent_run={sl_dir}"]
-            + ([f"diffusion.max_steps={args.diffusion_steps}"] if args.diffusion_steps else []))
-        run_diffusion(cfg)
+    sl = stage("shape_latent", compose_config(overrides=overrides(args) + [
+        "stage=shape_latent", "shape_latent.preview=0"] + (
+            [f"shape_latent.max_steps={args.shape_latent_steps}"] if args.shape_latent_steps
+            else [])), run_shape_latent)
+    if not sl.reused:
+        times["shape_latent_stage_s"] = sl.info["stage_s"]
+    diff = stage("diffusion", compose_config(overrides=overrides(args) + [
+        "stage=diffusion", f"shape_latent_run={sl.run_dir}"] + (
+            [f"diffusion.max_steps={args.diffusion_steps}"] if args.diffusion_steps else [])),
+        run_diffusion)
+    sl_dir, diff_dir = sl.run_dir, diff.run_dir
     sl = json.loads((sl_dir / "metrics.json").read_text())
     diff = json.loads((diff_dir / "metrics.json").read_text())
-    return {"shape_latent": sl, "diffusion": diff, **times}
+    return {"shape_latent": sl, "diffusion": diff, "shape_latent_dir": sl_dir,
+            "diffusion_dir": diff_dir, **times}
 
 
 def mesh_set(gen, latents, names, out_dir, resolution):
@@ -127,42 +145,6 @@ def render(meshes, names, path: Path, cols: int = 4) -> None:
     p.close()
 
 
-def machine(res: dict) -> str:
-    """Where the timings come from: torch threads on the 2-core machine, and its load."""
-    load = res.get("load_avg_1min_at_start")
-    return (f"{res.get('threads', 1)} torch thread on 2 CPU cores"
-            + (f", load average {load:.1f} at start" if load is not None else ""))
-
-
-def markdown(res: dict) -> str:
-    rows = [("generated", "generated (EDM, 18 Heun steps)"),
-            ("train_recon", "training latents, decoded (decoder ceiling)"),
-            ("train_set", "training meshes (ceiling)"),
-            ("noise", "noise latents N(mean, std), no diffusion (floor)")]
-    lines = ["| shapes vs held-out | MMD-CD (x1e-3) | COV-CD (%) | 1-NNA-CD (%) | sets |",
-             "|---|---|---|---|---|"]
-    for key, label in rows:
-        if key in res:
-            m, per = res[key], res["per_set"][key]
-            rng = lambda k, f: (f" ({f * min(p[k] for p in per):.0f}-"  # noqa: E731
-                                f"{f * max(p[k] for p in per):.0f})" if len(per) > 1 else "")
-            lines.append(f"| {label} | {1e3 * m['mmd_cd']:.3f} | {100 * m['cov_cd']:.1f}"
-                         f"{rng('cov_cd', 100)} | {100 * m['nna_cd']:.1f}{rng('nna_cd', 100)} | "
-                         f"{len(per)} |")
-    t = res["timing"]
-    lines += ["", f"{res['n_reference']} held-out creatures (never trained on) as the reference; "
-              f"each row is the mean (range in brackets) over sets of {res['n_reference']} "
-              f"shapes (disjoint sets of generated / noise shapes, random subsets of the "
-              f"{res['n_train']} training shapes); 2048 surface points per shape, "
-              f"squared Chamfer (sum of the two means), meshes in the dataset's normalised frame; "
-              f"1-NNA ideal 50%. Trained on {res['n_train']} creatures: shape latents "
-              f"{res['shape_latent_steps']} steps, diffusion {res['diffusion_steps']} steps; "
-              f"sampling per shape: latent {1e3 * t['latent_s_per_shape']:.0f} ms, mesh at "
-              f"{res['resolution']}^3 {t['mesh_s_per_shape']:.2f} s ({machine(res)}). "
-              f"Targets: 1-NNA <= 65%, COV >= 50%."]
-    return "\n".join(lines) + "\n"
-
-
 def recipe_args(ap: argparse.ArgumentParser) -> None:
     """The training recipe's options (dataset, samples, steps), shared with bench/condition.py,
     which reuses these runs."""
@@ -176,6 +158,8 @@ def recipe_args(ap: argparse.ArgumentParser) -> None:
                     help="default: conf/experiment/generate.yaml's")
     ap.add_argument("--diffusion-steps", type=int, default=None,
                     help="default: conf/experiment/generate.yaml's")
+    ap.add_argument("--refit", action="store_true",
+                    help="train the shape-latent and diffusion runs again even if cached")
 
 
 def main():
@@ -188,12 +172,11 @@ def main():
     ap.add_argument("--train-subsets", type=int, default=20,
                     help="random subsets of n_reference training shapes to average over")
     ap.add_argument("--no-recon", action="store_true", help="skip the train_recon row")
-    ap.add_argument("--reuse", action="store_true", help="reuse finished runs in bench/runs")
     ap.add_argument("--threads", type=int, default=1,
                     help="torch threads (on a busy 2-core machine one thread trained 12x faster "
                          "than two: 59 vs 725 ms a step, measured)")
     args = ap.parse_args()
-    load_at_start = os.getloadavg()[0]  # timings need an idle machine: record how idle it was
+    bench = Bench("generate")  # timings need an idle machine: its load is recorded
 
     import torch
     import trimesh
@@ -218,8 +201,8 @@ def main():
     print(f"{len(train_meshes)} training / {n_ref} held-out creatures")
 
     runs = train(args)
-    gen = load_generator(RUNS / "diffusion")
-    n_sets, n_gen = args.sets, args.sets * n_ref
+    gen = load_generator(runs["diffusion_dir"])
+    n_gen = args.sets * n_ref
 
     sampled = generate(gen, RUNS / "samples", n=n_gen, seed=args.seed,
                        resolution=args.resolution)
@@ -249,7 +232,6 @@ def main():
            "diffusion_steps": runs["diffusion"]["steps"],
            "batch_size": args.batch_size or compose_batch_size(),
            "samples_per_shape": args.samples, "seed": args.seed, "threads": args.threads,
-           "load_avg_1min_at_start": load_at_start,
            "convention": "2048 surface points per shape, squared Chamfer (sum of the two means), "
                          "normalised frame (bbox centred, longest side 1.6); fractions; each row "
                          "the mean over sets of n_reference shapes (per_set lists them): "
@@ -280,13 +262,10 @@ def main():
         "edm_loss_untrained", "edm_loss_ema", "sample_to_train_median", "train_to_train_median",
         "steps")}
     render(gen_meshes[:8], gen_names[:8], RESULTS / "generate.png")
-    RESULTS.mkdir(parents=True, exist_ok=True)
-    for name, text in (("generate.json", json.dumps(res, indent=2)),
-                       ("generate.md", markdown(res))):
-        tmp = RESULTS / (name + ".tmp")
-        tmp.write_text(text)
-        os.replace(tmp, RESULTS / name)
-    print("\n" + markdown(res))
+    from bench.report import table
+
+    path = bench.write(res)
+    print("\n" + table("generate", json.loads(path.read_text())))
     print(f"total {res['timing']['total_s'] / 60:.1f} min; results in {RESULTS}")
 
 

@@ -98,7 +98,7 @@ def bench_relcoords(n=1_000_000):
                                         .numpy()) - inside).max())
     return {"relcoords_points_per_s": n / ours, "relcoords_s_per_1M": ours,
             "relcoords_points_per_s_wall_all_cores": n / wall_all,
-            "load_avg_1min_at_wall_timing": load_wall,
+            "load_1min_at_wall_timing": load_wall,
             "polyline_points_per_s": n / base, "speedup_vs_polyline": base / ours,
             "roundtrip_err_newton": err_ours, "roundtrip_err_newton_float32": err_32,
             "roundtrip_err_polyline": err_poly}

@@ -1,33 +1,37 @@
 """Reconstruction into a trained model vs a direct fit (issue: "a held-out creature reconstructed
 into the creature shape-latent model lands within 2x of the CD of the same shape fitted directly").
 
-    python bench/reconstruct.py [--shape-latent-run bench/runs/generate/shape_latent] [--limit 4]
+    python bench/reconstruct.py [--shape-latent-run RUN] [--limit 4] [--refit]
 
 - direct: `train.py stage=fit data=creatures data.split=test` (the demo's fit recipe: small
   preset, 1500 steps), the held-out creatures fitted with their own codes and a trained decoder;
 - reconstructed: `train.py experiment=generate stage=reconstruct run=<shape-latent run>
   data.split=test`: one latent per held-out creature, every network weight frozen (the run the
-  generation bench trains on the 48 training creatures; `--shape-latent-run` to use another),
+  generation bench trains on the 48 training creatures, from its fit cache or trained now;
+  `--shape-latent-run` to use another),
   then the per-GC codes it decodes to refined (reconstruct.refine_steps, decoders still frozen),
   meshed with the shapes' own GCs (reconstruct.gcs=input); for comparison the latent alone
   (refine_steps=0), and the latent alone with the GCs it decodes to (reconstruct.gcs=decoded).
 Both meshed at the same resolution and scored with the same Chamfer (30k points each way,
-squared, means summed). Writes bench/results/reconstruct.json {shapes, direct, reconstructed,
-reconstructed_latent_only, reconstructed_decoded_gcs, ratio, ratio_latent_only,
-ratio_decoded_gcs, settings}.
+squared, means summed). Every run is kept in the bench's fit cache (.cache/bench/fits/
+reconstruct), keyed by its whole config, the held-out shapes' data and (for the reconstructions)
+the shape-latent checkpoint's bytes; --refit runs them again. Writes
+bench/results/reconstruct.json {shapes, direct, reconstructed, reconstructed_latent_only,
+reconstructed_decoded_gcs, ratio, ratio_latent_only, ratio_decoded_gcs, settings, machine}
+(bench/_harness.py).
 """
 from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
-RUNS = ROOT / "bench/runs/reconstruct"
+from bench._harness import (Bench, FitCache, cached_run_fit, config_recipe,  # noqa: E402
+                            dataset_identity, file_identity)
 
 
 def common(args) -> list[str]:
@@ -39,13 +43,11 @@ def common(args) -> list[str]:
 
 def direct(args) -> dict:
     from ngc_gen.app.config import compose_config
-    from ngc_gen.app.fit import run_fit
 
-    out = RUNS / "direct"
-    if args.reuse and (out / "metrics.json").is_file():
-        return json.loads((out / "metrics.json").read_text())
-    return run_fit(compose_config(overrides=common(args) + [
-        "stage=fit", "model=small", f"trainer.max_steps={args.fit_steps}", f"run_dir={out}"]))
+    cfg = compose_config(overrides=common(args) + [
+        "stage=fit", "model=small", f"trainer.max_steps={args.fit_steps}"])
+    f = cached_run_fit("reconstruct", cfg, refit=args.refit, label="direct")
+    return json.loads((f.run_dir / "metrics.json").read_text())
 
 
 # result key -> (run name, overrides): the default (latent, then its codes refined, the input's
@@ -59,32 +61,53 @@ VARIANTS = {
 
 
 def reconstructed(args, name: str, overrides: list[str]) -> dict:
+    from omegaconf import open_dict
+
     from ngc_gen.app.config import compose_config
     from ngc_gen.app.stages import run_stage
 
-    out = RUNS / name
-    if args.reuse and (out / "metrics.json").is_file():
-        return json.loads((out / "metrics.json").read_text())
-    return run_stage(compose_config(overrides=["experiment=generate"] + common(args) + [
-        "stage=reconstruct", f"run={args.shape_latent_run}", *overrides, f"run_dir={out}"]))
+    cfg = compose_config(overrides=["experiment=generate"] + common(args) + [
+        "stage=reconstruct", f"run={args.shape_latent_run}", *overrides])
+
+    def fit(run_dir: Path) -> dict:
+        with open_dict(cfg):
+            cfg.run_dir = str(run_dir)
+        run_stage(cfg)
+        return {"label": name}
+
+    recipe = {"config": config_recipe(cfg), "data": dataset_identity(cfg),
+              "shape_latent": file_identity([args.shape_latent_run / "checkpoints/last.ckpt"])}
+    f = FitCache("reconstruct").get(recipe, fit, refit=args.refit)
+    return json.loads((f.run_dir / "metrics.json").read_text())
+
+
+def default_shape_latent_run() -> Path:
+    """bench/generate.py's shape-latent run at its default recipe (its fit cache)."""
+    from bench.generate import recipe_args, train
+
+    ap = argparse.ArgumentParser()
+    recipe_args(ap)
+    return train(ap.parse_args([]))["shape_latent_dir"]
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--shape-latent-run", type=Path,
-                    default=ROOT / "bench/runs/generate/shape_latent")
+    ap.add_argument("--shape-latent-run", type=Path, default=None,
+                    help="default: bench/generate.py's run (its fit cache; trained if absent)")
     ap.add_argument("--limit", type=int, default=4, help="held-out creatures")
     ap.add_argument("--fit-steps", type=int, default=1500)
     ap.add_argument("--resolution", type=int, default=128)
     ap.add_argument("--threads", default="auto")
-    ap.add_argument("--reuse", action="store_true", help="keep runs that finished")
+    ap.add_argument("--refit", action="store_true", help="run the fits again even if cached")
     ap.add_argument("--only", choices=["direct", "reconstruct"], default=None)
     args = ap.parse_args()
+    bench = Bench("reconstruct")
     from ngc_gen.app.cli import set_threads
-    from ngc_gen.data.atomic import atomic_write_text
 
     threads = set_threads(args.threads)
-    load0, t0 = os.getloadavg()[0], time.perf_counter()
+    t0 = time.perf_counter()
+    if args.only != "direct" and args.shape_latent_run is None:
+        args.shape_latent_run = default_shape_latent_run()
     res = {}
     if args.only in (None, "direct"):
         d = direct(args)
@@ -95,9 +118,10 @@ def main():
             res[key] = {n: m["cd"] for n, m in r["shapes"].items()}
             res[f"{key}_steps"] = r.get("steps")
             res[f"{key}_refine_steps"] = r.get("refine_steps", 0)
-    path = ROOT / "bench/results/reconstruct.json"
+    path = bench.path
     if args.only and path.exists():  # keep the other half of an earlier run
         res = {**json.loads(path.read_text()), **res}
+        res.pop("machine", None)
     if {"direct", "reconstructed"} <= set(res):
         names = sorted(res["direct"])
         res["shapes"] = names
@@ -111,9 +135,8 @@ def main():
     res["settings"] = {"limit": args.limit, "fit_steps": args.fit_steps,
                        "resolution": args.resolution, "shape_latent_run": str(
                            args.shape_latent_run), "threads": threads,
-                       "load_avg_1min_at_start": load0, "load_avg_1min_at_end":
-                           os.getloadavg()[0], "seconds": time.perf_counter() - t0}
-    atomic_write_text(path, json.dumps(res, indent=2))
+                       "seconds": time.perf_counter() - t0}
+    bench.write(res)
     for key in ("ratio", "ratio_latent_only", "ratio_decoded_gcs"):
         if key in res:
             print(f"{key}: CD reconstructed / CD direct fit, mean {res[key]['mean']:.2f}, "

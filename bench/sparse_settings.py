@@ -8,12 +8,12 @@ A variant is `label[:key=value,...]` over `SparseSettings` fields (the rest at t
 1.5 adds a safety margin for fitted fields); `track` = the last level visits only blocks whose
 corners cross or come within `track_near` x c x the grid spacing of the band, and the surface
 grows from them (false: every block the margin keeps).
-Per fitted shape and resolution, for each variant: the network evaluations of the sparse path
-and whether its mesh equals the prefiltered reference bit for bit. Shapes: bench/deform.py's
-fit (bar, creature_0000, ant) and every fit of bench/autogc.py found under bench/runs/autogc (6
-shapes each), whatever has been trained. Time: the creature at the highest resolution extracted
-with each variant in turn, `--repeats` rounds interleaved in this process (a shared machine
-drifts between runs), best and median. Writes bench/results/sparse_settings.json ({machine,
+Per fitted shape and resolution, for each variant: the network evaluations of the sparse path and
+whether its mesh equals the prefiltered reference bit for bit. Shapes: bench/deform.py's fit (bar,
+creature_0000, ant) and every fit of bench/autogc.py in its fit cache (6 shapes each; the latest of
+each method and seed), whatever has been trained. Time: the creature at the highest resolution
+extracted with each variant in turn, `--repeats` rounds interleaved in this process (a shared
+machine drifts between runs), best and median. Writes bench/results/sparse_settings.json ({machine,
 settings, cases: [{fit, shape, n_gcs, resolution, evals: {label: n}, identical: {label: bool},
 cd: {label: Chamfer to the prefiltered mesh, DeepSDF convention against its surface, 0 where
 identical}}], timing: {label: {best_s, median_s, runs_s}}, summary: {label: {identical, cases,
@@ -24,9 +24,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import os
-import platform
 import sys
 import time
 from pathlib import Path
@@ -37,7 +35,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "bench"))
 
-AUTOGC_RUNS = ROOT / "bench/runs/autogc"
+from bench._harness import Bench, FitCache  # noqa: E402
 
 
 def same_mesh(a, b) -> bool:
@@ -65,22 +63,22 @@ def main():
     ap.add_argument("--repeats", type=int, default=4)
     ap.add_argument("--threads", type=int, default=os.cpu_count() or 1)
     args = ap.parse_args()
+    bench = Bench("sparse_settings")
 
     import torch
 
     from deform import fitted
-    from ngc_gen.data.atomic import atomic_write_text
     from ngc_gen.eval import mesh_chamfer
     from ngc_gen.extract import SparseSettings, extract_mesh
     from ngc_gen.lit.checkpoint import load_autodecoder
     from ngc_gen.shape import shapes_from_autodecoder
 
     torch.set_num_threads(args.threads)
-    load0 = os.getloadavg()[0]
     fits = {"deform": Path(fitted(1500, refit=False)["checkpoint"])}
-    for d in sorted(AUTOGC_RUNS.glob("fit_*")):
-        if (d / "checkpoints/last.ckpt").exists():
-            fits[f"autogc/{d.name}"] = d / "checkpoints/last.ckpt"
+    for f in FitCache("autogc").entries():          # oldest first: the latest of a label wins
+        if (f.run_dir / "checkpoints/last.ckpt").exists():
+            fits[f"autogc/{f.info['label']}"] = f.run_dir / "checkpoints/last.ckpt"
+    fits = dict(sorted(fits.items(), key=lambda kv: (kv[0] != "deform", kv[0])))
     specs = dict(parse_variant(v) for v in args.variants)
     settings = {label: SparseSettings(**kw) for label, kw in specs.items()}
     cases, timing_input = [], None
@@ -140,18 +138,11 @@ def main():
               f"evaluations {s['evals_over_first_min']:.2f}-{s['evals_over_first_max']:.2f}x "
               f"{base}'s" + (f"; median time {s['median_time_over_first']:.2f}x" if timing
                                else ""))
-    res = {"machine": {"cpus": os.cpu_count(), "threads": args.threads,
-                       "python": platform.python_version(), "torch": torch.__version__,
-                       "load_avg_1min_at_start": load0,
-                       "load_avg_1min_at_end": os.getloadavg()[0]},
-           "settings": {"variants": {k: dataclasses.asdict(v) for k, v in settings.items()},
-                        "resolutions": args.resolutions,
-                        "repeats": args.repeats, "fits": {k: str(v) for k, v in fits.items()}},
+    res = {"settings": {"variants": {k: dataclasses.asdict(v) for k, v in settings.items()},
+                        "resolutions": args.resolutions, "repeats": args.repeats,
+                        "fits": {k: os.path.relpath(v, ROOT) for k, v in fits.items()}},
            "cases": cases, "timing": timing, "summary": summary}
-    out = ROOT / "bench/results/sparse_settings.json"
-    out.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(out, json.dumps(res, indent=2))
-    print(f"wrote {out}")
+    print(f"wrote {bench.write(res)}")
 
 
 if __name__ == "__main__":

@@ -8,12 +8,11 @@ also turned so that its up becomes +x, -x, +y, -y, +z, -z (rotations by 90 degre
 rule's answer is compared with the true up: right, right axis but wrong sign, or wrong. Shapes
 with no natural up (pyvista's nut and sphere) are listed with what the rule gives.
 Writes bench/results/up_axis.json ({meshes: [{name, up, detected: {orientation: axis}, right,
-axis_only, wrong}], totals, seconds_per_mesh}).
+axis_only, wrong}], totals, seconds_per_mesh, machine}; bench/_harness.py).
 """
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
@@ -22,8 +21,8 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+from bench._harness import Bench  # noqa: E402
 
-RESULTS = ROOT / "bench/results"
 NAMES = {(0, 1): "+x", (0, -1): "-x", (1, 1): "+y", (1, -1): "-y", (2, 1): "+z", (2, -1): "-z"}
 
 
@@ -50,6 +49,7 @@ def main() -> None:
     ap.add_argument("--creatures", type=int, default=64)
     ap.add_argument("--creatures-dir", default=str(ROOT / ".cache/datasets/creatures_n64_s0"))
     args = ap.parse_args()
+    bench = Bench("up_axis")
 
     from ngc_gen.data.procedural.creatures import build_creatures
     from ngc_gen.data.mesh.io import load_mesh
@@ -90,9 +90,9 @@ def main() -> None:
     print(f"\n{totals['right']}/{totals['orientations']} right, {totals['axis_only']} with the "
           f"right axis but the wrong sign, {totals['wrong']} wrong; "
           f"{1e3 * np.mean(seconds):.0f} ms per mesh")
-    RESULTS.mkdir(parents=True, exist_ok=True)
-    (RESULTS / "up_axis.json").write_text(json.dumps(
-        {"meshes": rows, "totals": totals, "seconds_per_mesh": float(np.mean(seconds))}, indent=2))
+    path = bench.write({"meshes": rows, "totals": totals,
+                        "seconds_per_mesh": float(np.mean(seconds))})
+    print(f"wrote {path}")
 
 
 if __name__ == "__main__":

@@ -1,0 +1,87 @@
+"""bench/README.md's tables are generated from bench/results/*.json (bench/report.py), every
+result carries the harness's machine record, and every bench has its section and make target."""
+from __future__ import annotations
+
+import json
+import re
+import shutil
+from pathlib import Path
+
+import pytest
+
+from bench import _harness, report
+
+ROOT = Path(report.ROOT)
+BENCHES = sorted(p.stem for p in (ROOT / "bench").glob("*.py") if not p.stem.startswith("_")
+                 and p.stem != "report")
+RESULTS = sorted(p.stem for p in (ROOT / "bench/results").glob("*.json"))
+
+
+def test_the_readme_tables_equal_the_results():
+    text = report.README.read_text()
+    fresh = report.render(text)
+    assert fresh == text, ("bench/README.md differs from bench/results/*.json: run "
+                           "`make bench-report` (python bench/report.py)")
+
+
+def test_a_changed_result_changes_its_table(tmp_path):
+    """The check above has teeth: a figure changed in a JSON shows in the regenerated text."""
+    shutil.copytree(ROOT / "bench/results", tmp_path / "results")
+    text = report.README.read_text()
+    path = tmp_path / "results/deform.json"
+    res = json.loads(path.read_text())
+    res["cases"][0]["ngc"]["eps_v"] *= 3.0
+    path.write_text(json.dumps(res))
+    assert report.render(text, tmp_path / "results") != text
+    (tmp_path / "results/ddp.json").unlink()      # a missing result says how to make it
+    assert "run `make bench-ddp`" in report.block("ddp", tmp_path / "results")
+
+
+def test_every_bench_has_a_section_and_every_result_a_table():
+    text = report.README.read_text()
+    headings = re.findall(r"^## (\S+)$", text, re.M)
+    blocks = report.blocks_in(text)
+    for name in BENCHES:
+        assert name in headings, f"bench/README.md has no '## {name}' section"
+        assert name in blocks, f"bench/README.md has no table block for {name}"
+    for name in RESULTS:
+        assert name in blocks, f"bench/results/{name}.json has no table in bench/README.md"
+        assert name in BENCHES, f"bench/results/{name}.json: no bench/{name}.py writes it"
+
+
+@pytest.mark.parametrize("name", RESULTS)
+def test_every_result_carries_the_machine_record(name):
+    res = json.loads((ROOT / f"bench/results/{name}.json").read_text())
+    assert tuple(res.get("machine") or ()) == _harness.MACHINE_KEYS, name
+    old = re.compile(r"load_avg|loadavg|cpu_count")
+    stray = []
+
+    def walk(x, where):
+        if isinstance(x, dict):
+            for k, v in x.items():
+                if old.search(k):
+                    stray.append(f"{where}.{k}")
+                walk(v, f"{where}.{k}")
+        elif isinstance(x, list):
+            for i, v in enumerate(x):
+                walk(v, f"{where}[{i}]")
+    walk(res, name)
+    assert not stray, f"machine figures outside the record: {stray}"
+
+
+@pytest.mark.parametrize("name", BENCHES)
+def test_every_bench_writes_through_the_harness(name):
+    src = (ROOT / f"bench/{name}.py").read_text()
+    assert "Bench(" in src and ".write(" in src, f"bench/{name}.py does not write via Bench"
+    assert "getloadavg" not in src, f"bench/{name}.py reads the load itself"
+    assert "platform.python_version" not in src, f"bench/{name}.py records the machine itself"
+
+
+def test_every_bench_has_a_make_target_and_make_bench_runs_it():
+    make = re.sub(r"\\\n", " ", (ROOT / "Makefile").read_text())   # continued lines joined
+    listed = re.search(r"^BENCHES :=(.*)$", make, re.M).group(1).split()
+    for name in BENCHES:
+        target = f"bench-{name.replace('_', '-')}"
+        assert re.search(rf"^{target}:", make, re.M), f"Makefile has no {target} target"
+        assert re.search(rf"bench/{name}\.py", make), f"{target} does not run bench/{name}.py"
+        assert name.replace("_", "-") in listed, f"`make bench` does not run {target}"
