@@ -151,3 +151,15 @@ def test_recipe_keys_ignore_key_order_and_the_checkout_location():
     assert h.recipe_key(a) != h.recipe_key({**a, "x": 2})
     with pytest.raises(TypeError):
         h.recipe_key({"x": object()})
+
+
+def test_link_latest_points_a_fixed_name_at_the_latest_fit(tmp_path, capsys):
+    a, b = tmp_path / "fits/a", tmp_path / "fits/b"
+    a.mkdir(parents=True)
+    b.mkdir()
+    link = tmp_path / "runs/generate/diffusion"
+    assert h.link_latest(link, a) and link.resolve() == a.resolve()
+    assert h.link_latest(link, b) and link.resolve() == b.resolve()   # repointed in place
+    real = tmp_path / "runs/generate/shape_latent"
+    real.mkdir()
+    assert not h.link_latest(real, a) and real.is_dir() and not real.is_symlink()
