@@ -8,10 +8,15 @@ from ngc_gen.app.cli import hydra_entry
 
 @hydra.main(version_base="1.3", config_path="conf", config_name="sample")
 def main(cfg: DictConfig) -> None:
+    from ngc_gen.app.checks import check_sample
     from ngc_gen.app.cli import run_job
-    from ngc_gen.app.sample import run_sample
 
-    run_job(run_sample, cfg)
+    def run(cfg):  # torch loads here, after check_sample
+        from ngc_gen.app.sample import run_sample
+
+        return run_sample(cfg)
+
+    run_job(run, cfg, check=check_sample)
 
 
 if __name__ == "__main__":

@@ -8,7 +8,7 @@ from pathlib import Path
 def fit_checkpoint(run) -> Path:
     """The checkpoint edit.py reads: a fit run directory (its checkpoints/last.ckpt), a
     checkpoint file, or a sample.py output directory (its shapes.ckpt)."""
-    from ngc_gen.lit.checkpoint import resolve_checkpoint
+    from ngc_gen.lit.peek import resolve_checkpoint
 
     if run is not None and Path(run).is_dir() and (Path(run) / "shapes.ckpt").is_file() \
             and not (Path(run) / "checkpoints").is_dir():

@@ -23,7 +23,8 @@ log = logging.getLogger(__name__)
 # (module, class) of the project's bad-input errors; FileNotFoundError and the OSErrors below too
 USER_ERROR_CLASSES = (("ngc_gen.app.errors", "ConfigError"), ("ngc_gen.data.errors", "DataError"),
                       ("ngc_gen.edit.errors", "EditError"),
-                      ("ngc_gen.geometry.errors", "GeometryError"))
+                      ("ngc_gen.geometry.errors", "GeometryError"),
+                      ("ngc_gen.extract.budget", "GridTooLarge"))
 # OS errors that are the machine's state, not a bug: a full disk, a read-only or missing folder
 ENVIRONMENT_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM,
                       errno.ENOTDIR, errno.EISDIR, errno.EEXIST}
@@ -180,26 +181,35 @@ def auto_threads(cores: int | None = None, load: float | None = None) -> int:
     return max(1, min(cores, cores - int(round(load))))
 
 
+def check_threads(threads) -> int | str | None:
+    """The `threads` setting, checked without torch: auto, null or a whole number >= 1 (the
+    project's rule for numbers, `ngc_gen.values`). ConfigError naming the key otherwise."""
+    if threads is None or str(threads) == "auto":
+        return None if threads is None else "auto"
+    from ngc_gen.values import NumberError, read_number
+
+    from .errors import ConfigError
+
+    try:
+        return read_number(threads, integer=True, minimum=1)
+    except NumberError:
+        raise ConfigError(f"threads must be >= 1, auto or null, got {threads}", key="threads",
+                          value=threads, fix="pass threads=auto (default), threads=1 (shared "
+                          "machine) or threads=null (all cores)") from None
+
+
 def set_threads(threads) -> int | None:
     """`threads=N` sets torch's CPU threads; `auto` picks them from the machine's load
     (`auto_threads`); null keeps torch's default (all cores). Returns the count set."""
+    threads = check_threads(threads)
     if threads is None:
         return None
     busy = None
-    if str(threads) == "auto":
+    if threads == "auto":
         busy = busy_cores()
         n = auto_threads(load=busy)
     else:
-        try:
-            n = int(threads)
-        except (TypeError, ValueError):
-            n = 0
-    if n < 1:
-        from .errors import ConfigError
-
-        raise ConfigError(f"threads must be >= 1, auto or null, got {threads}", key="threads",
-                          value=threads, fix="pass threads=auto (default), threads=1 (shared "
-                          "machine) or threads=null (all cores)")
+        n = threads
     import torch
 
     if busy is not None and n != torch.get_num_threads():
@@ -226,6 +236,7 @@ def run_job(fn, cfg, check=None):
     """What every entry point does: `check(cfg)` (light input checks, before torch loads), set
     the threads, run `fn(cfg)`, report user errors."""
     with user_errors():
+        check_threads(cfg.get("threads"))
         if check is not None:
             check(cfg)
         set_threads(cfg.get("threads"))

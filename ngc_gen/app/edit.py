@@ -23,7 +23,7 @@ import yaml
 from ngc_gen.edit.errors import EditError
 
 from .checkpoints import fit_checkpoint
-from .checks import check_writable
+from .checks import check_edit, edit_output_dir
 from .config import sparse_settings
 from .mix_sources import MixSources
 from .programs import program_from_config
@@ -49,13 +49,6 @@ def _mesh_stats(mesh, prefix: str) -> dict:
             f"n_faces_{prefix}": int(len(mesh.faces))}
 
 
-def output_dir(cfg, program_name: str) -> Path:
-    """`out_dir`, or outputs/edit/<program>/<date_time> (relative to the cwd)."""
-    out_dir = Path(cfg.out_dir) if cfg.get("out_dir") else \
-        Path("outputs/edit") / program_name / time.strftime("%Y-%m-%d_%H-%M-%S")
-    return out_dir.resolve()
-
-
 def run_edit(cfg) -> dict:
     """Validate and apply the program, extract both meshes, then write every output. The
     program's structure and the output folder are checked first, before torch loads."""
@@ -64,8 +57,9 @@ def run_edit(cfg) -> dict:
 
         return serve(cfg)
     t_start = time.perf_counter()
+    check_edit(cfg)  # again for callers other than edit.py (the pipeline, tests); cheap
     parts = program_from_config(cfg)
-    out_dir = check_writable(output_dir(cfg, parts["name"]), "out_dir")
+    out_dir = edit_output_dir(cfg, parts["name"])
 
     from ngc_gen.data.annotations import Annotation
     from ngc_gen.data.atomic import atomic_write, atomic_write_text

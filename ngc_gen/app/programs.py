@@ -8,6 +8,7 @@ import yaml
 
 from ngc_gen.edit.errors import EditError
 from ngc_gen.edit.spec import check_program
+from ngc_gen.values import load_yaml
 
 PROGRAMS = "ngc_gen/conf/edit"  # the shipped programs: package data, Hydra group `edit`
 
@@ -29,7 +30,7 @@ def load_program_file(path) -> dict:
                         fix=f"give an existing YAML file, or edit=<name> with one of "
                             f"{available_programs()}")
     try:
-        d = yaml.safe_load(path.read_text(encoding="utf-8"))
+        d = load_yaml(path.read_text(encoding="utf-8"))  # 1e-3 a number, no key twice
     except yaml.YAMLError as e:
         mark = getattr(e, "problem_mark", None)
         where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""

@@ -18,11 +18,9 @@ from ngc_gen.generate.latents import latent_path
 from ngc_gen.generate.model import ShapeGenerator
 from ngc_gen.generate.shapes import decode_shapes
 
-from .checks import check_writable
+from .checks import check_sample
 from .config import sparse_settings
 from .outputs import _check, extract_and_write, write_outputs
-
-MODES = ("generate", "interpolate", "mix", "condition")
 
 
 def generate(gen: ShapeGenerator, out_dir, n: int = 16, seed: int = 0, resolution: int = 128,
@@ -121,13 +119,10 @@ def run_sample(cfg) -> dict:
 
     from ngc_gen.generate.model import load_generator
 
+    check_sample(cfg)  # again for callers other than sample.py (the pipeline, tests); cheap
     c = OmegaConf.to_container(cfg, resolve=True)
     mode = c["mode"]
-    _check(mode in MODES, f"unknown mode {mode!r}", "mode", f"use one of {', '.join(MODES)}")
     ex = c["extract"]
-    _check(int(ex["resolution"]) >= 8, f"resolution must be >= 8, got {ex['resolution']}",
-           "extract.resolution", "use e.g. 128 (default) or 256")
-    check_writable(c["out_dir"], "out_dir")  # before the models load
     gen = load_generator(c["run"], c.get("shape_latent_run"))
     if c.get("latents"):
         gen.add_latents(c["latents"])

@@ -24,6 +24,7 @@ from ngc_gen.data.atomic import atomic_write_text
 from ngc_gen.data.errors import DataError
 from ngc_gen.data.mesh.io import is_resource, resolve_mesh_path
 from ngc_gen.geometry import GeneralizedCylinder, GeometryError
+from ngc_gen.values import NumberError, is_number, load_yaml, read_number
 
 TOP_KEYS = {"name", "mesh", "normalize", "gcs"}
 NORMALIZE_KEYS = {"bound"}
@@ -113,32 +114,17 @@ def rounded_gc_dict(d: dict, decimals: int = 7) -> dict:
             **({"reparam": d["reparam"]} if d.get("reparam") is not None else {})}
 
 
-class _UniqueKeyLoader(yaml.SafeLoader):
-    """SafeLoader that refuses a mapping key given twice (PyYAML silently keeps the last)."""
-
-    def construct_mapping(self, node, deep=False):
-        seen = {}
-        for key_node, _ in node.value:
-            key = self.construct_object(key_node, deep=deep)
-            if key in seen:
-                mark = key_node.start_mark
-                raise yaml.constructor.ConstructorError(
-                    None, None, f"key {key!r} appears twice (first on line {seen[key] + 1})", mark
-                )
-            seen[key] = key_node.start_mark.line
-        return super().construct_mapping(node, deep=deep)
-
-
 def _is_number(x) -> bool:
-    return isinstance(x, (int, float)) and not isinstance(x, bool)
+    return is_number(x)
 
 
 def _check_numbers(value, shape: tuple, path, gc: str, fld: str) -> None:
     """Check ``value`` is a list nest of numbers with ``shape`` (-1: any length, () a scalar)."""
     if not shape:
-        if not _is_number(value):
-            raise DataError(f"expected a number, got {value!r}", path=path, gc=gc, field=fld,
-                            fix="write a plain number (no quotes, not true/false)")
+        try:
+            read_number(value)
+        except NumberError as e:  # the one rule for numbers (ngc_gen.values)
+            raise DataError(e.what, path=path, gc=gc, field=fld, fix=e.fix) from None
         return
     if not isinstance(value, list) or (shape[0] != -1 and len(value) != shape[0]):
         want = "a list" if shape[0] == -1 else f"a list of {shape[0]}"
@@ -254,7 +240,7 @@ def load_annotation(path: str | os.PathLike) -> Annotation:
     if not path.is_file():
         raise DataError("annotation file not found", path=path, fix="check the path")
     try:
-        d = yaml.load(path.read_text(encoding="utf-8"), Loader=_UniqueKeyLoader)
+        d = load_yaml(path.read_text(encoding="utf-8"))
     except yaml.YAMLError as e:
         mark = getattr(e, "problem_mark", None)
         where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""

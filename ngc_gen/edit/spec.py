@@ -3,15 +3,18 @@ one-line example. The one source of op fields: `EditProgram.from_dict` checks pr
 it, edit.py prints it when a program names an unknown op or field, and the README's table is
 generated from it (tests/edit/test_spec.py keeps them equal).
 
-Torch-free (only the standard library and EditError), so edit.py rejects a malformed program in
-about a second, before torch loads. These checks are about structure and types (a number where
+Torch-free (only the standard library, `ngc_gen.values` and EditError), so edit.py rejects a
+malformed program in about a second, before torch loads. Numbers follow the project's one rule
+(`ngc_gen.values`): a quoted number (`degrees: "30"`) is text and is refused, as in configs and
+annotations, so a program is written back with the types it was read with. These checks are about structure and types (a number where
 a number goes, a list of GC names where names go); values that depend on the shape (GC names,
 t ranges, factors) are checked by the ops when the program runs.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+
+from ngc_gen.values import NumberError, is_number, looks_like_number, read_number
 
 from .errors import EditError
 
@@ -22,12 +25,19 @@ BLEND_NAMES = ("replace", "constant", "linear", "truncated_linear", "smoothstep"
 
 # ---- field types: (what a user reads, a check) -------------------------------------------------
 def _number(x) -> bool:
-    if isinstance(x, bool):
-        return False
-    try:
-        return math.isfinite(float(x))
-    except (TypeError, ValueError):
-        return False
+    return is_number(x)
+
+
+def _quoted_number(x) -> str | None:
+    """The first quoted number (text that reads as a number) inside a value, or None."""
+    if isinstance(x, str):
+        return x if looks_like_number(x) else None
+    items = x.values() if isinstance(x, dict) else x if isinstance(x, (list, tuple)) else ()
+    for v in items:
+        q = _quoted_number(v)
+        if q is not None:
+            return q
+    return None
 
 
 def _vector(x, n: int = 3) -> bool:
@@ -261,6 +271,11 @@ def check_op(entry, index: int, source: str | None) -> dict:
             continue  # an optional field left at its default
         ftype = TYPES[f.type]
         if not ftype.ok(value):
+            quoted = None if ftype.choices else _quoted_number(value)
+            if quoted is not None:  # the one message for a quoted number (ngc_gen.values)
+                raise _error(f"{quoted!r} is quoted text, not a number", source, index, op=name,
+                             gc=gc, field=field_name, value=value,
+                             fix=f"write {quoted.strip()} without quotes", help_ops=[name])
             what = (f"unknown {field_name}; use one of {list(ftype.choices)}" if ftype.choices
                     else f"must be {ftype.text}")
             raise _error(what, source, index, op=name, gc=gc, field=field_name, value=value,
@@ -287,11 +302,12 @@ def check_program(d, source: str | None = None) -> dict:
     shape = d.get("shape")
     if shape is not None and not isinstance(shape, str):
         raise _error(f"shape must be a shape name, got {shape!r}", source, field="shape")
-    k = d.get("smooth_union", 0.0) or 0.0
-    k = float(k) if _number(k) else float("nan")
-    if not (k >= 0.0 and math.isfinite(k)):
-        raise _error("must be a width >= 0 (0: hard minimum over GCs)", source,
-                     field="smooth_union", value=d.get("smooth_union"))
+    k = d.get("smooth_union")
+    try:
+        k = 0.0 if k is None else read_number(k, minimum=0)
+    except NumberError as e:
+        raise _error(f"{e.what} (a width; 0: hard minimum over GCs)", source,
+                     field="smooth_union", value=d.get("smooth_union"), fix=e.fix) from None
     return {"name": str(d.get("name", "program")), "ops": checked, "shape": shape,
             "smooth_union": k, "description": str(d.get("description", "") or "")}
 

@@ -23,6 +23,7 @@ import trimesh
 
 from ngc_gen.geometry import GeneralizedCylinder
 
+from .budget import check_resolution
 from .dense import evaluate_grid
 from .grid import Grid
 from .marching import marching_cubes_mesh
@@ -77,6 +78,8 @@ def extract_mesh(gcs: Sequence[GeneralizedCylinder], rows_fn: RowsFn, resolution
       interpolates like a distance field where the surface meets a GC boundary.
     settings: sparse refinement (coarse step, Lipschitz margin). keep_values: return the grid.
     progress: tqdm bar for the reference paths (None: only on a terminal, after 1 s).
+    A resolution whose grid would not fit in the memory available is refused first
+    (`budget.GridTooLarge`, naming the largest that fits).
     slab_points: grid points whose coordinates are built at once (reference paths).
 
     stats: n_grid_points (R^3), n_network_evals (rows sent to rows_fn, padding excluded),
@@ -95,6 +98,7 @@ def extract_mesh(gcs: Sequence[GeneralizedCylinder], rows_fn: RowsFn, resolution
     if not smooth >= 0.0:
         raise ValueError(f"smooth must be >= 0 (0: hard minimum; k > 0: smooth-min width), "
                          f"got {smooth!r}")
+    check_resolution(int(resolution), method, keep_values)  # before any grid is allocated
     grid = Grid(int(resolution), float(bound))
     background = grid.spacing if background is None else float(background)
     if not (np.isfinite(background) and background > 0):

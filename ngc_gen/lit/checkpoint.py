@@ -9,24 +9,9 @@ import torch
 from ngc_gen.data.errors import DataError
 
 from .autodecoder import CHECKPOINT_KIND, AutoDecoder
+from .peek import resolve_checkpoint  # noqa: F401  (torch-free; re-exported for its callers)
 
 FIT_FIX = "pass the checkpoints/last.ckpt of a `train.py stage=fit` run"
-
-
-def resolve_checkpoint(path, fix: str, what: str) -> Path:
-    """A checkpoint file, or `<dir>/checkpoints/last.ckpt` for a run directory."""
-    if path is None or str(path) in ("", "???"):
-        raise DataError(f"no {what} given", fix=fix)
-    path = Path(path)
-    if path.is_dir():
-        ckpt = path / "checkpoints" / "last.ckpt"
-        if not ckpt.is_file():
-            raise DataError(f"{path} holds no checkpoints/last.ckpt (is it a finished "
-                            f"{what}?)", path=path, fix=fix)
-        return ckpt
-    if not path.is_file():
-        raise DataError(f"{what} {path} does not exist", fix=fix)
-    return path
 
 
 def load_checkpoint_dict(path: Path, fix: str, map_location="cpu") -> dict:

@@ -216,13 +216,14 @@ def case_latents_of_the_wrong_size(t, i):
 
 def case_sample_a_fit_checkpoint(t, i):
     return in_process(run_sample, "sample", [f"run={i['fit']}", f"out_dir={t}/out"]), \
-        r"neither a diffusion nor a shape-latent checkpoint.*Fix:"
+        r"is a checkpoint of a `train\.py stage=fit` run, not of a `train\.py stage=diffusion` " \
+        r"run or a `train\.py stage=shape_latent` run.*Fix:"
 
 
 def case_sample_zero_shapes(t, i):
     return in_process(run_sample, "sample", [f"run={i['diff']}", f"out_dir={t}/out", "n=0",
                                              f"shape_latent_run={i['sl4']}"]), \
-        r"field 'n': n must be >= 1, got 0.*Fix: ask for at least one shape"
+        r"n = 0: must be a whole number >= 1, not 0\. Fix: pass n="
 
 
 def case_sample_out_dir_not_writable(t, i):
@@ -240,7 +241,8 @@ def case_edit_truncated_checkpoint(t, i):
 def case_edit_checkpoint_of_another_stage(t, i):
     return in_process(run_edit, "edit", [f"run={i['diff']}", "edit=bent_tail",
                                          f"out_dir={t}/out"]), \
-        r"is not an NGC/DeepSDF fitting checkpoint.*Fix:"
+        r"is a checkpoint of a `train\.py stage=diffusion` run, not of a `train\.py stage=fit` " \
+        r"run.*Fix:"
 
 
 def case_edit_out_dir_not_writable(t, i):

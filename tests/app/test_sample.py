@@ -181,7 +181,7 @@ def test_bad_inputs_are_clear_errors(runs, tmp_path):
         sample()
     with pytest.raises(DataError, match="needs a diffusion model"):
         sample(f"run={runs['sl']}", "mode=generate")
-    with pytest.raises(DataError, match="neither a diffusion nor a shape-latent"):
+    with pytest.raises(DataError, match="is a checkpoint of a `train.py stage=fit` run, not of a"):
         sample(f"run={runs['gen'] / 'shapes.ckpt'}")
     with pytest.raises(DataError, match="no training shape named 'nobody'"):
         sample(f"run={runs['diff']}", "mode=interpolate", "a=nobody")

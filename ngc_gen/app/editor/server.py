@@ -19,6 +19,7 @@ import numpy as np
 
 from ngc_gen.viz.gc_mesh import gc_surface
 
+from ..checks import LOOPBACK, check_editor, editor_out_dir
 from ..config import sparse_settings
 from .meshing import MeshLoop
 from .session import POSE_AXES, EditorSession, Outcome
@@ -61,8 +62,7 @@ class EditorServer:
         import viser
 
         self.session, self.editor, self.latent = session, editor, latent
-        self.out_dir = Path(out_dir) if out_dir is not None else \
-            Path("outputs/editor") / time.strftime("%Y-%m-%d_%H-%M-%S")
+        self.out_dir = Path(out_dir) if out_dir is not None else editor_out_dir(editor)
         self.server = viser.ViserServer(host=str(editor.host), port=int(editor.port),
                                         verbose=False)
         self.server.initial_camera.position = tuple(float(x) for x in editor.camera)
@@ -386,13 +386,17 @@ def serve(cfg) -> dict:
     """`edit.py viewer=true`: open the session, start the server, run until Ctrl-C."""
     from .start import open_session
 
+    check_editor(cfg)  # again for callers other than edit.py; cheap
     session, latent = open_session(cfg)
     editor = cfg.editor
     server = EditorServer(session, editor, latent,
                           out_dir=editor.out_dir if editor.get("out_dir") else None)
     print(f"editor on {server.url} (shape '{session.base.name}'); saves go to "
           f"{server.out_dir.resolve()}; Ctrl-C stops it")
-    if str(editor.host) in ("127.0.0.1", "localhost"):
+    if str(editor.host) not in LOOPBACK:
+        print(f"warning: the editor listens on {editor.host} (editor.allow_remote=true): anyone "
+              f"who can reach this machine can edit and write files through it")
+    else:
         print(f"remote machine? ssh -L {server.server.get_port()}:127.0.0.1:"
               f"{server.server.get_port()} <host>, then open {server.url} locally")
     try:
