@@ -7,7 +7,7 @@ from pathlib import Path
 
 from omegaconf import DictConfig
 
-from .checks import trainer_steps
+from .checks import check_extract, check_resolution, trainer_steps
 from .errors import ConfigError
 
 
@@ -58,18 +58,64 @@ def preflight(cfg: DictConfig) -> None:
     resume_point(cfg, Path(cfg.run_dir), resolve(STAGES[cfg.stage].checkpoint_kind))
 
 
+EXTRACTS = ("fit", "reconstruct", "pipeline")       # mesh at extract.resolution
+PREVIEWS = ("shape_latent", "pipeline")             # mesh at shape_latent.preview_resolution
+
+
+# a stage's checkpoint_kind (`Stage.checkpoint_kind`, resolved lazily) as a string, for the
+# torch-free checks; tests/app keep them equal to the modules' CHECKPOINT_KIND
+KIND_OF = {"fit": "ngc_gen.autodecoder", "shape_latent": "ngc_gen.shape_latent",
+           "diffusion": "ngc_gen.diffusion"}
+
+
+def check_runs(cfg: DictConfig) -> None:
+    """The runs a command names exist and are of the right kind, read without torch
+    (`ngc_gen.lit.peek`): the checkpoint to resume from, diffusion's shape-latent run and
+    shape_latent's init_decoder."""
+    from ngc_gen.lit.peek import KINDS, check_kind, resolve_checkpoint
+
+    if cfg.get("ckpt_path") is not None and cfg.stage in KIND_OF:
+        fix = ("pass ckpt_path=<run dir> or <run>/checkpoints/last.ckpt of an interrupted run "
+               "of the same stage")
+        kind = KIND_OF[cfg.stage]
+        check_kind(resolve_checkpoint(cfg.ckpt_path, what="checkpoint to resume from", fix=fix),
+                   {kind: KINDS[kind]}, fix)
+    if cfg.stage == "diffusion":
+        fix = ("pass the run directory (or checkpoints/last.ckpt) of a `train.py "
+               "stage=shape_latent` run")
+        path = resolve_checkpoint(cfg.get("shape_latent_run"), fix, "shape-latent run")
+        check_kind(path, {"ngc_gen.shape_latent": KINDS["ngc_gen.shape_latent"]}, fix)
+    init = cfg.get("shape_latent", {}).get("init_decoder") if cfg.stage == "shape_latent" \
+        else None
+    if init is not None:
+        fix = "pass shape_latent.init_decoder=<a `train.py stage=fit` run or its last.ckpt>"
+        check_kind(resolve_checkpoint(init, fix, "fit run"),
+                   {"ngc_gen.autodecoder": KINDS["ngc_gen.autodecoder"]}, fix)
+
+
 def check_inputs(cfg: DictConfig) -> None:
     """What train.py checks before torch loads, so a wrong command fails in about a second: the
-    stage name, and that data=folder's folder holds meshes."""
+    stage name, the step count, the resolutions (numbers whose grid fits in memory), and the
+    files the data config names (annotation YAMLs, mesh headers, data=folder's meshes)."""
     if cfg.stage not in STAGES:
         raise ConfigError("unknown stage", key="stage", value=cfg.stage,
                           fix=f"choose one of {', '.join(STAGES)} (e.g. stage=fit)")
+    stage = STAGES[cfg.stage]
+    if stage.steps:
+        trainer_steps(cfg)
+    if cfg.stage in EXTRACTS and cfg.get("extract") is not None:
+        check_extract(cfg)
+    if cfg.stage in PREVIEWS and cfg.get("shape_latent") is not None \
+            and cfg.shape_latent.get("preview_resolution") is not None:
+        check_resolution(cfg, "shape_latent.preview_resolution")
+    check_runs(cfg)
     data = cfg.get("data")
-    if (STAGES[cfg.stage].mesh_folder and data is not None
-            and str(data.get("_target_", "")).endswith(".MeshFolder")):
-        from ngc_gen.data.mesh_folder import mesh_files
+    if (stage.mesh_folder or cfg.stage == "pipeline") and data is not None:
+        from omegaconf import OmegaConf
 
-        mesh_files(data.path)
+        from ngc_gen.data.preflight import check_data
+
+        check_data(OmegaConf.to_container(data, resolve=True, throw_on_missing=True))
 
 
 def run_stage(cfg: DictConfig):

@@ -200,7 +200,8 @@ def case_resume_from_another_stage(t, i):
     return in_process(run_stage, "train", [
         "stage=fit", f"paths.cache_dir={t}/cache", "trainer.max_steps=2",
         f"ckpt_path={i['diff']}", f"run_dir={t}/run", "trainer.enable_progress_bar=false"]), \
-        r"checkpoint of another stage.*'ngc_gen\.diffusion'.*Fix:"
+        r"is a checkpoint of a `train\.py stage=diffusion` run, not of a `train\.py stage=fit` " \
+        r"run.*Fix: pass ckpt_path="
 
 
 def case_latents_file_for_a_checkpoint(t, i):

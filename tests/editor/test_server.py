@@ -6,6 +6,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from ngc_gen.app.errors import ConfigError
+
 from ngc_gen.app.editor import browser
 from ngc_gen.app.editor.server import EditorServer
 from ngc_gen.data.errors import DataError
@@ -83,7 +85,7 @@ def test_dragging_a_control_point(server):
 
 
 def test_edit_py_viewer_true_opens_the_editor():
-    with pytest.raises(DataError, match="no run given.*editor.generator"):
+    with pytest.raises(ConfigError, match="no run given.*editor.generator"):
         run_edit(compose_config("edit", ["viewer=true"]))
 
 

@@ -1,0 +1,87 @@
+"""What a dataset config's files say before anything heavy loads: each annotation YAML parses
+and names its mesh and GCs, each mesh file exists and its header declares triangles
+(`mesh.header`), GC names are unique. Standard library, PyYAML and the data layer's light
+modules only: `train.py` runs it before numpy, trimesh and torch load, so a bad mesh or GC file
+fails in a second with the words the full check (`load_annotation`, `load_mesh`) would use.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import yaml
+
+from ngc_gen.data.errors import DataError
+from ngc_gen.data.mesh.header import check_mesh_file
+from ngc_gen.data.mesh_folder import mesh_files
+from ngc_gen.values import load_yaml
+
+RESOURCE_PREFIXES = ("pyvista:",)  # shipped meshes (`mesh.io.RESOURCE_SCHEMES`): read later
+
+
+def _mesh_of(mesh: Path, owner) -> None:
+    try:
+        check_mesh_file(mesh)
+    except DataError as e:  # the words of prepare's `_in_context`
+        raise DataError(f"{e.what} (mesh of {owner})", path=e.path, field="mesh",
+                        fix=e.fix) from None
+
+
+def check_annotation_file(path) -> None:
+    """An annotation YAML (docs/gcs.md): a mapping with `mesh` and a non-empty `gcs` list of
+    uniquely named GCs, whose mesh file passes `check_mesh_file`. DataError naming the file."""
+    path = Path(path)
+    if not path.is_file():
+        raise DataError("annotation file not found", path=path, fix="check the path")
+    try:
+        d = load_yaml(path.read_text(encoding="utf-8"))
+    except yaml.YAMLError as e:
+        mark = getattr(e, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+        problem = getattr(e, "problem", None) or " ".join(str(e).split())
+        fix = ("remove or rename one of the two entries" if "appears twice" in problem
+               else "correct the YAML syntax (indentation, brackets, 'key: value')")
+        raise DataError(f"malformed YAML{where}: {problem}", path=path, fix=fix) from None
+    except UnicodeDecodeError as e:
+        raise DataError(f"not a UTF-8 text file ({e})", path=path,
+                        fix="save the annotation as UTF-8 YAML") from None
+    if not isinstance(d, dict):
+        return  # load_annotation explains what an annotation must be
+    gcs = d.get("gcs")
+    if isinstance(gcs, list):
+        names = [g.get("name") for g in gcs if isinstance(g, dict)]
+        dupes = sorted({str(n) for n in names if n is not None and names.count(n) > 1})
+        if dupes:
+            raise DataError(f"GC names {dupes} appear more than once", path=path, gc=dupes[0],
+                            field="name", fix="give every GC a unique name")
+    mesh = d.get("mesh")
+    if isinstance(mesh, str) and mesh and not mesh.startswith(RESOURCE_PREFIXES):
+        file = Path(mesh).expanduser()
+        _mesh_of(file if file.is_absolute() else path.parent / file, path)
+
+
+def check_data(node) -> None:
+    """Every file a `data` config (conf/data/*.yaml, resolved to a dict) will read: the
+    annotations of AnnotatedShapes, the meshes (and annotations beside them) of MeshFolder,
+    the parts of Combined and the base of SingleGC. Generated datasets (Creatures) have no
+    user files."""
+    if isinstance(node, list):
+        for part in node:
+            check_data(part)
+        return
+    if not isinstance(node, dict):
+        return
+    target = str(node.get("_target_", "")).rsplit(".", 1)[-1]
+    if target == "AnnotatedShapes":
+        for a in node.get("annotations") or []:
+            check_annotation_file(a)
+    elif target == "MeshFolder":
+        for mesh in mesh_files(node["path"]):
+            yml = mesh.with_suffix(".yaml")
+            if yml.exists():
+                check_annotation_file(yml)
+            else:
+                _mesh_of(mesh, f"automatic annotation '{mesh.stem}'")
+    elif target == "Combined":
+        check_data(node.get("parts"))
+    elif target == "SingleGC":
+        check_data(node.get("base"))
