@@ -1,7 +1,7 @@
 """The edit-op reference: every op of an edit program, its fields with their types, and a
 one-line example. The one source of op fields: `EditProgram.from_dict` checks programs against
-it, edit.py prints it when a program names an unknown op or field, and the README's table is
-generated from it (tests/edit/test_spec.py keeps them equal).
+it, edit.py prints it when a program names an unknown op or field, and the table of
+docs/edit_ops.md is generated from it (tests/edit/test_spec.py keeps them equal).
 
 Torch-free (only the standard library, `ngc_gen.values` and EditError), so edit.py rejects a
 malformed program in about a second, before torch loads. Numbers follow the project's one rule
@@ -197,7 +197,7 @@ def op_fields(op: str) -> dict[str, bool]:
     return {name: f.required for name, f in OPS[op].fields.items()}
 
 
-# ---- the reference, as edit.py prints it and as the README shows it --------------------------
+# ---- the reference, as edit.py prints it and as docs/edit_ops.md shows it ---------------------
 def _field_text(name: str, f: Field) -> str:
     return f"{name}{'*' if f.required else ''}: {TYPES[f.type].text}"
 
@@ -214,7 +214,7 @@ def reference(ops: list[str] | None = None) -> str:
 
 
 def reference_markdown() -> str:
-    """The README's edit-op table (generated; do not edit the README's copy by hand)."""
+    """docs/edit_ops.md's edit-op table (generated; do not edit that copy by hand)."""
     def cell(text: str) -> str:
         return text.replace("|", "\\|")
 
@@ -312,5 +312,5 @@ def check_program(d, source: str | None = None) -> dict:
             "smooth_union": k, "description": str(d.get("description", "") or "")}
 
 
-if __name__ == "__main__":  # the README's table: python -m ngc_gen.edit.spec
+if __name__ == "__main__":  # docs/edit_ops.md's table: python -m ngc_gen.edit.spec
     print(reference_markdown())
