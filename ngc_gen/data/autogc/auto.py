@@ -23,6 +23,7 @@ from ngc_gen.data.annotations import Annotation
 from ngc_gen.data.errors import DataError
 from ngc_gen.data.mesh.io import is_resource, load_mesh, normalize
 from ngc_gen.data.autogc.radii import ellipse_radii, principal_axes
+from ngc_gen.data.autogc.orient import parse_axis
 from ngc_gen.data.autogc.skeleton_gcs import skeleton_gcs
 from ngc_gen.geometry import GeneralizedCylinder
 
@@ -121,6 +122,8 @@ class AutoGCSettings:
     seed: int = 0
     protrusions: bool = True
     bulb_ratio: float = 1.8
+    up: str = "auto"
+    front: str = "auto"
 
     def __post_init__(self):
         checks = {"method": self.method in METHODS, "max_gcs": self.max_gcs >= 1,
@@ -132,6 +135,8 @@ class AutoGCSettings:
                 raise DataError(f"invalid value {getattr(self, name)!r}", field=f"annotate.{name}",
                                 fix=f"method one of {', '.join(METHODS)}; max_gcs >= 1; resolution "
                                     ">= 16; n_keys >= 2; samples >= 100; margin, min_branch_length >= 0")
+        for name in ("up", "front"):
+            parse_axis(getattr(self, name), f"annotate.{name}")
 
     @classmethod
     def from_config(cls, d) -> "AutoGCSettings":

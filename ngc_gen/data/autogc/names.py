@@ -1,6 +1,7 @@
 """Stable, telling names for automatic GCs: a trunk, and limbs by direction and position.
 
-Directions are the mesh's own axes read as +x front, +y left, +z up (the procedural creatures'
+Directions are read in the mesh's body frame (``orient.Orientation``: given or detected up and
+front, left = up x front; without one, +x front, +y left, +z up, the procedural creatures'
 frame). The trunk is the branch of largest volume (length x squared thickness) of the largest
 piece; a limb is named by where it points from its root (the end nearer the trunk): ``leg`` if
 down, else ``limb_<front|back|left|right|up>``. Limbs that share a name get the side of their
@@ -20,9 +21,14 @@ def _direction(d: np.ndarray) -> tuple[int, int]:
     return a, int(d[a] > 0)
 
 
-def gc_names(curves: list[np.ndarray], volumes: list[float], components: list[int]) -> list[str]:
+def gc_names(curves: list[np.ndarray], volumes: list[float], components: list[int],
+             frame: np.ndarray | None = None) -> list[str]:
     """Names for GCs given their curves (each (P, 3) sampled start to end), volumes and the
-    skeleton piece each belongs to. Returns unique names in the input order."""
+    skeleton piece each belongs to; ``frame`` (3, 3): rows front, left, up in world coordinates
+    (``Orientation.matrix``; None: the world axes). Returns unique names in the input order."""
+    if frame is not None:
+        curves = [np.asarray(c, dtype=np.float64) @ np.asarray(frame, dtype=np.float64).T
+                  for c in curves]
     n = len(curves)
     if n == 0:
         return []

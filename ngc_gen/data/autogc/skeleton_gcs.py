@@ -16,6 +16,7 @@ from ngc_gen.data.autogc.branch_gc import branch_gc, resample, split_bulb, split
 from ngc_gen.data.autogc.branches import Branch, branch_graph, junction_key, pass_through
 from ngc_gen.data.autogc.coverage import grow_to_cover
 from ngc_gen.data.autogc.names import gc_names
+from ngc_gen.data.autogc.orient import detect_orientation, parse_axis
 from ngc_gen.data.autogc.protrusions import THINNER as protrusion_thinner
 from ngc_gen.data.autogc.protrusions import half_thickness, protrusion_branches
 from ngc_gen.data.mesh.proxy import closed_proxy
@@ -107,9 +108,11 @@ def _split_owner(pieces: list[Branch], piece_of: list[np.ndarray], owner: np.nda
 def skeleton_gcs(mesh: trimesh.Trimesh, max_gcs: int = 24, min_branch_length: float = 1.0,
                  margin: float = 0.05, resolution: int = 96, skeleton: str = "auto",
                  n_keys: int = 5, samples: int = 20000, seed: int = 0, protrusions: bool = True,
-                 bulb_ratio: float = 1.8) -> tuple[list[GeneralizedCylinder], dict]:
+                 bulb_ratio: float = 1.8, up="auto", front="auto"
+                 ) -> tuple[list[GeneralizedCylinder], dict]:
     """GCs for a (normalised) mesh and what was found on the way: {backend, n_branches,
-    n_components}. Arguments as in conf/annotate/default.yaml (its values are the defaults here,
+    n_components, n_protrusions, orientation}; names by the given or detected up and front
+    (``orient``). Arguments as in conf/annotate/default.yaml (its values are the defaults here,
     as in `AutoGCSettings`; a test checks they agree)."""
     if skeleton not in BACKENDS:
         raise DataError(f"unknown skeleton backend {skeleton!r}", field="annotate.skeleton",
@@ -168,9 +171,16 @@ def skeleton_gcs(mesh: trimesh.Trimesh, max_gcs: int = 24, min_branch_length: fl
     curves = [np.asarray(g.to_world(np.stack([np.linspace(-1, 1, 17), np.zeros(17), np.zeros(17)], 1)))
               for g in gcs]
     volumes = [b.length * float(np.mean(b.radius)) ** 2 for b in pieces]  # from the skeleton
-    names = gc_names(curves, volumes, [b.component for b in pieces])
+    comps = [b.component for b in pieces]
+    main = [i for i in range(len(pieces)) if comps[i] == max(set(comps), key=lambda c: (
+        sum(v for v, k in zip(volumes, comps) if k == c), -c))]
+    trunk = max(main, key=lambda i: volumes[i])
+    orientation = detect_orientation([curves[i] for i in main], [volumes[i] for i in main],
+                                     main.index(trunk), parse_axis(up, "annotate.up"),
+                                     parse_axis(front, "annotate.front"), surface)
+    names = gc_names(curves, volumes, comps, orientation.matrix)
     named = sorted((GeneralizedCylinder.from_dict({**g.to_dict(), "name": nm}) for g, nm in zip(gcs, names)),
                    key=lambda g: (g.name != "trunk", g.name))
     info = {"backend": sk.backend, "n_branches": len(branches), "n_components": len(proxy.components),
-            "n_protrusions": len(rooted) - len(branches)}
+            "n_protrusions": len(rooted) - len(branches), "orientation": orientation}
     return named, info
