@@ -9,7 +9,7 @@ import pytest
 from ngc_gen.app.errors import ConfigError
 
 from ngc_gen.app.editor import browser
-from ngc_gen.app.editor.server import EditorServer
+from ngc_gen.app.editor.server import OPS_SHOWN, EditorServer, gc_middle, ops_text
 from ngc_gen.data.errors import DataError
 from ngc_gen.app.edit import run_edit
 
@@ -102,3 +102,34 @@ def test_relative_sliders_restart_at_no_change(server):
     user_sets(server.pose_degrees, 20.0)
     user_sets(server.pose_axis, "binormal")
     assert server.pose_degrees.value == 0.0 and len(s.ops) == 4
+
+
+def test_another_gc_starts_at_its_first_key(server):
+    server.select("body")
+    user_sets(server.key_menu, server.key_menu.options[-1])   # body's key at t=1
+    assert server._key_index() == 1
+    server.select("arm")                                      # arm also has keys 0 and 1
+    assert server._key_index() == 0
+    user_sets(server.twist, 25.0)
+    op = server.session.ops[-1]
+    assert (op["op"], op["gc"], op["t"]) == ("twist", "arm", 0.0)  # not arm's t=1 unasked
+
+
+def test_gcs_are_labelled_in_the_view_and_picked_by_a_click(server):
+    for name in server.session.shape.gc_names:
+        g, node, label = server._drawn[name]
+        assert label.text == name
+        assert np.allclose(label.position, gc_middle(g))
+        clicks = node._impl.click_cb
+        assert len(clicks) == 1
+        clicks[0].callback(SimpleNamespace(client=USER, target=node))
+        assert server.gc_menu.value == name and server._handles_gc == name
+
+
+def test_a_long_program_stays_within_the_panel():
+    ops = [{"op": "twist", "gc": f"g{i}"} for i in range(30)]
+    text = ops_text(ops)
+    lines = text.split("  \n")
+    assert len(lines) == 2 + OPS_SHOWN and "... 22 earlier" in lines[1]
+    assert lines[-1] == "29. twist g29" and "(30 ops)" in lines[0]
+    assert ops_text([]) == "**program**: empty"

@@ -2,6 +2,7 @@
 GCs as the user asked, undo/redo round-trip, bad interactions are refused with a message and
 leave the shape as it was, and a saved program replays with edit.py to the same mesh."""
 import re
+import shlex
 
 import numpy as np
 import pytest
@@ -159,9 +160,13 @@ def out_of(mixes):
 
 
 def replay(tmp_path, ckpt, program):
+    """Run the replay command the program's header names (as a user would paste it)."""
     out = tmp_path / "replay"
-    cfg = compose_config("edit", [f"run={ckpt}", f"program_file={program}", f"out_dir={out}",
-                                  f"extract.resolution={RES}", "picture=false"])
+    head = "# Replay: python edit.py "
+    line = next(ln for ln in program.read_text().splitlines() if ln.startswith(head))
+    args = shlex.split(line[len(head):])
+    assert f"run={ckpt}" in args and f"extract.resolution={RES}" in args, line
+    cfg = compose_config("edit", [*args, f"out_dir={out}", "picture=false"])
     run_edit(cfg)
     return trimesh.load(out / "deformed.ply", process=False)
 

@@ -31,6 +31,29 @@ BLENDS = ("replace", "constant", "linear", "truncated_linear", "smoothstep")
 STATUS_PREFIX = "mesh:"
 
 
+OPS_SHOWN = 8  # the program's last ops listed in the panel (the rest counted): never cut off
+
+
+def ops_text(ops: list[dict], shown: int = OPS_SHOWN) -> str:
+    """The panel's program list: one line per op, the last `shown` of them, and how many
+    came before (a long program stays within the panel instead of running off its bottom)."""
+    if not ops:
+        return "**program**: empty"
+    first = max(0, len(ops) - shown)
+    lines = [f"**program** ({len(ops)} op{'s' if len(ops) != 1 else ''})"]
+    if first:
+        lines.append(f"... {first} earlier")
+    lines += [f"{i}. {o['op']} {o.get('gc')}" for i, o in enumerate(ops) if i >= first]
+    return "  \n".join(lines)
+
+
+def gc_middle(gc) -> np.ndarray:
+    """(3,) a point at the middle of a GC's curve (where its label goes)."""
+    pts = np.asarray(gc.curve.points, dtype=np.float64)
+    return pts[len(pts) // 2] if len(pts) % 2 else 0.5 * (pts[len(pts) // 2 - 1]
+                                                          + pts[len(pts) // 2])
+
+
 def _guard(fn):
     """A GUI callback: skip programmatic updates (event.client None), report any exception in
     the message line instead of letting it reach viser."""
@@ -188,7 +211,8 @@ class EditorServer:
         shape = self.session.snapshot()[1]
         drawn = self._drawn
         for name in set(drawn) - set(shape.gc_names):
-            drawn.pop(name)[1].remove()
+            for node in drawn.pop(name)[1:]:
+                node.remove()
         for g in shape.gcs:
             if g.name in drawn and drawn[g.name][0] is g:
                 continue
@@ -196,7 +220,11 @@ class EditorServer:
             node = self.server.scene.add_mesh_simple(
                 f"/gcs/{g.name}", surf.vertices, surf.faces, color=GC_COLOR, opacity=0.2,
                 side="double", cast_shadow=False, receive_shadow=False)
-            drawn[g.name] = (g, node)
+            node.on_click(functools.partial(self._on_pick, g.name))  # click a GC: select it
+            label = self.server.scene.add_label(  # its name in the view, at its middle
+                f"/labels/{g.name}", g.name, position=tuple(float(x) for x in gc_middle(g)),
+                anchor="bottom-center", font_screen_scale=0.8)
+            drawn[g.name] = (g, node, label)
         pts = np.concatenate([g.curve.points for g in shape.gcs]).astype(np.float32)
         self.server.scene.add_point_cloud("/points", pts, colors=POINT_COLOR, point_size=0.012,
                                           point_shape="circle")
@@ -237,8 +265,10 @@ class EditorServer:
             keys = tuple(f"{i}: t={k.t:.2f}" for i, k in enumerate(gc.keys))
             if tuple(self.key_menu.options) != keys:
                 self.key_menu.options = keys
-            if self.key_menu.value not in keys:
+            # another GC: its first key, never the previous GC's key index carried over
+            if self.key_menu.value not in keys or getattr(self, "_keys_gc", None) != gc.name:
                 self.key_menu.value = keys[0]
+            self._keys_gc = gc.name
             k = gc.keys[self._key_index()]
             self.radius.value = round(0.5 * (k.radii[0] + k.radii[1]), 3)
             self.twist.value = float(np.clip(round(k.twist), -360, 360))
@@ -251,9 +281,7 @@ class EditorServer:
                 self.stretch_factor.value = 1.0
             if not self.session.continues(("pose", name, str(self.pose_axis.value))):
                 self.pose_degrees.value = 0.0
-            ops = self.session.ops
-            self.ops_view.content = "**program**: " + (
-                ", ".join(f"{i}:{o['op']} {o.get('gc')}" for i, o in enumerate(ops)) or "empty")
+            self.ops_view.content = ops_text(self.session.ops)
             self.undo_button.disabled = not self.session.can_undo
             self.redo_button.disabled = not self.session.can_redo
 
@@ -289,6 +317,15 @@ class EditorServer:
     @_guard
     def _on_selection(self, _):
         self._sync_controls()
+
+    def _on_pick(self, name: str, event=None):
+        """A click on a GC in the 3D view selects it (as the GC menu does)."""
+        try:
+            if name in self.session.snapshot()[1].gc_names:
+                self.select(name)
+                self.say(f"selected GC '{name}'")
+        except Exception as e:  # the server never dies on a bad interaction
+            self.say(f"internal error ({type(e).__name__}: {e})")
 
     @_guard
     def _on_key(self, _):

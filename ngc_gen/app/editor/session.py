@@ -369,7 +369,7 @@ class EditorSession:
                 written.append(ckpt)
             header = (f"# Edit program made in the editor on shape '{self.base.name}'.\n"
                       f"# Replay: python edit.py run={ckpt} program_file={path} "
-                      f"resolution={int(resolution)}\n")
+                      f"extract.resolution={int(resolution)}\n")
             atomic_write_text(path, header + yaml.safe_dump(program, sort_keys=False,
                                                             default_flow_style=None, width=100))
             written.append(path)
