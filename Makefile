@@ -8,7 +8,7 @@ BIN := $(VENV)/bin
 # the benches, in the order `make bench` runs them (sparse-settings reads deform's and autogc's
 # fits; condition and reconstruct reuse generate's; fit-ablation reads fit's ceiling)
 BENCHES := geometry up-axis fit fit-ablation deform extract autogc sparse-settings editor \
-	generate condition reconstruct ddp demo
+	generate condition reconstruct ddp demo cli animals
 
 .PHONY: setup chromium test test-all bench bench-report $(addprefix bench-,$(BENCHES)) bench-up \
 	demo clean
@@ -16,11 +16,14 @@ BENCHES := geometry up-axis fit fit-ablation deform extract autogc sparse-settin
 $(BIN)/activate:
 	$(PY) -m venv $(VENV)
 
-# --no-compile: Python compiles a module when it is first imported; byte-compiling every module
-# of every package at install time cost 39 s for torch alone (12 s without), measured here
+# --no-compile: byte-compiling every module of every package at install time cost 39 s for torch
+# alone (12 s without). Instead `ngc_gen.app.bytecode` compiles what the commands import, once:
+# where PYTHONDONTWRITEBYTECODE=1 is set no command would ever write a .pyc, and each would
+# compile torch, Lightning and trimesh again (bench/cli.py measures both sides: make bench-cli)
 $(VENV)/.installed: $(BIN)/activate pyproject.toml
 	$(BIN)/python -c "import torch" 2>/dev/null || $(BIN)/pip install -q --no-compile "$(TORCH_SPEC)"
 	$(BIN)/pip install -q --no-compile -e .
+	$(BIN)/python -m ngc_gen.app.bytecode
 	touch $@
 
 # the test tools (pytest, import-linter, playwright) and CGAL's skeleton on top: make demo (the
@@ -82,6 +85,9 @@ bench-extract: setup  # dense, prefiltered and sparse extraction of bench-deform
 bench-generate: setup
 	$(BIN)/python bench/generate.py
 
+bench-animals: setup  # rigged animals: GCs from the rig, rest-pose fits, generation vs held-out clips / species
+	$(BIN)/python bench/animals.py
+
 bench-editor: setup
 	$(BIN)/python bench/editor.py
 
@@ -107,6 +113,9 @@ bench-up: bench-up-axis  # its former name
 
 bench-ddp: setup  # one training process against two (gloo) on CPU
 	$(BIN)/python bench/ddp.py
+
+bench-cli: setup  # how fast the commands answer (rejections, --help, an edit at 128^3; bytecode)
+	$(BIN)/python bench/cli.py
 
 clean:
 	rm -rf $(VENV) outputs .pytest_cache

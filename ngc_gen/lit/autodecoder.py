@@ -12,9 +12,8 @@ import lightning as L
 import torch
 from torch import nn
 
+from .fitted import CHECKPOINT_KIND  # noqa: F401  (defined there: loading needs no Lightning)
 from .parts import decoder_and_kind, optimizer_factory
-
-CHECKPOINT_KIND = "ngc_gen.autodecoder"
 
 
 class AutoDecoder(L.LightningModule):

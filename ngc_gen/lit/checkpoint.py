@@ -8,7 +8,7 @@ import torch
 
 from ngc_gen.data.errors import DataError
 
-from .autodecoder import CHECKPOINT_KIND, AutoDecoder
+from .fitted import CHECKPOINT_KIND, FittedAutoDecoder
 from .peek import resolve_checkpoint  # noqa: F401  (torch-free; re-exported for its callers)
 
 FIT_FIX = "pass the checkpoints/last.ckpt of a `train.py stage=fit` run"
@@ -26,10 +26,12 @@ def load_checkpoint_dict(path: Path, fix: str, map_location="cpu") -> dict:
     return ckpt
 
 
-def load_module(cls, path, kind: str, what: str, fix: str, map_location="cpu"):
+def load_module(cls, path, kind: str, what: str, fix: str, map_location="cpu",
+                whole: bool = False):
     """`cls` rebuilt from its saved hyper-parameters and weights, in eval mode; DataError if the
     file is missing, not a checkpoint, or a checkpoint of another kind (`what` names the one
-    expected, e.g. "a diffusion checkpoint")."""
+    expected, e.g. "a diffusion checkpoint"). `whole`: `cls(hparams)` (one dict) instead of
+    `cls(**hparams)`."""
     path = Path(path)
     if not path.is_file():
         raise DataError(f"checkpoint {path} does not exist", fix=fix)
@@ -40,9 +42,9 @@ def load_module(cls, path, kind: str, what: str, fix: str, map_location="cpu"):
     retired = getattr(cls, "RETIRED_HPARAMS", ())  # recorded by older versions, unused now
     hp = {k: v for k, v in hp.items() if k not in retired}
     try:
-        module = cls(**hp)
+        module = cls(hp) if whole else cls(**hp)
         module.load_state_dict(ckpt["state_dict"])
-    except (TypeError, ValueError, RuntimeError) as e:  # hyper-parameters / weights of another
+    except (TypeError, ValueError, RuntimeError, KeyError) as e:  # hparams / weights of another
         raise DataError(f"{path} does not match this version's {cls.__name__} "  # version
                         f"({type(e).__name__}: {str(e).splitlines()[0][:200]})",
                         fix="retrain it with this version (`train.py`), or load it with the "
@@ -50,7 +52,9 @@ def load_module(cls, path, kind: str, what: str, fix: str, map_location="cpu"):
     return module.eval()
 
 
-def load_autodecoder(path, map_location="cpu") -> AutoDecoder:
-    """An AutoDecoder from a Lightning checkpoint (`last.ckpt`, `best.ckpt`) of `stage=fit`."""
-    return load_module(AutoDecoder, path, CHECKPOINT_KIND, "an NGC/DeepSDF fitting checkpoint",
-                       FIT_FIX, map_location)
+def load_autodecoder(path, map_location="cpu") -> FittedAutoDecoder:
+    """The decoder and codes of a Lightning checkpoint (`last.ckpt`, `best.ckpt`) of
+    `stage=fit`, for inference: a `FittedAutoDecoder` (no Lightning import; the same weights,
+    hyper-parameters and `sdf` as the AutoDecoder that was trained)."""
+    return load_module(FittedAutoDecoder, path, CHECKPOINT_KIND,
+                       "an NGC/DeepSDF fitting checkpoint", FIT_FIX, map_location, whole=True)

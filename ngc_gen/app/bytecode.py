@@ -1,0 +1,54 @@
+"""`python -m ngc_gen.app.bytecode`: byte-compile what the commands import, once, at setup.
+
+Where PYTHONDONTWRITEBYTECODE=1 is set (common in containers) and packages were installed with
+`pip --no-compile`, no .pyc is ever written, so every command compiles torch, Lightning,
+trimesh and the project from source again (the Makefile's setup runs this module; bench/cli.py
+measures what it adds to setup and saves per command). Importing the runners with bytecode
+writing switched on compiles exactly the modules a command loads (not every module of every
+package, which `compileall` would do at several times the cost).
+"""
+from __future__ import annotations
+
+import compileall
+import importlib
+import importlib.util
+import sys
+import time
+from pathlib import Path
+
+# the runners of train.py, edit.py (and the editor) and sample.py: importing them imports what
+# their work imports (torch, Lightning, trimesh, scipy, hydra, viser)
+RUNNERS = ("ngc_gen.app.stages", "ngc_gen.app.prepare", "ngc_gen.app.annotate",
+           "ngc_gen.app.fit", "ngc_gen.app.shape_latent", "ngc_gen.app.diffusion",
+           "ngc_gen.app.reconstruct", "ngc_gen.app.pipeline", "ngc_gen.app.edit",
+           "ngc_gen.app.sample", "ngc_gen.app.condition", "ngc_gen.edit.program",
+           "ngc_gen.shape", "ngc_gen.extract.extractor", "ngc_gen.viz",
+           "lightning.pytorch", "ngc_gen.app.editor.server", "pyvista.plotting")
+# packages whose modules load late (numba's while it compiles or loads a cached kernel,
+# pyvista's and VTK's when a picture is drawn, Hydra's plugins while it composes): compiled
+# whole, as they are small next to torch (~1,100 files); found without importing them
+LATE_PACKAGES = ("numba", "pyvista", "vtkmodules", "hydra", "hydra_plugins", "scooby")
+
+
+def main() -> int:
+    sys.dont_write_bytecode = False  # the point of this module, whatever the environment says
+    t0 = time.perf_counter()
+    missing = []
+    for name in RUNNERS:
+        try:
+            importlib.import_module(name)
+        except ImportError as e:  # an optional extra (viser) not installed: compile the rest
+            missing.append(f"{name} ({e.name or e})")
+    for name in LATE_PACKAGES:
+        spec = importlib.util.find_spec(name)
+        for folder in (spec.submodule_search_locations or []) if spec else []:
+            compileall.compile_dir(Path(folder), quiet=1, workers=0)
+    n = sum(1 for m in sys.modules.values() if getattr(m, "__cached__", None))
+    print(f"bytecode: {n} imported modules and {', '.join(LATE_PACKAGES)} compiled or current "
+          f"in {time.perf_counter() - t0:.1f} s"
+          + (f"; not importable: {', '.join(missing)}" if missing else ""))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
