@@ -2,6 +2,8 @@
 one loader for the fitting, shape-latent and diffusion checkpoints."""
 from __future__ import annotations
 
+import pickle
+import re
 from pathlib import Path
 
 import torch
@@ -18,7 +20,14 @@ def load_checkpoint_dict(path: Path, fix: str, map_location="cpu") -> dict:
     """torch.load(weights_only=True) with a DataError for files that are not checkpoints."""
     try:
         ckpt = torch.load(path, map_location=map_location, weights_only=True)
-    except Exception as e:  # not a torch file, or one holding arbitrary pickled objects
+    except pickle.UnpicklingError as e:  # weights_only refused a Python object in the file
+        blocked = re.search(r"GLOBAL (\S+)", str(e))
+        raise DataError(f"{path} holds pickled Python objects besides tensors and plain data"
+                        + (f" ({blocked.group(1)})" if blocked else "") + "; it is refused "
+                        "because loading it could run code from the file",
+                        fix=f"{fix}; use checkpoints this project wrote, and never turn the "
+                            "weights_only protection off for a file you did not make") from None
+    except Exception as e:  # not a torch file (truncated, another format)
         raise DataError(f"{path} is not a loadable checkpoint ({type(e).__name__}: "
                         f"{str(e).splitlines()[0][:200]})", fix=fix) from None
     if not isinstance(ckpt, dict):
