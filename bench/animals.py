@@ -1,0 +1,225 @@
+"""Animals benchmark: rigged quadrupeds become GCs (coverage, purity), their rest poses are fitted
+(F-score), and the generator trained on posed animals is measured against held-out clips and,
+separately, held-out species, each beside its ceiling and floor, with memorisation and a
+wolf -> horse interpolation.
+
+    python bench/animals.py [--frames 2] [--fit-steps N] [--shape-latent-steps N]
+                            [--diffusion-steps N] [--sets 2] [--resolution 128]
+
+Data: data=animals with `--frames` frames per clip (the default config has 5; the bench's
+size is in `recipe`). Rows (2048 surface points per shape, squared Chamfer, every mesh in the
+data's normalised frame: bounding box centred, longest side 1.6; each the mean over sets of as
+many shapes as the reference):
+  generated   EDM samples (Heun, 18 steps) decoded to GCs + codes, meshed at --resolution
+  train_set   the ceiling: training meshes (random subsets)
+  noise       the floor: latents ~ N(mean, std^2) per dimension of the trained latents
+References: `clips` = training species at held-out clips, `species` = held-out species at
+every clip. nearest_train_cd_median: the median over generated shapes of the Chamfer distance
+to the nearest training mesh. interp_max_over_mean: along wolf -> horse (8 steps, training
+latents), the largest consecutive-step Chamfer over their mean. purity, coverage: over every
+built shape (train, test and rest). fit_fscore_min: the 12 rest poses fitted with their
+template GCs (train.py stage=fit, the default recipe unless --fit-steps), F-score@0.01.
+
+Writes bench/results/animals.json and animals.png (fitted, posed and generated animals).
+Trained runs are kept in the bench's fit cache (bench/_harness.py).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+from bench._harness import (Bench, FitCache, config_recipe, dataset_identity,  # noqa: E402
+                            link_latest)
+from bench.generate import clouds, mesh_set  # noqa: E402
+
+RUNS = ROOT / "bench/runs/animals"
+RESULTS = ROOT / "bench/results"
+
+
+def data_overrides(args) -> list[str]:
+    return ["data=animals", f"data.frames={args.frames}", "trainer.enable_progress_bar=false",
+            "logger=csv", f"seed={args.seed}"]
+
+
+def cached_stage(cache: FitCache, name: str, cfg, run, refit: bool):
+    """A stage's run from the fit cache, keyed by its whole config and the data's identity."""
+    from omegaconf import open_dict
+
+    def fit(run_dir: Path) -> dict:
+        with open_dict(cfg):
+            cfg.run_dir = str(run_dir)
+        t0 = time.perf_counter()
+        run(cfg)
+        return {"stage_s": time.perf_counter() - t0}
+
+    f = cache.get({"stage": name, "config": config_recipe(cfg), "data": dataset_identity(cfg)},
+                  fit, refit=refit)
+    link_latest(RUNS / name, f.run_dir)
+    return f
+
+
+def train(args) -> dict:
+    from ngc_gen.app.config import compose_config
+    from ngc_gen.app.diffusion import run_diffusion
+    from ngc_gen.app.fit import run_fit
+    from ngc_gen.app.shape_latent import run_shape_latent
+
+    cache = FitCache("animals")
+    base = ["experiment=animals", *data_overrides(args)]
+    fit = cached_stage(cache, "fit_rest", compose_config(overrides=[
+        "stage=fit", *data_overrides(args), "data.split=rest",
+        "prepare.cache_dir=${paths.cache_dir}/prepared/animals_rest",
+        *([f"trainer.max_steps={args.fit_steps}"] if args.fit_steps else [])]), run_fit,
+        args.refit)
+    sl = cached_stage(cache, "shape_latent", compose_config(overrides=[
+        *base, "stage=shape_latent", "shape_latent.preview=0",
+        *([f"shape_latent.max_steps={args.shape_latent_steps}"] if args.shape_latent_steps
+          else [])]), run_shape_latent, args.refit)
+    diff = cached_stage(cache, "diffusion", compose_config(overrides=[
+        *base, "stage=diffusion", f"shape_latent_run={sl.run_dir}",
+        *([f"diffusion.max_steps={args.diffusion_steps}"] if args.diffusion_steps else [])]),
+        run_diffusion, args.refit)
+    load = lambda f: json.loads((f.run_dir / "metrics.json").read_text())  # noqa: E731
+    return {"fit": load(fit), "fit_dir": fit.run_dir, "shape_latent": load(sl),
+            "shape_latent_dir": sl.run_dir, "diffusion": load(diff), "diffusion_dir": diff.run_dir}
+
+
+def rows_for(sets: dict, ref_meshes, points: int) -> dict:
+    """{row: {mmd_cd, cov_cd, nna_cd}} of each row's sets against one reference."""
+    from ngc_gen.eval import generation_metrics, pairwise_chamfer
+
+    ref, _ = clouds(ref_meshes, points, 0)
+    d_rr = pairwise_chamfer(ref)
+    out = {}
+    for key, groups in sets.items():
+        per = [generation_metrics(clouds(g, points, 0)[0], ref, ref_ref=d_rr) for g in groups]
+        out[key] = {k: float(np.mean([p[k] for p in per])) for k in ("mmd_cd", "cov_cd", "nna_cd")}
+    return out
+
+
+def picture(fit_dir: Path, rest: list[dict], posed: list[dict], gen_dir: Path, gen_names,
+            path: Path) -> None:
+    """Rows: rest poses fitted (the fitted NGC mesh), posed training animals with their GCs,
+    generated animals with their decoded GCs."""
+    import trimesh
+
+    from ngc_gen.data.annotations import load_annotation
+    from ngc_gen.viz import gcs_surface, render_grid, render_or_warn
+
+    def with_gcs(mesh_path, ann_path):
+        return (trimesh.load(mesh_path, process=False), gcs_surface(load_annotation(ann_path).gcs))
+
+    rows = [[trimesh.load(fit_dir / "meshes" / f"{r['name']}.ply", process=False) for r in rest],
+            [with_gcs(r["mesh"], r["annotation"]) for r in posed],
+            [with_gcs(gen_dir / f"{n}.ply", gen_dir / f"{n}.yaml") for n in gen_names]]
+    titles = [[r["name"] for r in rest], [r["name"] for r in posed], list(gen_names)]
+    render_or_warn(render_grid, path, rows, labels=["fitted (rest)", "posed + GCs",
+                                                    "generated + GCs"],
+                   titles=titles, up="y")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--frames", type=int, default=2, help="frames per clip (config default 5)")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--fit-steps", type=int, default=None, help="default: the fit recipe's")
+    ap.add_argument("--shape-latent-steps", type=int, default=None,
+                    help="default: conf/experiment/animals.yaml's")
+    ap.add_argument("--diffusion-steps", type=int, default=None,
+                    help="default: conf/experiment/animals.yaml's")
+    ap.add_argument("--sets", type=int, default=2, help="sets of n_reference generated shapes")
+    ap.add_argument("--train-subsets", type=int, default=10)
+    ap.add_argument("--resolution", type=int, default=128)
+    ap.add_argument("--points", type=int, default=2048)
+    ap.add_argument("--threads", type=int, default=1)
+    ap.add_argument("--refit", action="store_true")
+    args = ap.parse_args()
+    bench = Bench("animals")
+
+    import torch
+    import trimesh
+    from hydra.utils import instantiate
+
+    torch.set_num_threads(args.threads)
+    from ngc_gen.app.config import compose_config
+    from ngc_gen.app.sample import generate, interpolate
+    from ngc_gen.data.rigs.animals import purity_summary
+    from ngc_gen.eval import pairwise_chamfer
+    from ngc_gen.generate import load_generator
+
+    t_start = time.perf_counter()
+    data = instantiate(compose_config(overrides=data_overrides(args)).data)
+    records = {}
+    for split in ("train", "test_clips", "test_species", "rest"):
+        data.split = split
+        records[split] = data.build()
+    load = lambda rs: [trimesh.load(r["mesh"], process=False) for r in rs]  # noqa: E731
+    train_m, clips_m, species_m = (load(records[s]) for s in ("train", "test_clips",
+                                                              "test_species"))
+    print(f"{len(train_m)} training / {len(clips_m)} held-out-clip / {len(species_m)} "
+          f"held-out-species animals")
+
+    runs = train(args)
+    gen = load_generator(runs["diffusion_dir"])
+    n_ref = max(len(clips_m), len(species_m))
+    n_gen = args.sets * n_ref
+    sampled = generate(gen, RUNS / "samples", n=n_gen, seed=args.seed,
+                       resolution=args.resolution, progress=False)
+    gen_names = sorted(sampled["shapes"])
+    gen_m = [trimesh.load(RUNS / "samples" / f"{n}.ply", process=False) for n in gen_names]
+    noise_m, _ = mesh_set(gen, gen.noise_latents(n_gen, seed=args.seed + 1, kind="fitted"),
+                          [f"noise_{i:03d}" for i in range(n_gen)], RUNS / "noise",
+                          args.resolution)
+    rng = np.random.default_rng(args.seed)
+    res = {"n_train": len(train_m), "n_heldout_clips": len(clips_m),
+           "n_heldout_species": len(species_m)}
+    for key, ref_m in (("clips", clips_m), ("species", species_m)):
+        k = len(ref_m)
+        subsets = [rng.choice(len(train_m), k, replace=False) for _ in range(args.train_subsets)]
+        res[key] = rows_for({"generated": [gen_m[i:i + k] for i in range(0, args.sets * k, k)],
+                             "train_set": [[train_m[i] for i in s] for s in subsets],
+                             "noise": [noise_m[i:i + k] for i in range(0, args.sets * k, k)]},
+                            ref_m, args.points)
+    g_pts, _ = clouds(gen_m, args.points, 0)
+    t_pts, _ = clouds(train_m, args.points, 0)
+    res["nearest_train_cd_median"] = float(np.median(pairwise_chamfer(g_pts, t_pts).min(1)))
+    a = next(r["name"] for r in records["train"] if r["species"] == "wolf")
+    b = next(r["name"] for r in records["train"] if r["species"] == "horse" and
+             r["clip"] == next(x for x in records["train"] if x["name"] == a)["clip"])
+    inter = interpolate(gen, RUNS / "interp", a=a, b=b, steps=8, resolution=args.resolution,
+                        progress=False)
+    inter_m = [trimesh.load(p, process=False) for p in sorted((RUNS / "interp").glob("*.ply"))]
+    i_pts, empty = clouds(inter_m, args.points, 0)
+    steps = np.array([pairwise_chamfer(i_pts[i:i + 1], i_pts[i + 1:i + 2])[0, 0]
+                      for i in range(len(i_pts) - 1)])
+    res["interp_max_over_mean"] = float(steps.max() / steps.mean()) if empty == 0 else None
+    built = records["train"] + records["test_clips"] + records["test_species"] + records["rest"]
+    res.update(purity_summary(built))
+    res["fit_fscore_min"] = float(min(m["fscore"] for m in runs["fit"]["shapes"].values()))
+    res["recipe"] = {
+        "frames": args.frames, "fit_steps": runs["fit"]["steps"],
+        "shape_latent_steps": runs["shape_latent"]["steps"],
+        "diffusion_steps": runs["diffusion"]["steps"], "sets": args.sets,
+        "train_subsets": args.train_subsets, "resolution": args.resolution,
+        "points": args.points, "interp": [a, b], "interp_empty_meshes": int(empty),
+        "fit_fscore": {n: m["fscore"] for n, m in runs["fit"]["shapes"].items()},
+        "total_s": time.perf_counter() - t_start}
+    show = [r for r in records["train"] if r["frame"] == 0][::9][:4]
+    picture(runs["fit_dir"], records["rest"][::3][:4], show, RUNS / "samples", gen_names[:4],
+            RESULTS / "animals.png")
+    from bench.report import table
+
+    path = bench.write(res)
+    print("\n" + table("animals", json.loads(path.read_text())))
+    print(f"total {res['recipe']['total_s'] / 60:.1f} min; results in {RESULTS}")
+
+
+if __name__ == "__main__":
+    main()
