@@ -180,20 +180,49 @@ def render_overview(run_dir: Path, done: list[str], per_row: int = 4, up="auto")
     def load(paths):
         return [trimesh.load(p, process=False) for p in paths[:per_row] if p.is_file()]
 
-    rows, labels = [], []
+    rows, labels, views = [], [], []
     if "fit" in done:
         rows.append(load(sorted((run_dir / "fit" / "meshes").glob("*.ply"))))
         labels.append("fitted")
+        views.append(None)
     if "edit" in done:
         rows.append(load([run_dir / "edit" / "undeformed.ply", run_dir / "edit" / "deformed.ply"]))
         metrics = run_dir / "edit" / "metrics.json"
         program = json.loads(metrics.read_text()).get("program", "") if metrics.is_file() else ""
         labels.append(f"edit {program}: before, after")
+        views.append(edit_row_view(run_dir, rows[-1], up))
     if "sample" in done:
         rows.append(load(sorted((run_dir / "sample").glob("*.ply"))))
         labels.append("generated")
-    kept = [(r, lab) for r, lab in zip(rows, labels) if r]
+        views.append(None)
+    kept = [(r, lab, v) for r, lab, v in zip(rows, labels, views) if r]
     if not kept:
         return
-    render_or_warn(render_grid, run_dir / "overview.png", [r for r, _ in kept],
-                   labels=[lab for _, lab in kept], frame="row", up=up)
+    render_or_warn(render_grid, run_dir / "overview.png", [r for r, _, _ in kept],
+                   labels=[lab for _, lab, _ in kept], frame="row", up=up,
+                   view=[v for _, _, v in kept])
+
+
+def edit_row_view(run_dir: Path, meshes: list, up="auto"):
+    """The overview's camera for the edit row: edit.png's (`viz.camera.edit_view`, across the
+    edited GCs' motion), from the fitted shape's GCs (the fit step's checkpoint) and the edited
+    ones (`edit/edited.yaml`). None (the side view) when the edit did not edit the fit step's
+    shape or a file is missing."""
+    import numpy as np
+    import yaml
+
+    from ngc_gen.data.annotations import load_annotation
+    from ngc_gen.shape import load_shapes
+    from ngc_gen.viz.camera import edit_view, resolve_up
+
+    edit = run_dir / "edit"
+    try:
+        shape = yaml.safe_load((edit / "program.yaml").read_text())["shape"]
+        before = load_shapes(run_dir / "fit")[shape].gcs
+        after = load_annotation(edit / "edited.yaml").gcs
+    except (OSError, KeyError, TypeError, ValueError):
+        return None
+    if len(meshes) != 2:
+        return None
+    u = resolve_up(up, meshes[:1])
+    return edit_view(np.concatenate([np.asarray(m.vertices) for m in meshes]), before, after, u)

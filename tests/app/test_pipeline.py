@@ -3,12 +3,13 @@ fail before anything runs, and a tiny run of all five steps writes what each sin
 writes plus summary.json and overview.png."""
 import json
 
+import numpy as np
 import pytest
 import trimesh
 
 from ngc_gen.data.annotations import load_annotation
 from ngc_gen.data.errors import DataError
-from ngc_gen.app.pipeline import STEPS, plan, run_pipeline
+from ngc_gen.app.pipeline import STEPS, edit_row_view, plan, run_pipeline
 
 from ..helpers import compose_config, run_entry
 
@@ -124,6 +125,23 @@ def test_tiny_pipeline_samples_come_from_its_own_runs(tiny_run):
     ann = load_annotation(run / "sample/sample_000.yaml")
     assert len(mesh.faces) > 0 and len(ann.gcs) == 10
 
+
+def test_overview_looks_across_the_edit(tiny_run):
+    """The overview's edit row takes edit.png's camera: across the bent tail's motion, which the
+    side view of the other rows looks along more."""
+    from ngc_gen.shape import load_shapes
+    from ngc_gen.viz.camera import curve_displacements, resolve_up, side_view
+
+    run, _ = tiny_run
+    meshes = [trimesh.load(run / "edit" / f, process=False)
+              for f in ("undeformed.ply", "deformed.ply")]
+    view = edit_row_view(run, meshes)
+    before = load_shapes(run / "fit")["creature_0000"].gcs
+    disp = curve_displacements(before, load_annotation(run / "edit/edited.yaml").gcs)
+    M = disp.T @ disp
+    side = side_view(np.concatenate([m.vertices for m in meshes]), resolve_up("auto", meshes[:1]))
+    assert view is not None and view @ M @ view < 0.5 * (side @ M @ side)
+    assert edit_row_view(run.parent, meshes) is None  # no edit step there: the side view
 
 def test_resume_keeps_finished_steps(tiny_run):
     run, _ = tiny_run
