@@ -32,11 +32,28 @@ def test_lines_at_a_fixed_interval_when_not_a_terminal(monkeypatch, capsys):
     trainer.global_step = 100
     bar.on_train_end(trainer, None)  # t = 70
     lines = capsys.readouterr().out.splitlines()
-    assert lines == [
-        "fit: step 70/100  loss 0.2  1.0 it/s  ETA 0:00:31",   # 30 steps in 31 s
-        "fit: step 90/100  loss 0.05  0.8 it/s  ETA 0:00:12",  # 30 s after the last line
-        "fit: step 100/100  loss 0.05  0.9 it/s  ETA 0:00:00",  # and at the end
+    assert lines == [  # the speed since the first step's end (50 at t = 10), then since the last line
+        "fit: step 70/100  loss 0.2  1.0 it/s  ETA 0:00:32",   # 20 steps in 21 s
+        "fit: step 90/100  loss 0.05  0.6 it/s  ETA 0:00:16",  # 20 steps in 31 s: slower now
+        "fit: step 100/100  loss 0.05  1.2 it/s  ETA 0:00:00",  # and at the end
     ]
+
+
+def test_the_eta_is_the_measured_speed_not_the_start_up(monkeypatch, capsys):
+    """A first step that takes 20 s (data, JIT) and then 1 step/s: the first line (t = 30 s,
+    step 11) says 1 step/s and 89 s for the 89 steps left (the run's average, 11 steps in
+    30 s, would have said 4 minutes)."""
+    times = [0.0, 20.0] + [20.0 + k for k in range(1, 32)]
+    clock = iter(times)
+    monkeypatch.setattr(progress.time, "perf_counter", lambda: next(clock))
+    bar = StepProgress(line_interval_s=30.0, desc="fit", terminal=False)
+    trainer = FakeTrainer(step=0)
+    bar.on_train_start(trainer, None)
+    for step in range(1, 33):
+        trainer.global_step = step
+        bar.on_train_batch_end(trainer, None, None, None, 0)
+    assert capsys.readouterr().out.splitlines() == [
+        "fit: step 11/100  loss 0.5  1.0 it/s  ETA 0:01:29"]
 
 
 def test_eta_text():
