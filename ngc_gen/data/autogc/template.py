@@ -20,6 +20,14 @@ gcs:
     symmetric: leg_fr         # its mirror partner (null: none, or on the symmetry plane)
 ```
 
+For transfer onto meshes without a rig (``autogc.transfer``) a template says where each part
+sits instead of (or besides) its joints: `frame: {up: [0, 1, 0], front: [0, 0, 1]}` at the top
+(the frame its `up` vectors are written in; default +z up, +x front) and per GC
+`place: {start: [f, l, u], end: [f, l, u], radius: r}`: its curve's ends in the body frame
+(front, left, up), centred on the surface's bounding box and divided by its half extents, and
+its mean radius over the half length. `joints` may then be left out. `train.py
+stage=annotate annotate.export_template=PATH` writes one from any annotated mesh.
+
 Joint names may be glob patterns (`Tail*`, `Ear?.L`): a pattern in `joints` takes every
 matching joint in hierarchy order (parents first), so rigs with 3 or 8 tail joints share one
 template; a pattern in `skinned` may match nothing, a plain name must exist. Everything is
@@ -38,9 +46,10 @@ import yaml
 from ngc_gen.data.errors import DataError
 
 TEMPLATE_VERSION = 1
-TOP_KEYS = {"version", "name", "description", "gcs"}
+TOP_KEYS = {"version", "name", "description", "gcs", "frame"}
 GC_KEYS = {"name", "joints", "skinned", "degree", "keys", "up", "extend", "parent", "attach",
-           "symmetric"}
+           "symmetric", "place"}
+DEFAULT_FRAME = {"up": (0.0, 0.0, 1.0), "front": (1.0, 0.0, 0.0)}
 _GLOB = set("*?[")
 
 
@@ -62,6 +71,7 @@ class TemplateGC:
     parent: str | None = None
     attach: float | None = None
     symmetric: str | None = None
+    place: dict | None = None  # {start: (3,), end: (3,), radius: float} (module docstring)
 
     def to_dict(self) -> dict:
         d = {"name": self.name, "joints": list(self.joints), "skinned": list(self.skinned),
@@ -70,6 +80,10 @@ class TemplateGC:
              "parent": self.parent, "symmetric": self.symmetric}
         if self.attach is not None:
             d["attach"] = float(self.attach)
+        if self.place is not None:
+            d["place"] = {"start": [round(float(x), 5) for x in self.place["start"]],
+                          "end": [round(float(x), 5) for x in self.place["end"]],
+                          "radius": round(float(self.place["radius"]), 5)}
         return d
 
 
@@ -81,6 +95,20 @@ class Template:
     gcs: tuple[TemplateGC, ...]
     version: int = TEMPLATE_VERSION
     source: str | None = None
+    frame: dict | None = None  # {up: (3,), front: (3,)}; None: DEFAULT_FRAME
+
+    @property
+    def up(self) -> np.ndarray:
+        return np.asarray((self.frame or DEFAULT_FRAME)["up"], dtype=np.float64)
+
+    @property
+    def front(self) -> np.ndarray:
+        return np.asarray((self.frame or DEFAULT_FRAME)["front"], dtype=np.float64)
+
+    @property
+    def placed(self) -> bool:
+        """Every GC says where it sits (`place`): the template can be transferred."""
+        return all(g.place is not None for g in self.gcs)
 
     @property
     def names(self) -> list[str]:
@@ -93,7 +121,10 @@ class Template:
         return self.gcs[self.names.index(name)]
 
     def to_dict(self) -> dict:
-        return {"version": self.version, "name": self.name, "gcs": [g.to_dict() for g in self.gcs]}
+        d = {"version": self.version, "name": self.name}
+        if self.frame is not None:
+            d["frame"] = {k: [float(x) for x in v] for k, v in self.frame.items()}
+        return {**d, "gcs": [g.to_dict() for g in self.gcs]}
 
     def to_yaml(self) -> str:
         return yaml.safe_dump(self.to_dict(), sort_keys=False, default_flow_style=None, width=100)
@@ -125,6 +156,12 @@ class Template:
         out: dict[str, dict[str, list[int]]] = {}
         owner: dict[int, str] = {}
         for g in self.gcs:
+            if not g.joints:
+                raise DataError(f"template GC has no joints (template {self.source or self.name})",
+                                path=where, gc=g.name, field="joints",
+                                fix="a template without joints is for transfer (train.py "
+                                    "stage=annotate annotate.template=...); list the rig's joints "
+                                    "to pose it on a rig")
             chain = [j for p in g.joints for j in match(p, g.name, "joints", True)]
             skinned = ([j for p in g.skinned for j in match(p, g.name, "skinned", False)]
                        if g.skinned else chain)
@@ -152,6 +189,37 @@ def _names(value, path, gc, fld, allow_empty: bool) -> tuple[str, ...]:
         _fail(f"expected a list of joint names, got {value!r}", path, gc, fld,
               "write joint names as a YAML list, e.g. [Neck1, Neck2] or ['Tail*']")
     return tuple(value)
+
+
+def _vec3(v) -> bool:
+    return isinstance(v, (list, tuple)) and len(v) == 3 and all(
+        isinstance(x, (int, float)) and not isinstance(x, bool) and np.isfinite(x) for x in v)
+
+
+def _place(p, path, gc) -> dict | None:
+    if p is None:
+        return None
+    if not (isinstance(p, dict) and set(p) == {"start", "end", "radius"} and _vec3(p["start"])
+            and _vec3(p["end"]) and isinstance(p["radius"], (int, float))
+            and not isinstance(p["radius"], bool) and p["radius"] > 0):
+        _fail(f"place must be {{start: [f, l, u], end: [f, l, u], radius: r > 0}}, got {p!r}",
+              path, gc, "place", "write it with train.py stage=annotate annotate.export_template=PATH")
+    return {"start": tuple(float(x) for x in p["start"]), "end": tuple(float(x) for x in p["end"]),
+            "radius": float(p["radius"])}
+
+
+def _frame(f, path) -> dict | None:
+    if f is None:
+        return None
+    ok = isinstance(f, dict) and set(f) == {"up", "front"} and _vec3(f["up"]) and _vec3(f["front"])
+    if ok:
+        up, front = np.asarray(f["up"], float), np.asarray(f["front"], float)
+        ok = np.linalg.norm(up) > 0 and np.linalg.norm(front) > 0 and abs(
+            up @ front) < 1e-6 * np.linalg.norm(up) * np.linalg.norm(front)
+    if not ok:
+        _fail(f"frame must be {{up: [x, y, z], front: [x, y, z]}}, two orthogonal directions, "
+              f"got {f!r}", path, fld="frame", fix="e.g. frame: {up: [0, 1, 0], front: [0, 0, 1]}")
+    return {k: tuple(float(x) / float(np.linalg.norm(f[k])) for x in f[k]) for k in ("up", "front")}
 
 
 def template_from_dict(d, source: str | os.PathLike | None = None) -> Template:
@@ -185,7 +253,8 @@ def template_from_dict(d, source: str | os.PathLike | None = None) -> Template:
         bad = set(g) - GC_KEYS
         if bad:
             _fail(f"unknown keys {sorted(bad)}", path, gname, fix=f"use only {sorted(GC_KEYS)}")
-        joints = _names(g.get("joints"), path, gname, "joints", False)
+        joints = _names(g.get("joints"), path, gname, "joints", "place" in g)
+        place = _place(g.get("place"), path, gname)
         skinned = _names(g.get("skinned"), path, gname, "skinned", True)
         degree = g.get("degree", 3)
         if not isinstance(degree, int) or isinstance(degree, bool) or not 1 <= degree <= 7:
@@ -216,7 +285,7 @@ def template_from_dict(d, source: str | os.PathLike | None = None) -> Template:
                 _fail(f"{fld} must be a GC name or null, got {v!r}", path, gname, fld)
         out.append(TemplateGC(gname, joints, skinned, int(degree), tuple(float(t) for t in keys),
                               tuple(float(x) for x in up), tuple(extend), g.get("parent"),
-                              None if attach is None else float(attach), g.get("symmetric")))
+                              None if attach is None else float(attach), g.get("symmetric"), place))
     names = [g.name for g in out]
     dupes = sorted({n for n in names if names.count(n) > 1})
     if dupes:
@@ -239,7 +308,7 @@ def template_from_dict(d, source: str | os.PathLike | None = None) -> Template:
                       "make the parents a tree with one or more roots (parent: null)")
             seen.add(p)
             p = out[names.index(p)].parent
-    return Template(name, tuple(out), int(version), path)
+    return Template(name, tuple(out), int(version), path, _frame(d.get("frame"), path))
 
 
 def load_template(path: str | os.PathLike) -> Template:

@@ -1,0 +1,630 @@
+"""Template transfer: one named GC template on a mesh without a rig (docs/transfer.md).
+
+Pinocchio's two steps (a discrete embedding, then a continuous refinement) on our skeleton:
+1. Orientation (``orient``): the mesh's up and front, given or detected; every position below
+   is read in the body frame (front, left, up) of the surface's bounding box, divided by its
+   half extents, as the template's `place` is.
+2. Skeleton tree: closed proxy -> curve skeleton -> branch graph (``skeleton_gcs``' steps), as
+   one graph of nodes; its largest piece is the body.
+3. Correspondence: the template's leaf GCs (no children) onto the tree's leaves by one optimal
+   assignment (Hungarian) with geometric costs: where the tip lies (side included, so a left
+   leg cannot take a right foot; half as strict across for a part on the mid-plane), the direction toward it from its branch's root, and its
+   thickness relative to the body's thickest part against the template's; any template leaf
+   may stay unmatched at ``missing_cost``. Tree-consistent by construction: a leaf's path toward the template root's
+   place is its own up to where it meets another matched leaf's path (its junction); a chain
+   of template GCs above one leaf (neck, head) shares that path by the template's lengths; a
+   GC above several matched leaves (a torso) is the longest tree path between its children's
+   junctions. Every other skeleton node (ears, antlers) goes to the GC nearest along the tree.
+   Too few matched leaves, or a mean cost of the matched ones above ``max_match_cost``: the mesh does not match.
+4. GCs: each surface sample belongs to its nearest skeleton node's GC; a GC is the template's
+   degree of Bezier through its path (free ends extended to the surface), radii and caps from
+   its own samples (``rig_gcs.template_gc``, as for a rig), the template's `up` turned into the
+   mesh's frame. A template part the mesh lacks is a small GC at its attachment.
+5. Refinement (torch, all GCs at once): control points and per-key radii so each GC's own
+   samples lie at its radius from its curve (the union's boundary near the surface, the
+   surface inside), children start inside their parents, curves stay smooth and symmetric
+   pairs mirror each other across the body's mid-plane; then radii and caps are refitted to
+   the refined curves and coverage is repaired (``coverage.grow_to_cover``) as for a rig.
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+import trimesh
+from scipy.optimize import linear_sum_assignment
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components, dijkstra
+from scipy.spatial import cKDTree
+
+from ngc_gen.data.autogc.branches import branch_graph, junction_key
+from ngc_gen.data.autogc.coverage import grow_to_cover, rho_matrix
+from ngc_gen.data.autogc.orient import Orientation, detect_orientation, parse_axis
+from ngc_gen.data.autogc.skeleton import BACKENDS, local_thickness, proxy_skeleton
+from ngc_gen.data.autogc.template import Template, TemplateGC
+from ngc_gen.data.errors import DataError
+from ngc_gen.data.mesh.proxy import closed_proxy
+from ngc_gen.data.mesh.sampling import gc_membership, sample_surface
+from ngc_gen.data.rigs.rig_gcs import OWN_REACH, chain_polyline, template_gc
+from ngc_gen.geometry import GeneralizedCylinder, bernstein_basis
+
+SIGMA_TIP = 0.3    # tip position error (body units) that costs 1
+W_DIRECTION = 1.0  # weight of 1 - cos(direction toward the tip)
+W_THICKNESS = 0.5  # weight of log(thickness ratio)^2
+
+
+@dataclass(frozen=True)
+class TransferSettings:
+    """How a template is put on a mesh; the defaults are conf/annotate/default.yaml's (a test
+    checks they agree). See that file for what each field means."""
+
+    resolution: int = 96
+    samples: int = 20000
+    skeleton: str = "auto"
+    margin: float = 0.05
+    min_branch_length: float = 1.0
+    max_gcs: int = 24
+    seed: int = 0
+    up: str = "auto"
+    front: str = "auto"
+    missing_cost: float = 6.0
+    max_match_cost: float = 2.0
+    min_matched: float = 0.6
+    refine_steps: int = 60
+
+    def __post_init__(self):
+        checks = {"resolution": self.resolution >= 16, "samples": self.samples >= 100,
+                  "skeleton": self.skeleton in BACKENDS, "margin": self.margin >= 0,
+                  "missing_cost": self.missing_cost > 0, "max_match_cost": self.max_match_cost > 0,
+                  "min_matched": 0 <= self.min_matched <= 1, "refine_steps": self.refine_steps >= 0}
+        for name, ok in checks.items():
+            if not ok:
+                raise DataError(f"invalid value {getattr(self, name)!r}", field=f"annotate.{name}",
+                                fix="resolution >= 16; samples >= 100; skeleton auto|cgal|voxel; "
+                                    "margin >= 0; missing_cost, max_match_cost > 0; min_matched "
+                                    "in [0, 1]; refine_steps >= 0")
+        for name in ("up", "front"):
+            parse_axis(getattr(self, name), f"annotate.{name}")
+
+    @classmethod
+    def from_config(cls, d) -> "TransferSettings":
+        names = {f.name for f in dataclasses.fields(cls)}
+        return cls(**{k: v for k, v in dict(d).items() if k in names})
+
+
+@dataclass
+class Transfer:
+    """The template's GCs on one mesh (template order) and how they were found."""
+
+    gcs: list[GeneralizedCylinder]
+    matched: list[str]
+    missing: list[str]
+    cost: float
+    orientation: Orientation
+    coverage: float
+
+
+# ---- the body frame ------------------------------------------------------------------------
+@dataclass(frozen=True)
+class BodyFrame:
+    """World <-> body coordinates: body = (world @ R.T - center) / half, R rows front, left,
+    up; center, half (3,): the bounding box of the surface in (front, left, up)."""
+
+    R: np.ndarray
+    center: np.ndarray
+    half: np.ndarray
+
+    @classmethod
+    def of(cls, points: np.ndarray, orientation: Orientation) -> "BodyFrame":
+        R = orientation.matrix
+        B = points @ R.T
+        lo, hi = B.min(0), B.max(0)
+        return cls(R, (lo + hi) / 2.0, np.maximum((hi - lo) / 2.0, 1e-9))
+
+    def to_body(self, p: np.ndarray) -> np.ndarray:
+        return (np.asarray(p) @ self.R.T - self.center) / self.half
+
+    def to_world(self, b: np.ndarray) -> np.ndarray:
+        return (np.asarray(b) * self.half + self.center) @ self.R
+
+    def length(self, b_vec: np.ndarray) -> float:
+        """World length of a body-frame vector (3,)."""
+        return float(np.linalg.norm(np.asarray(b_vec) * self.half))
+
+
+def template_rotation(template: Template, orientation: Orientation) -> np.ndarray:
+    """(3, 3) M turning a direction in the template's frame into the mesh's: M @ v."""
+    tf = Orientation(template.up, template.front)
+    return orientation.matrix.T @ tf.matrix
+
+
+# ---- the skeleton tree ---------------------------------------------------------------------
+@dataclass
+class Tree:
+    """nodes (N, 3), radius (N,), graph: (N, N) sparse edge lengths, main (N,) bool: the body's
+    piece, branch_of (N,): the branch each node came from, branch_dir (B, 3): unit direction of
+    each branch toward its free end (zero for inner branches), branch_r (B,) mean radius."""
+
+    nodes: np.ndarray
+    radius: np.ndarray
+    graph: object
+    main: np.ndarray
+    branch_of: np.ndarray
+    branch_dir: np.ndarray
+    branch_r: np.ndarray
+
+    @property
+    def degree(self) -> np.ndarray:
+        return np.diff(self.graph.indptr)
+
+
+def skeleton_tree(surface: np.ndarray, proxy, backend: str, min_length: float,
+                  max_branches: int) -> Tree:
+    sk = proxy_skeleton(proxy, backend=backend)
+    radius = np.maximum(local_thickness(sk.nodes, surface), proxy.h)
+    branches = branch_graph(sk.nodes, sk.edges, radius, min_length, max_branches)
+    key_id: dict = {}
+    pts, rad, owner, edges = [], [], [], []
+    dirs, mean_r = [], []
+    n = 0
+    for b, br in enumerate(branches):
+        ids = []
+        for k, (p, r) in enumerate(zip(br.points, br.radius)):
+            end = k == 0 or k == len(br.points) - 1
+            key = junction_key(p) if end else None
+            if key is not None and key in key_id:
+                ids.append(key_id[key])
+                continue
+            pts.append(p)
+            rad.append(r)
+            owner.append(b)
+            if key is not None:
+                key_id[key] = n
+            ids.append(n)
+            n += 1
+        edges += list(zip(ids[:-1], ids[1:]))
+        d = np.zeros(3)
+        if br.junction[0] != br.junction[1] and len(br.points) > 1:
+            d = br.points[-1] - br.points[0] if br.junction[0] else br.points[0] - br.points[-1]
+            d = d / max(np.linalg.norm(d), 1e-12)
+        dirs.append(d)
+        mean_r.append(float(np.mean(br.radius)))
+    P = np.asarray(pts, dtype=np.float64)
+    E = np.asarray([e for e in edges if e[0] != e[1]], dtype=np.int64).reshape(-1, 2)
+    w = np.linalg.norm(P[E[:, 0]] - P[E[:, 1]], axis=1) + 1e-9
+    G = coo_matrix((np.r_[w, w], (np.r_[E[:, 0], E[:, 1]], np.r_[E[:, 1], E[:, 0]])),
+                   shape=(n, n)).tocsr()
+    _, comp = connected_components(G, directed=False)
+    seg = np.zeros(n)
+    np.add.at(seg, E[:, 0], w * np.asarray(rad)[E[:, 0]] ** 2)
+    weight = np.bincount(comp, weights=seg + np.asarray(rad) ** 3)
+    main = comp == int(np.argmax(weight))
+    return Tree(P, np.asarray(rad), G, main, np.asarray(owner), np.asarray(dirs),
+                np.asarray(mean_r))
+
+
+# ---- correspondence ------------------------------------------------------------------------
+def _children(template: Template) -> dict[str, list[str]]:
+    out = {g.name: [] for g in template.gcs}
+    for g in template.gcs:
+        if g.parent is not None:
+            out[g.parent].append(g.name)
+    return out
+
+
+def _leaves_below(template: Template, kids: dict) -> dict[str, list[str]]:
+    out = {}
+
+    def walk(name):
+        if name not in out:
+            out[name] = [name] if not kids[name] else [x for c in kids[name] for x in walk(c)]
+        return out[name]
+
+    for g in template.gcs:
+        walk(g.name)
+    return out
+
+
+def match_cost(template: Template, tree: Tree, body: BodyFrame, leaf_gcs: list[str],
+               leaves: np.ndarray) -> np.ndarray:
+    """(T, L) cost of template leaf GC t on tree leaf l (module docstring, step 3)."""
+    tip = body.to_body(tree.nodes[leaves])                          # (L, 3)
+    d_mesh = tree.branch_dir[tree.branch_of[leaves]] @ body.R.T / body.half
+    d_mesh /= np.maximum(np.linalg.norm(d_mesh, axis=1, keepdims=True), 1e-12)
+    # thickness relative to the body's thickest part (a skeleton radius is the inscribed one, a
+    # GC's radius the enclosing one: only their ratios to the body compare)
+    r_mesh = tree.branch_r[tree.branch_of[leaves]] / float(tree.radius[tree.main].max())
+    r_root = max(g.place["radius"] for g in template.gcs)
+    C = np.zeros((len(leaf_gcs), len(leaves)))
+    for i, name in enumerate(leaf_gcs):
+        pl = template.gc(name).place
+        end, start = np.asarray(pl["end"]), np.asarray(pl["start"])
+        d_t = end - start
+        d_t /= max(np.linalg.norm(d_t), 1e-12)
+        sigma = np.full(3, SIGMA_TIP)
+        if template.gc(name).symmetric is None:  # on the mid-plane: its side hardly tells
+            sigma[1] *= 2.0
+        C[i] = ((((tip - end) / sigma) ** 2).sum(1) + W_DIRECTION * (1.0 - d_mesh @ d_t)
+                + W_THICKNESS * np.log(np.maximum(r_mesh, 1e-6) / (pl["radius"] / r_root)) ** 2)
+    return C
+
+
+def _path(pred: np.ndarray, node: int) -> list[int]:
+    out = [node]
+    while pred[out[-1]] >= 0:
+        out.append(int(pred[out[-1]]))
+    return out
+
+
+def _split_by(arc: np.ndarray, fractions: list[float]) -> list[int]:
+    """Indices cutting a path with arc lengths `arc` (P,) into pieces of these length shares."""
+    cuts = np.cumsum(fractions)[:-1] / max(sum(fractions), 1e-12) * arc[-1]
+    return [0] + [int(np.clip(np.searchsorted(arc, c), 1, len(arc) - 2)) for c in cuts] + [len(arc) - 1]
+
+
+def correspond(template: Template, tree: Tree, body: BodyFrame, settings: TransferSettings,
+               where: str | None = None) -> tuple[dict[str, np.ndarray], np.ndarray, list[str], float]:
+    """Paths (node indices, root side first) of the matched template GCs, the template GC index
+    of every tree node (N,), the missing GC names and the mean match cost. DataError (one line)
+    when the mesh does not match the template."""
+    kids = _children(template)
+    below = _leaves_below(template, kids)
+    names = template.names
+    leaf_gcs = [n for n in names if not kids[n]]
+    deg = tree.degree
+    leaves = np.flatnonzero(tree.main & (deg == 1))
+    root_gc = next(g.name for g in template.gcs if g.parent is None)
+    if len(leaves) < 2:
+        raise DataError(f"its skeleton has {len(leaves)} free ends, nothing to put template "
+                        f"{template.name}'s ({template.source}) {len(leaf_gcs)} limbs on",
+                        path=where, field="mesh",
+                        fix="give this mesh its own annotation, or use a template of its kind")
+    C = match_cost(template, tree, body, leaf_gcs, leaves)
+    T = len(leaf_gcs)
+    aug = np.hstack([C, np.where(np.eye(T, dtype=bool), settings.missing_cost, 1e9)])
+    rows, cols = linear_sum_assignment(aug)
+    assign = {leaf_gcs[r]: int(leaves[c]) for r, c in zip(rows, cols) if c < len(leaves)}
+    costs = [aug[r, c] for r, c in zip(rows, cols) if c < len(leaves)]
+    cost = float(np.mean(costs)) if costs else float("inf")
+    need = int(np.ceil(settings.min_matched * T))
+    if len(assign) < max(need, 2) or cost > settings.max_match_cost:
+        said = f"mean cost {cost:.2f}, at most {settings.max_match_cost}" if costs else "none near"
+        raise DataError(f"does not match template {template.name} ({template.source}): "
+                        f"{len(assign)} of {T} limbs matched, need {max(need, 2)}; {said}",
+                        path=where, field="annotate.template",
+                        fix="annotate this mesh with a template of its kind (or by hand), or "
+                            "raise annotate.max_match_cost")
+    rp = template.gc(root_gc).place
+    root_pos = body.to_world((np.asarray(rp["start"]) + np.asarray(rp["end"])) / 2.0)
+    main_idx = np.flatnonzero(tree.main)
+    root = int(main_idx[np.argmin(np.linalg.norm(tree.nodes[main_idx] - root_pos, axis=1))])
+    dist, pred = dijkstra(tree.graph, indices=root, return_predecessors=True)
+    pred = np.where(pred < 0, -1, pred)
+    leaf_path = {g: _path(pred, n) for g, n in assign.items()}        # leaf ... root
+    on_path = {g: set(p) for g, p in leaf_path.items()}
+
+    def junction(names_in: set[str], path: list[int]) -> int:
+        others = set().union(*[on_path[h] for h in assign if h not in names_in]) if \
+            any(h not in names_in for h in assign) else {root}
+        return next((n for n in path if n in others), root)
+
+    paths: dict[str, list[int]] = {}
+    top_node: dict[str, int] = {}  # where each matched GC's subtree meets the rest
+    matched_leaves = {n: [x for x in below[n] if x in assign] for n in names}
+    for g in template.gcs:
+        ml = matched_leaves[g.name]
+        if ml:
+            top_node[g.name] = junction(set(below[g.name]), leaf_path[ml[0]])
+    done = set()
+    for leaf, node in assign.items():  # chains of template GCs above one matched leaf
+        chain = [leaf]
+        while template.gc(chain[-1]).parent is not None and \
+                matched_leaves[template.gc(chain[-1]).parent] == [leaf] and \
+                template.gc(chain[-1]).parent != root_gc:
+            chain.append(template.gc(chain[-1]).parent)
+        p = leaf_path[leaf]
+        j = top_node[chain[-1]]
+        own = p[: p.index(j) + 1][::-1]                               # junction -> tip
+        arc = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(tree.nodes[own], axis=0), axis=1))]
+        chain = chain[::-1]                                           # top -> leaf
+        lengths = [body.length(np.subtract(template.gc(c).place["end"],
+                                           template.gc(c).place["start"]) / 1.0) for c in chain]
+        cut = _split_by(arc, lengths) if len(own) > len(chain) else \
+            list(np.linspace(0, len(own) - 1, len(chain) + 1).astype(int))
+        for k, c in enumerate(chain):
+            paths[c] = own[cut[k]: cut[k + 1] + 1]
+            done.add(c)
+    for g in template.gcs:  # GCs above several matched leaves: between their children's junctions
+        if g.name in done or not matched_leaves[g.name]:
+            continue
+        keys = {top_node[c] for c in kids[g.name] if c in top_node}
+        if g.parent is not None and g.name in top_node:
+            keys.add(top_node[g.name])
+        keys = sorted(keys)
+        best = (-1.0, [keys[0]])
+        for a in keys:
+            da, pa = dijkstra(tree.graph, indices=a, return_predecessors=True)
+            for b in keys:
+                if b != a and da[b] > best[0]:
+                    best = (float(da[b]), _path(np.where(pa < 0, -1, pa), b)[::-1])
+        paths[g.name] = best[1]
+    labels = np.full(len(tree.nodes), -1)
+    for name, p in paths.items():
+        labels[p] = names.index(name)
+    # a limb's first nodes inside its parent's body are the parent's (its root's surface)
+    for name, p in paths.items():
+        par = template.gc(name).parent
+        if par is None or par not in paths or len(p) < 4:
+            continue
+        R = tree.radius[p]
+        k = int(np.argmax(R <= 1.25 * float(np.median(R[len(R) // 2:]))))
+        labels[p[:k]] = names.index(par)
+        paths[name] = p[k // 2:] if len(p) - k // 2 >= 2 else p
+    src = np.flatnonzero(labels >= 0)
+    _, _, source = dijkstra(tree.graph, indices=src, min_only=True, return_predecessors=True)
+    fill = labels.copy()
+    reach = source >= 0
+    fill[reach] = labels[source[reach]]
+    if (fill < 0).any():  # other pieces: the nearest labelled node in space
+        near = cKDTree(tree.nodes[src]).query(tree.nodes[fill < 0], k=1)[1]
+        fill[fill < 0] = labels[src[near]]
+    missing = [n for n in names if n not in paths]
+    return {k: np.asarray(v) for k, v in paths.items()}, fill, missing, cost
+
+
+# ---- refinement ----------------------------------------------------------------------------
+def refine(ctrls: list[np.ndarray], own: list[np.ndarray], radius0: list[np.ndarray],
+           parents: list[int], partners: list[int], mirror: tuple[np.ndarray, np.ndarray],
+           steps: int, seed: int = 0, max_own: int = 1500) -> list[np.ndarray]:
+    """Control points (k_g, 3) of every GC optimised together (module docstring, step 5).
+
+    own: each GC's surface samples (M_g, 3); radius0 (K_g,): initial mean radius per key (the
+    keys evenly spaced in t); parents: the parent's index (-1: none); partners: the symmetric
+    partner's index (-1); mirror: (point, unit normal) of the mid-plane."""
+    if steps == 0 or not ctrls:
+        return ctrls
+    rng = np.random.default_rng(seed)
+    dense = 32
+    s = np.linspace(0.0, 1.0, dense)
+    B = [torch.as_tensor(bernstein_basis(len(c) - 1, s)) for c in ctrls]
+    X = [torch.tensor(c, dtype=torch.float64, requires_grad=True) for c in ctrls]
+    X0 = [torch.tensor(c, dtype=torch.float64) for c in ctrls]
+    logr = [torch.tensor(np.log(np.maximum(r, 1e-4)), dtype=torch.float64, requires_grad=True)
+            for r in radius0]
+    Q = [torch.as_tensor(o[rng.choice(len(o), min(len(o), max_own), replace=False)]
+                         if len(o) else np.zeros((0, 3))) for o in own]
+    scale = float(np.mean([np.exp(np.log(np.maximum(r, 1e-4))).mean() for r in radius0]))
+    point, normal = (torch.as_tensor(v, dtype=torch.float64) for v in mirror)
+    opt = torch.optim.Adam(X + logr, lr=0.2 * scale)
+    for _ in range(steps):
+        opt.zero_grad()
+        curves = [b @ x for b, x in zip(B, X)]
+        loss = torch.zeros((), dtype=torch.float64)
+        for g, (C, q) in enumerate(zip(curves, Q)):
+            if len(q) < 10:
+                continue
+            d2 = torch.cdist(q, C)
+            t_idx = d2.argmin(1)
+            inner = (t_idx > 0) & (t_idx < dense - 1)  # past an end: the cap's samples
+            if inner.sum() < 5:
+                continue
+            d = d2[inner, t_idx[inner]]
+            keys = torch.linspace(0, 1, len(logr[g]), dtype=torch.float64)
+            t = torch.as_tensor(s, dtype=torch.float64)[t_idx[inner]]
+            r = torch.exp(_lerp(keys, logr[g], t))
+            loss = loss + ((d - r) ** 2).mean() / scale ** 2 + (torch.relu(d - r) ** 2).mean() / scale ** 2
+        for g, p in enumerate(parents):
+            if p >= 0:
+                dmin = torch.linalg.norm(curves[p] - X[g][0], dim=1).min()
+                loss = loss + torch.relu(dmin - 0.5 * torch.exp(logr[p]).mean()) ** 2 / scale ** 2
+            if partners[g] > g:
+                x = X[g]
+                mirrored = x - 2.0 * ((x - point) @ normal)[:, None] * normal[None, :]
+                loss = loss + ((mirrored - X[partners[g]]) ** 2).sum(1).mean() / scale ** 2
+        for x, x0 in zip(X, X0):
+            if len(x) > 2:
+                loss = loss + 0.1 * ((x[2:] - 2 * x[1:-1] + x[:-2]) ** 2).sum() / scale ** 2
+            loss = loss + 0.01 * ((x - x0) ** 2).sum() / scale ** 2
+        loss.backward()
+        opt.step()
+    return [x.detach().numpy() for x in X]
+
+
+def _lerp(keys: torch.Tensor, values: torch.Tensor, t: torch.Tensor) -> torch.Tensor:
+    """Piecewise-linear values (K,) at keys (K,) evaluated at t (M,)."""
+    if len(keys) == 1:
+        return values.expand(len(t))
+    i = torch.clamp(torch.searchsorted(keys, t, right=True) - 1, 0, len(keys) - 2)
+    w = (t - keys[i]) / (keys[i + 1] - keys[i])
+    return values[i] * (1 - w) + values[i + 1] * w
+
+
+# ---- the whole transfer --------------------------------------------------------------------
+def _straight(tgc: TemplateGC, start: np.ndarray, direction: np.ndarray, length: float,
+              radius: float, up: np.ndarray) -> GeneralizedCylinder:
+    ctrl = start[None] + np.linspace(0.0, 1.0, tgc.degree + 1)[:, None] * direction[None] * length
+    return GeneralizedCylinder.from_dict({
+        "name": tgc.name, "curve": {"type": "bezier", "points": ctrl.tolist()},
+        "up": _safe_up(up, direction).tolist(),
+        "keys": [{"t": float(t), "radii": [radius, radius], "twist": 0.0} for t in tgc.keys],
+        "caps": [0.5 * radius, 0.5 * radius]})
+
+
+def _safe_up(up: np.ndarray, direction: np.ndarray) -> np.ndarray:
+    """`up` unless it is nearly along the part (the frame would be undefined): then the world
+    axis least along it."""
+    d = direction / max(np.linalg.norm(direction), 1e-12)
+    u = up / max(np.linalg.norm(up), 1e-12)
+    if abs(u @ d) < 0.9:
+        return u
+    return np.eye(3)[int(np.argmin(np.abs(d)))]
+
+
+def _curve_points(gc: GeneralizedCylinder, n: int = 64) -> np.ndarray:
+    return np.asarray(gc.to_world(np.stack([np.linspace(-1, 1, n), np.zeros(n), np.zeros(n)], 1)))
+
+
+def transfer_template(mesh: trimesh.Trimesh, template: Template,
+                      settings: TransferSettings | None = None, where: str | None = None) -> Transfer:
+    """The template's GCs on a (normalised) mesh (module docstring). DataError naming `where`
+    when the mesh does not match the template."""
+    st = settings or TransferSettings()
+    if not template.placed:
+        lacking = [g.name for g in template.gcs if g.place is None][:3]
+        raise DataError(f"template {template.name} does not say where its parts sit (no `place` "
+                        f"for {lacking})", path=template.source, field="place",
+                        fix="use a template exported from an annotated mesh (train.py "
+                            "stage=annotate annotate.export_template=PATH), e.g. "
+                            "datasets/animals/quadruped_transfer.yaml")
+    V, F = np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces, dtype=np.int64)
+    rng = np.random.default_rng(st.seed)
+    pts, _ = sample_surface(V, F, st.samples, rng)
+    surface = np.concatenate([V, pts])
+    proxy = closed_proxy(V, F, resolution=st.resolution, seed=st.seed)
+    tree = skeleton_tree(surface, proxy, st.skeleton, st.min_branch_length, st.max_gcs)
+    # orientation from the body's branches (curves of each branch of the main piece)
+    branch_ids = np.unique(tree.branch_of[tree.main])
+    curves = [tree.nodes[tree.branch_of == b] for b in branch_ids]
+    volumes = [float(np.linalg.norm(np.diff(c, axis=0), axis=1).sum()) * tree.branch_r[b] ** 2
+               for c, b in zip(curves, branch_ids)]
+    orientation = detect_orientation(curves, volumes, None, parse_axis(st.up, "annotate.up"),
+                                     parse_axis(st.front, "annotate.front"), surface)
+    body = BodyFrame.of(surface, orientation)
+    paths, labels, missing, cost = correspond(template, tree, body, st, where)
+    owner = labels[cKDTree(tree.nodes).query(surface, k=1)[1]]
+    M = template_rotation(template, orientation)
+    names = template.names
+    floor = 1e-3 * float(np.ptp(surface, axis=0).max())
+    gcs: dict[str, GeneralizedCylinder] = {}
+    for g, tgc in enumerate(template.gcs):
+        if tgc.name not in paths:
+            continue
+        own = surface[owner == g]
+        poly = chain_polyline(tree.nodes[paths[tgc.name]], own, tgc.extend)
+        up = _safe_up(M @ np.asarray(tgc.up), poly[-1] - poly[0])
+        gcs[tgc.name] = template_gc(dataclasses.replace(tgc, up=tuple(up)), poly, own, st.margin,
+                                    floor, where)
+    # refinement of every matched GC's curve together
+    matched = [n for n in names if n in gcs]
+    parent_ix = [matched.index(template.gc(n).parent) if template.gc(n).parent in matched else -1
+                 for n in matched]
+    partner_ix = [matched.index(template.gc(n).symmetric) if template.gc(n).symmetric in matched
+                  else -1 for n in matched]
+    mid = body.to_world(np.zeros(3))
+    ctrls = [np.asarray(gcs[n].to_dict()["curve"]["points"], dtype=np.float64) for n in matched]
+    r0 = [np.array([np.sqrt(np.prod(k["radii"])) for k in gcs[n].to_dict()["keys"]]) / (1 + st.margin)
+          for n in matched]
+    own_of = [surface[owner == names.index(n)] for n in matched]
+    ctrls = refine(ctrls, own_of, r0, parent_ix, partner_ix, (mid, orientation.left),
+                   st.refine_steps, st.seed)
+    dense_s = np.linspace(0.0, 1.0, 64)
+    for n, c, own in zip(matched, ctrls, own_of):
+        tgc = template.gc(n)
+        poly = bernstein_basis(len(c) - 1, dense_s) @ c
+        up = _safe_up(M @ np.asarray(tgc.up), poly[-1] - poly[0])
+        gcs[n] = template_gc(dataclasses.replace(tgc, up=tuple(up)), poly, own, st.margin, floor,
+                             where)
+    for n in missing:  # a small GC where the part would attach
+        tgc = template.gc(n)
+        pl = tgc.place
+        start = body.to_world(np.asarray(pl["start"]))
+        vec = (np.asarray(pl["end"]) - np.asarray(pl["start"])) * body.half @ body.R
+        length = max(float(np.linalg.norm(vec)), floor)
+        p = tgc.parent
+        while p is not None and p not in gcs:
+            p = template.gc(p).parent
+        if p is not None:
+            C = _curve_points(gcs[p])
+            start = C[np.argmin(np.linalg.norm(C - start, axis=1))]
+        r = max(pl["radius"] * body.half[0] * 0.5, floor)
+        gcs[n] = _straight(tgc, start, vec / length, 0.25 * length, r, M @ np.asarray(tgc.up))
+    ordered = [gcs[n] for n in names]
+    for g, n in enumerate(names):  # alone first: a GC holds its own samples near it
+        own = surface[owner == g]
+        if n in missing or not len(own):
+            continue
+        rho, _ = rho_matrix([ordered[g]], own)
+        ordered[g] = grow_to_cover([ordered[g]], own[rho[0] <= OWN_REACH])[0]
+    ordered = grow_to_cover(ordered, surface)
+    pp, _, _ = gc_membership(surface, ordered)
+    coverage = float((np.bincount(pp, minlength=len(surface)) > 0).mean())
+    return Transfer(gcs=ordered, matched=matched, missing=missing, cost=cost,
+                    orientation=orientation, coverage=coverage)
+
+
+# ---- templates from annotated meshes -------------------------------------------------------
+def _place_of(gc: GeneralizedCylinder, body: BodyFrame) -> dict:
+    d = gc.to_dict()
+    ctrl = np.asarray(d["curve"]["points"], dtype=np.float64)
+    r = float(np.mean([np.sqrt(np.prod(k["radii"])) for k in d["keys"]]))
+    return {"start": body.to_body(ctrl[0]), "end": body.to_body(ctrl[-1]),
+            "radius": r / body.half[0]}
+
+
+def _inferred_tree(gcs: list[GeneralizedCylinder], body: BodyFrame) -> list[TemplateGC]:
+    """Template GCs for annotated GCs without a template: the root the largest, each other GC's
+    parent the GC (of larger volume) nearest its start or end (flipped to start there), its
+    symmetric partner the GC whose mirror image across the body's mid-plane lies closest."""
+    dicts = [g.to_dict() for g in gcs]
+    vol = [float(np.ptp(_curve_points(g), axis=0).sum()) * np.mean(
+        [np.prod(k["radii"]) for k in d["keys"]]) for g, d in zip(gcs, dicts)]
+    root = int(np.argmax(vol))
+    curves = [_curve_points(g) for g in gcs]
+    out = []
+    for i, (g, d) in enumerate(zip(gcs, dicts)):
+        parent, extend = None, [True, True]
+        if i != root:
+            bigger = [j for j in range(len(gcs)) if j != i and vol[j] >= vol[i]] or [root]
+            dist = [min(np.linalg.norm(curves[j] - curves[i][0], axis=1).min(),
+                        np.linalg.norm(curves[j] - curves[i][-1], axis=1).min()) for j in bigger]
+            parent = gcs[bigger[int(np.argmin(dist))]].name
+            extend = [False, True]
+        mirror = body.to_body(curves[i]) * np.array([1.0, -1.0, 1.0])
+        errs = [np.abs(body.to_body(c) - mirror).mean() if j != i else np.inf
+                for j, c in enumerate(curves)]
+        j = int(np.argmin(errs))
+        partner = gcs[j].name if errs[j] < 0.1 and np.abs(mirror[:, 1]).mean() > 0.05 else None
+        out.append(TemplateGC(g.name, (), (), len(d["curve"]["points"]) - 1,
+                              tuple(float(k["t"]) for k in d["keys"]), tuple(d["up"]),
+                              tuple(extend), parent, None, partner))
+    names = [t.name for t in out]
+    for k, t in enumerate(out):  # a partner that does not name this one back: none
+        if t.symmetric is not None and out[names.index(t.symmetric)].symmetric != t.name:
+            out[k] = dataclasses.replace(t, symmetric=None)
+    return out
+
+
+def export_template(shapes: list[tuple[list[GeneralizedCylinder], np.ndarray, Orientation]],
+                    name: str, base: Template | None = None) -> Template:
+    """A transfer template from annotated meshes: shapes [(GCs, surface samples (N, 3),
+    orientation)], all with the same GC names (e.g. one template's GCs on several meshes);
+    places averaged over the shapes. `base`: the template they follow (its tree, joints and
+    fields kept, its places replaced); None: the tree inferred from the first shape."""
+    gcs0, pts0, or0 = shapes[0]
+    names = [g.name for g in gcs0]
+    for gcs, _, _ in shapes[1:]:
+        if [g.name for g in gcs] != names:
+            raise DataError(f"annotated meshes disagree on their GCs ({[g.name for g in gcs]} vs "
+                            f"{names})", field="annotate.export_template",
+                            fix="export from meshes that share one template")
+    places = []
+    for gcs, pts, orientation in shapes:
+        body = BodyFrame.of(pts, orientation)
+        places.append([_place_of(g, body) for g in gcs])
+    mean = [{"start": tuple(np.mean([p[i]["start"] for p in places], 0)),
+             "end": tuple(np.mean([p[i]["end"] for p in places], 0)),
+             "radius": float(np.mean([p[i]["radius"] for p in places]))} for i in range(len(names))]
+    if base is not None:
+        if base.names != names:
+            raise DataError(f"the GCs {names} are not template {base.name}'s {base.names}",
+                            path=base.source, field="annotate.template",
+                            fix="export from meshes annotated with this template")
+        tgcs = [dataclasses.replace(g, place=p) for g, p in zip(base.gcs, mean)]
+        frame = base.frame or {"up": tuple(or0.up), "front": tuple(or0.front)}
+    else:  # the GCs' up vectors are in the first mesh's frame
+        tgcs = [dataclasses.replace(g, place=p) for g, p in
+                zip(_inferred_tree(gcs0, BodyFrame.of(pts0, or0)), mean)]
+        frame = {"up": tuple(or0.up), "front": tuple(or0.front)}
+    return Template(name, tuple(tgcs), frame=frame)

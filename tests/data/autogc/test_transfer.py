@@ -1,0 +1,132 @@
+"""Template transfer: the quadruped template's GCs on meshes without a rig (same names, order,
+degrees and keys), parts where they belong, a missing part reported, unmatchable meshes refused,
+an edit program written with template names run on every mesh, templates exported."""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+import yaml
+
+from ngc_gen.data.autogc.template import load_template, template_from_dict
+from ngc_gen.data.autogc.transfer import TransferSettings, export_template, transfer_template
+from ngc_gen.data.errors import DataError
+from ngc_gen.data.mesh.io import normalize
+from ngc_gen.data.mesh.sampling import sample_surface
+from ngc_gen.edit.program import EditProgram, apply_program
+
+from ...helpers import ROOT
+from .shapes import chair, quadruped, sphere, torus
+
+pytestmark = pytest.mark.usefixtures("single_thread")
+TEMPLATE = ROOT / "datasets/animals/quadruped_transfer.yaml"
+FAST = TransferSettings(resolution=64, samples=5000)
+Z_UP = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])  # y-up/+z front -> z-up/+x front
+
+
+def _normalised(mesh, points):
+    m, center, scale = normalize(mesh)
+    return m, {k: (v - center) * scale for k, v in points.items()}
+
+
+@pytest.fixture(scope="module")
+def template():
+    return load_template(TEMPLATE)
+
+
+@pytest.fixture(scope="module")
+def transfers(template):
+    """name -> (mesh, named points, Transfer): a y-up quadruped facing +z and a longer one with
+    shorter legs turned to z-up facing +x (both orientations detected)."""
+    out = {}
+    for name, (mesh, pts) in {"yup": quadruped(),
+                              "zup": quadruped(1.0, 0.6, 0.35, 0.5, rotation=Z_UP)}.items():
+        m, p = _normalised(mesh, pts)
+        out[name] = (m, p, transfer_template(m, template, FAST, name))
+    return out
+
+
+def test_every_mesh_gets_the_templates_gcs_and_its_parts_land_in_them(template, transfers):
+    for name, (mesh, pts, tr) in transfers.items():
+        assert [g.name for g in tr.gcs] == template.names, name
+        for g, t in zip(tr.gcs, template.gcs):
+            d = g.to_dict()
+            assert len(d["curve"]["points"]) == t.degree + 1, (name, g.name)
+            assert [k["t"] for k in d["keys"]] == list(t.keys), (name, g.name)
+        assert tr.missing == [] and tr.coverage >= 0.999, name
+        by = {g.name: g for g in tr.gcs}
+        for point, gc, other in (("foot_fl", "leg_fl", "leg_fr"), ("head_tip", "head", "tail"),
+                                 ("tail_tip", "tail", "head"), ("torso", "torso", "leg_bl")):
+            q = pts[point][None]
+            assert bool(by[gc].contains(q)[0]), (name, point, gc)
+            assert not bool(by[other].contains(q)[0]), (name, point, other)
+    assert transfers["yup"][2].orientation.describe() == "up +y (detected), front +z (detected)"
+    assert transfers["zup"][2].orientation.describe() == "up +z (detected), front +x (detected)"
+
+
+def test_a_mesh_without_a_tail_gets_a_small_tail_at_its_attachment(template):
+    mesh, pts = _normalised(*quadruped(tail=0))
+    tr = transfer_template(mesh, template, FAST, "tailless")
+    assert tr.missing == ["tail"] and [g.name for g in tr.gcs] == template.names
+    tail = tr.gcs[template.names.index("tail")]
+    torso = tr.gcs[template.names.index("torso")]
+    lo, hi = (np.asarray(b) for b in tail.bounds())
+    tlo, thi = (np.asarray(b) for b in torso.bounds())
+    assert (hi - lo).max() < 0.5 * (thi - tlo).max()  # small
+    start = np.asarray(tail.to_world(np.array([[-1.0, 0.0, 0.0]])))
+    assert bool(torso.contains(start)[0])  # at its attachment on the torso
+
+
+@pytest.mark.parametrize("make", [chair, torus, sphere])
+def test_a_mesh_of_another_kind_is_refused_in_one_line(template, make):
+    mesh, _, _ = normalize(make())
+    with pytest.raises(DataError, match="does not match template quadruped|free ends") as e:
+        transfer_template(mesh, template, FAST, make.__name__)
+    assert "\n" not in str(e.value) and str(TEMPLATE) in str(e.value)
+
+
+def test_an_edit_program_with_template_names_runs_on_every_mesh(transfers):
+    program = EditProgram.from_dict({"name": "raise_leg", "ops": [
+        {"op": "handles", "gc": "leg_fl", "at": [0.85, 1.0], "fixed": ["torso"],
+         "rotate": {"axis": [1.0, 0.0, 0.0], "degrees": 40, "pivot": {"gc": "leg_fl", "t": 0.0}}}]})
+    for name, (_, _, tr) in transfers.items():
+        after = {g.name: g for g in apply_program(program, tr.gcs).gcs}
+        before = {g.name: g for g in tr.gcs}
+        end = np.array([[1.0, 0.0, 0.0]])
+        moved = np.linalg.norm(np.asarray(after["leg_fl"].to_world(end)) -
+                               np.asarray(before["leg_fl"].to_world(end)))
+        assert moved > 0.05, name
+        assert after["torso"].to_dict() == before["torso"].to_dict(), name
+
+
+def test_exported_template_loads_and_transfers(template, transfers, tmp_path):
+    shapes = []
+    for mesh, _, tr in transfers.values():
+        pts, _ = sample_surface(mesh.vertices, mesh.faces, 5000, np.random.default_rng(0))
+        shapes.append((tr.gcs, pts, tr.orientation))
+    out = export_template(shapes, "mine", template)
+    path = tmp_path / "mine.yaml"
+    path.write_text(out.to_yaml())
+    back = load_template(path)
+    assert back.names == template.names and back.placed
+    assert [g.parent for g in back.gcs] == [g.parent for g in template.gcs]
+    # from one annotated mesh alone (no template): the tree is inferred
+    alone = export_template(shapes[:1], "inferred")
+    tree = template_from_dict(yaml.safe_load(alone.to_yaml()))
+    parents = {g.name: g.parent for g in tree.gcs}
+    assert parents["torso"] is None and parents["leg_fl"] == "torso" and parents["head"] == "neck"
+    assert {g.name: g.symmetric for g in tree.gcs}["leg_fl"] == "leg_fr"
+
+
+def test_a_template_without_places_says_how_to_get_one(template):
+    bare = dataclasses.replace(template, gcs=tuple(dataclasses.replace(g, place=None)
+                                                   for g in template.gcs))
+    with pytest.raises(DataError, match="export_template"):
+        transfer_template(quadruped()[0], bare, FAST)
+
+
+def test_settings_defaults_are_the_config_defaults():
+    conf = yaml.safe_load((ROOT / "conf/annotate/default.yaml").read_text())
+    for f in dataclasses.fields(TransferSettings):
+        assert conf[f.name] == getattr(TransferSettings(), f.name), f.name
