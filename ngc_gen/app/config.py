@@ -1,6 +1,7 @@
 """Hydra/OmegaConf glue: composing the project's configs from Python, and the resolvers
 (`ngc_root` anchors data paths at the checkout; `ngc_groups` lists an entry point's groups in its
---help), registered by the entry points and `compose_config`."""
+--help; `ngc_stem` names a mesh folder's caches after it), registered by the entry points and
+`compose_config`."""
 from __future__ import annotations
 
 import os
@@ -47,6 +48,13 @@ def group_options(group: str, sources) -> list[str]:
     return sorted(names)
 
 
+def folder_name(path) -> str:
+    """`${ngc_stem:<path>}` (conf/data/folder.yaml): the name of a folder of the user's meshes,
+    which names its caches (`.cache/prepared/<name>`), instead of one name for every folder."""
+    name = Path(str(path)).expanduser().absolute().name
+    return name or "folder"
+
+
 def register_resolvers() -> None:
     """Register the project's OmegaConf resolvers (`ngc_root`, `ngc_groups`): process-wide state,
     so called by the entry points before Hydra composes and by `compose_config`, never at
@@ -55,6 +63,8 @@ def register_resolvers() -> None:
         OmegaConf.register_new_resolver("ngc_root", lambda: str(repo_root()))
     if not OmegaConf.has_resolver("ngc_groups"):
         OmegaConf.register_new_resolver("ngc_groups", config_groups)
+    if not OmegaConf.has_resolver("ngc_stem"):
+        OmegaConf.register_new_resolver("ngc_stem", folder_name)
 
 
 def compose_config(config_name: str = "train", overrides: list[str] | None = None):

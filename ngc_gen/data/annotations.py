@@ -67,14 +67,19 @@ class Annotation:
         return [gc.name for gc in self.gcs]
 
     def to_dict(self, relative_to: str | os.PathLike | None = None) -> dict:
-        """Plain YAML-safe dict; a file mesh path is written relative to ``relative_to`` (a
-        folder) when given, else absolute. Resources stay as written."""
+        """Plain YAML-safe dict. A file mesh path inside ``relative_to`` (a folder: the YAML's
+        own) is written relative to it, so the folder can move with its meshes; any other mesh
+        path is absolute, so the YAML can move (a run directory copied or renamed) and still
+        find its mesh (a `../../meshes/cow.obj` broke whenever the run moved). Resources stay
+        as written."""
         mesh = self.mesh
         if relative_to is not None and not is_resource(mesh):
             try:
-                mesh = os.path.relpath(mesh, os.fspath(relative_to))
+                rel = os.path.relpath(mesh, os.fspath(relative_to))
             except ValueError:  # another drive on Windows: keep it absolute
-                pass
+                rel = None
+            mesh = rel if rel is not None and Path(rel).parts[:1] != ("..",) \
+                else os.path.abspath(mesh)
         return {
             "name": self.name,
             "mesh": Path(mesh).as_posix() if not is_resource(mesh) else mesh,
@@ -254,7 +259,8 @@ def load_annotation(path: str | os.PathLike) -> Annotation:
 
 
 def save_annotation(ann: Annotation, path: str | os.PathLike) -> Path:
-    """Write ``ann`` as YAML atomically (temp file + os.replace); a file mesh path is written
-    relative to the new file's folder so the pair can be moved together. Returns the path."""
+    """Write ``ann`` as YAML atomically (temp file + os.replace); a mesh inside the new file's
+    folder is written relative to it (the pair moves together), any other absolute (the YAML
+    moves alone). Returns the path."""
     path = Path(path)
     return atomic_write_text(path, ann.to_yaml(relative_to=os.path.abspath(path.parent)))

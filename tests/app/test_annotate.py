@@ -2,6 +2,8 @@
 table, hand annotations left alone, and `data=folder` without YAML using skeleton GCs."""
 from __future__ import annotations
 
+import shutil
+
 import hydra
 import pytest
 import trimesh
@@ -49,6 +51,12 @@ def test_writes_annotations_pictures_and_a_table(folder, tmp_path, capsys):
         assert (run / f"{name}_gcs.png").stat().st_size > 1000
     tripod = load_annotation(run / "tripod.yaml")
     assert len(tripod.gcs) == 3 and tripod.gc_names[0] == "trunk"
+    # the run moves (renamed, copied elsewhere): its YAMLs still find their meshes
+    moved = tmp_path / "elsewhere" / "deeper" / "run"
+    shutil.copytree(run, moved)
+    for name in ("box", "tripod"):
+        assert load_annotation(moved / f"{name}.yaml").mesh_path.samefile(folder / f"{name}.ply")
+    assert yaml.safe_load((folder / "tripod.yaml").read_text())["mesh"] == "tripod.ply"
     assert all(r["coverage"] >= 0.999 for r in rows)
     assert "coverage" in out and "seconds" in out and "tripod: GCs trunk" in out
     # beside the meshes: the tripod's is written, the hand annotation of the box is kept

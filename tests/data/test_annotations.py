@@ -16,7 +16,10 @@ def test_round_trip(tmp_path, sphere_annotation):
     assert ann.name == "sphere" and ann.bound == 0.8 and ann.gc_names == ["body"]
     assert ann.mesh_path == tmp_path / "sphere.ply"
     out = save_annotation(ann, tmp_path / "sub" / "copy.yaml")
-    assert yaml.safe_load(out.read_text())["mesh"] == "../sphere.ply"  # relative to the new file
+    # outside the new file's folder: absolute, so the YAML can move without losing its mesh
+    assert yaml.safe_load(out.read_text())["mesh"] == str(tmp_path / "sphere.ply")
+    beside = save_annotation(ann, tmp_path / "beside.yaml")  # inside: relative, moves with it
+    assert yaml.safe_load(beside.read_text())["mesh"] == "sphere.ply"
     again = load_annotation(out)
     assert again.to_dict() == ann.to_dict()
     assert again.mesh_path == ann.mesh_path
