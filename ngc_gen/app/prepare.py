@@ -50,9 +50,11 @@ def process_rank() -> int:
     return 0
 
 
-def prepare_dataset(cfg: DictConfig, verbose: bool = True) -> list[PreparedShape]:
+def prepare_dataset(cfg: DictConfig, verbose: bool = True,
+                    check_annotations=None) -> list[PreparedShape]:
     """The dataset's shapes, prepared (from the cache when it is up to date); the table of
-    shapes is printed by rank 0 only."""
+    shapes is printed by rank 0 only. `check_annotations(annotations)`: a stage's own check of
+    the dataset's annotations, run before any shape is prepared (shape_latent: one GC layout)."""
     verbose = verbose and process_rank() == 0
     shard = parse_shard(cfg.prepare.get("shard"))
     if shard is not None and cfg.get("stage", "prepare") != "prepare":
@@ -67,6 +69,8 @@ def prepare_dataset(cfg: DictConfig, verbose: bool = True) -> list[PreparedShape
     # torch thread, since two contend on a busy 2-core machine (0.8 s vs 9 s per shape, measured)
     with torch_threads(1):
         annotations = dataset.shapes()
+    if check_annotations is not None:
+        check_annotations(annotations)
     if shard is not None:
         annotations = annotations[shard[0]::shard[1]]
     # shapes not in the cache: made in worker processes first (about a second each), then read

@@ -54,6 +54,20 @@ def template_and_targets(prepared: list[PreparedShape]):
     return template, vectors
 
 
+def check_layouts(annotations) -> None:
+    """Every shape has the first one's GC layout (names in order, curve degrees, up vectors,
+    key t's): checked on the annotations, before any mesh is prepared, so a folder whose GCs
+    differ fails in seconds, not after preparing every mesh. DataError naming the shape."""
+    from ngc_gen.models.shape_decoder import GCTemplate
+
+    if not annotations:
+        return
+    dicts = [[g.to_dict() for g in a.gcs] for a in annotations]
+    template = GCTemplate.from_gcs(dicts[0], where=f"shape {annotations[0].name}")
+    for d, a in zip(dicts[1:], annotations[1:]):
+        template.check(d, where=f"shape {a.name}")
+
+
 def build_module(cfg: DictConfig, template, vectors, prepared: list[PreparedShape]):
     """The `shape_latent` group's ShapeLatentModule (`_target_`; its NGC decoder is the `model`
     group's), with the annotated parameter vectors as targets."""
@@ -137,7 +151,8 @@ def run_shape_latent(cfg: DictConfig) -> dict:
     from .prepare import prepare_dataset
 
     cfg = with_stage_steps(cfg, "shape_latent")
-    prepared = prepare_dataset(cfg)  # bad data fails before the run directory is made
+    # bad data fails before the run directory is made; GCs of another layout before preparing
+    prepared = prepare_dataset(cfg, check_annotations=check_layouts)
     template, vectors = template_and_targets(prepared)
     run_dir = start_run(cfg)
     L.seed_everything(cfg.seed, workers=True, verbose=False)
