@@ -49,7 +49,8 @@ def extract_and_write(gen: ShapeGenerator, shapes: list[Shape], out_dir: Path,
             tqdm.write(f"warning: {shape.name}: the decoded SDF has no zero level set inside its "
                        f"GCs (empty mesh)")
         written.append(write_shape(out_dir, shape.name, mesh, gcs, shape.codes, info,
-                                   BOUND if normalised else None))
+                                   BOUND if normalised else None,
+                                   (center, scale) if normalised else None))
     return written, seconds
 
 

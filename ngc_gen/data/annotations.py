@@ -26,7 +26,8 @@ from ngc_gen.data.mesh.io import is_resource, resolve_mesh_path
 from ngc_gen.geometry import GeneralizedCylinder, GeometryError
 from ngc_gen.values import NumberError, is_number, load_yaml, read_number
 
-TOP_KEYS = {"name", "mesh", "normalize", "gcs"}
+# decoder_frame: written by sample.py beside re-centred GCs (read by conditioning, not by fits)
+TOP_KEYS = {"name", "mesh", "normalize", "gcs", "decoder_frame"}
 NORMALIZE_KEYS = {"bound"}
 DEFAULT_BOUND = 0.8
 

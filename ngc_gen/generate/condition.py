@@ -39,6 +39,7 @@ import torch
 import yaml
 
 from ngc_gen.data.annotations import _parse_gc as parse_gc  # the data layer's GC validation
+from ngc_gen.data.annotations import similar_gc_dict
 from ngc_gen.data.errors import DataError
 from ngc_gen.models.shape_decoder import GCTemplate, gc_vector
 
@@ -111,7 +112,9 @@ def condition_from_gcs(template: GCTemplate, gcs, source=None) -> GCCondition:
 
 def load_condition(path, template: GCTemplate) -> GCCondition:
     """A condition from a YAML file: an annotation (name, gcs: [...], mesh and normalize are
-    ignored) as written by edit.py, sample.py, the editor or a dataset, or a bare list of GCs."""
+    ignored) as written by edit.py, sample.py, the editor or a dataset, or a bare list of GCs.
+    A file sample.py re-centred and re-scaled (`decoder_frame: {center, scale}`) is mapped back
+    to the decoder's frame first, so a generated shape's own GCs are a condition it can meet."""
     path = Path(path)
     if not path.is_file():
         raise DataError("condition file not found", path=path, field="gcs",
@@ -122,7 +125,32 @@ def load_condition(path, template: GCTemplate) -> GCCondition:
         raise DataError(f"not a readable YAML file ({str(e).splitlines()[0]})", path=path,
                         fix="correct the YAML syntax") from None
     gcs = d.get("gcs") if isinstance(d, dict) else d
+    frame = d.get("decoder_frame") if isinstance(d, dict) else None
+    if frame is not None:
+        gcs = _to_decoder_frame(gcs, frame, path)
     return condition_from_gcs(template, gcs, source=path)
+
+
+def _to_decoder_frame(gcs, frame, path: Path) -> list:
+    """GC dicts under the inverse of x -> (x - center) * scale (`decoder_frame`)."""
+    try:
+        center = np.asarray(frame["center"], np.float64).reshape(3)
+        scale = float(frame["scale"])
+        if not (np.isfinite(center).all() and np.isfinite(scale) and scale > 0):
+            raise ValueError
+    except (KeyError, TypeError, ValueError):
+        raise DataError(f"decoder_frame must be {{center: [x, y, z], scale: positive number}}, "
+                        f"got {frame!r}", path=path, field="decoder_frame",
+                        fix="remove decoder_frame if the GCs are in the model's frame") from None
+    if not isinstance(gcs, list):
+        return gcs  # condition_from_gcs names the problem
+    out = []
+    for g in gcs:  # a loop over GCs; a malformed one is left for condition_from_gcs to name
+        try:
+            out.append(similar_gc_dict(g, -center * scale, 1.0 / scale))
+        except (KeyError, TypeError, ValueError, AttributeError):
+            out.append(g)
+    return out
 
 
 # ---- residual and error ------------------------------------------------------------------------

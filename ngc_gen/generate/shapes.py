@@ -53,12 +53,17 @@ def normalise(mesh: trimesh.Trimesh, gcs: list[dict], bound: float = BOUND):
     return out, [similar_gc_dict(d, center, scale) for d in gcs], center, scale
 
 
-def annotation_yaml(name: str, mesh: str, gcs: list[dict], bound: float | None = BOUND) -> str:
+def annotation_yaml(name: str, mesh: str, gcs: list[dict], bound: float | None = BOUND,
+                    frame: tuple | None = None) -> str:
     """Annotation YAML of docs/gcs.md (mesh path as given); bound None writes
-    `normalize: false` (mesh and GCs in the decoder's frame, not normalised)."""
+    `normalize: false` (mesh and GCs in the decoder's frame, not normalised). frame: (center,
+    scale) of the similarity x -> (x - center) * scale that took the decoder's frame to these
+    GCs, recorded as `decoder_frame` so a condition on this file can map them back."""
     d = {"name": name, "mesh": mesh,
          "normalize": False if bound is None else {"bound": float(bound)},
          "gcs": [rounded_gc_dict(g) for g in gcs]}
+    if frame is not None:
+        d["decoder_frame"] = {"center": [float(c) for c in frame[0]], "scale": float(frame[1])}
     return yaml.safe_dump(d, sort_keys=False, default_flow_style=None, width=100)
 
 
@@ -78,15 +83,15 @@ class WrittenShape:
 
 def write_shape(out_dir: Path, name: str, mesh: trimesh.Trimesh, gcs: list[dict],
                 codes: torch.Tensor, info: dict | None = None,
-                bound: float | None = BOUND) -> WrittenShape:
+                bound: float | None = BOUND, frame: tuple | None = None) -> WrittenShape:
     """<out_dir>/<name>.ply and <name>.yaml (mesh: <name>.ply, normalize: {bound: 0.8}, or
-    normalize: false for bound None)."""
+    normalize: false for bound None; frame: `annotation_yaml`'s decoder frame)."""
     out_dir = Path(out_dir)
     ply, yml = out_dir / f"{name}.ply", out_dir / f"{name}.yaml"
     buf = io.BytesIO()
     mesh.export(buf, file_type="ply")
     atomic_write(ply, lambda f: f.write(buf.getvalue()))
-    atomic_write_text(yml, annotation_yaml(name, ply.name, gcs, bound))
+    atomic_write_text(yml, annotation_yaml(name, ply.name, gcs, bound, frame))
     return WrittenShape(name, ply, yml, codes.detach().cpu().float(),
                         [rounded_gc_dict(g) for g in gcs], len(mesh.faces), dict(info or {}),
                         bound)

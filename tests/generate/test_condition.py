@@ -186,3 +186,25 @@ def test_condition_files(gen, target, tmp_path, write_yaml):
     with pytest.raises(DataError, match="not found"):
         load_condition(tmp_path / "missing.yaml", template)
     assert yaml.safe_load(path.read_text())["gcs"][0]["name"] == "torso"
+
+
+def test_a_re_centred_sample_file_conditions_in_the_decoder_frame(gen, drawn, tmp_path):
+    """sample.py writes a generated shape's GCs re-centred and re-scaled (normalise=true) with
+    the similarity as `decoder_frame`; conditioning on that file must target the GCs the
+    decoder produced, not their normalised copy (which sits ~100 std away on near-constant
+    parameters)."""
+    from ngc_gen.data.annotations import similar_gc_dict
+    from ngc_gen.generate.shapes import annotation_yaml
+
+    template = gen.shape_latent.template
+    center, scale = np.array([0.05, -0.02, 0.1]), 1.3
+    moved = [similar_gc_dict(g, center, scale) for g in drawn]
+    path = tmp_path / "sample_000.yaml"
+    path.write_text(annotation_yaml("sample_000", "sample_000.ply", moved, 0.8, (center, scale)))
+    got = load_condition(path, template)
+    want = condition_from_gcs(template, drawn)
+    assert torch.allclose(got.target, want.target, atol=1e-5)
+    z = gen.sample_latents([0], seed=99)
+    assert float(gc_error(gen.shape_latent.shape_decoder, z, got)[0]) < 1e-3
+    path.write_text(annotation_yaml("sample_000", "sample_000.ply", moved, 0.8))  # no frame
+    assert not torch.allclose(load_condition(path, template).target, want.target, atol=1e-3)
