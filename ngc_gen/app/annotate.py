@@ -59,6 +59,9 @@ def _ours(path: Path) -> bool:
     return not path.exists() or path.read_text(encoding="utf-8", errors="replace").startswith(HEADER)
 
 
+GCS_CELL = (640, 560)  # <name>_gcs.png: two cells, 1280 x 560 (was 640 x 260: names overlapped)
+
+
 def _picture(ann: Annotation, path: Path, up="auto") -> Path | None:
     """The GCs over the mesh, and alone with their names (`up`: `viz.up`)."""
     import trimesh
@@ -71,7 +74,7 @@ def _picture(ann: Annotation, path: Path, up="auto") -> Path | None:
                           [[(mesh, shell), (trimesh.Trimesh(shell.vertices, shell.faces), None,
                                             gc_labels(ann.gcs))]],
                           col_titles=[f"{ann.name}: {len(ann.gcs)} GCs over the mesh",
-                                      "the GCs by name"], frame="row", up=up)
+                                      "the GCs by name"], frame="row", up=up, cell=GCS_CELL)
 
 
 def _surface(mesh, seed: int) -> np.ndarray:

@@ -38,6 +38,60 @@ def _per_row(value, n_rows: int, what: str) -> list:
     return [value] * n_rows
 
 
+LABEL_CHAR_PX, LABEL_H_PX = 7.0, 16.0  # a font_size 8 label's box: width per character, height
+
+
+def label_boxes(texts: list[str]) -> np.ndarray:
+    """(N, 2) pixel width and height of each label's box (font_size 8 with its padding)."""
+    return np.array([[LABEL_CHAR_PX * len(t) + 8.0, LABEL_H_PX] for t in texts], dtype=float)
+
+
+def spread_labels(xy: np.ndarray, sizes: np.ndarray, width: float, height: float,
+                  steps: int = 24) -> np.ndarray:
+    """Label positions (N, 2) in pixels, moved from their points `xy` (N, 2) just far enough
+    that no two boxes (`sizes` (N, 2), centred on the position) overlap: each label in turn
+    (from the top) takes the nearest free slot of a search over vertical, then sideways
+    offsets, inside [0, width] x [0, height]; a label with no free slot keeps its point."""
+    xy, sizes = np.asarray(xy, dtype=float), np.asarray(sizes, dtype=float)
+    placed: list[tuple[np.ndarray, np.ndarray]] = []
+    out = xy.copy()
+    offsets = [(0.0, 0.0)]
+    for k in range(1, steps + 1):
+        for dx in (0.0, 0.5, -0.5, 1.0, -1.0):
+            offsets += [(dx, k), (dx, -k)]
+    for i in np.argsort(-xy[:, 1], kind="stable"):
+        half = sizes[i] / 2 + 1.0
+        for dx, dy in offsets:
+            c = xy[i] + np.array([dx * sizes[i, 0], dy * sizes[i, 1]])
+            c = np.clip(c, half, np.maximum(half, [width - half[0], height - half[1]]))
+            if all(np.any(np.abs(c - q) >= half + h) for q, h in placed):
+                out[i] = c
+                placed.append((c, half))
+                break
+        else:
+            placed.append((out[i], half))
+    return out
+
+
+def _spread_in_view(p, points: np.ndarray, texts: list[str], cell,
+                    centre: bool = False) -> np.ndarray:
+    """World positions for the labels of `points` in the current subplot's camera, moved on
+    screen by `spread_labels` so that none overlaps another (same depth as its point): the
+    anchor VTK draws a label from, or (`centre`) the middle of its box."""
+    m = p.renderer.GetActiveCamera().GetCompositeProjectionTransformMatrix(
+        cell[0] / cell[1], -1, 1)
+    M = np.array([[m.GetElement(r, c) for c in range(4)] for r in range(4)])
+    h = np.c_[points, np.ones(len(points))] @ M.T
+    ndc = h[:, :3] / h[:, 3:4]
+    px = (ndc[:, :2] + 1) / 2 * np.array(cell, dtype=float)
+    sizes = label_boxes(texts)
+    moved = spread_labels(px, sizes, float(cell[0]), float(cell[1]))
+    anchor = moved if centre else moved - sizes / 2  # VTK draws a box up and right of it
+    ndc2 = np.c_[anchor / np.array(cell, dtype=float) * 2 - 1, ndc[:, 2], np.ones(len(points))]
+    w = ndc2 @ np.linalg.inv(M).T
+    return w[:, :3] / w[:, 3:4]
+
+
 def _title(i: int, j: int, labels, col_titles, titles) -> str:
     """Cell (i, j)'s title: its column title (first row), row label (first column) and own
     title, joined by ' / '; '' for none."""
@@ -104,13 +158,6 @@ def render_grid(rows: list[list], path, labels: list[str] | None = None,
             if mesh is None or not len(mesh.faces):
                 continue
             p.add_mesh(_poly(pv, mesh), color=COLORS[j % len(COLORS)], smooth_shading=True)
-            if point_labels:
-                names = p.add_point_labels(
-                    np.array([q for _, q in point_labels], dtype=float),
-                    [str(t) for t, _ in point_labels], font_size=8, point_size=5,
-                    point_color="black", shape_opacity=0.6, shape_color="white",
-                    text_color="black", always_visible=True, reset_camera=False)
-                names.GetMapper().PlaceAllLabelsOn()  # VTK drops overlapping ones otherwise
             pts = row_points if frame == "row" else np.concatenate(
                 [np.asarray(mesh.vertices)] + ([np.asarray(overlay.vertices)]
                                                if overlay is not None else []))
@@ -121,6 +168,20 @@ def render_grid(rows: list[list], path, labels: list[str] | None = None,
             p.camera.view_angle = VIEW_ANGLE
             p.camera_position = [tuple(c + dist * d), tuple(c), tuple(u)]
             p.reset_camera_clipping_range()
+            if point_labels:  # names moved apart on screen, a line back to each GC's point
+                at = np.array([q for _, q in point_labels], dtype=float)
+                texts = [str(t) for t, _ in point_labels]
+                shown_at = _spread_in_view(p, at, texts, cell)
+                p.add_points(at, color="black", point_size=5, render_points_as_spheres=True,
+                             reset_camera=False)
+                p.add_lines(np.stack([at, _spread_in_view(p, at, texts, cell, centre=True)], 1)
+                            .reshape(-1, 3), color="#555555", width=1)
+                names = p.add_point_labels(
+                    shown_at, texts, font_size=8, show_points=False, shape_opacity=0.7,
+                    shape_color="white", text_color="black", always_visible=True,
+                    reset_camera=False)
+                names.GetMapper().PlaceAllLabelsOn()  # VTK drops overlapping ones otherwise
+                p.reset_camera_clipping_range()
     p.render()
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)

@@ -48,7 +48,9 @@ def test_writes_annotations_pictures_and_a_table(folder, tmp_path, capsys):
     for name in ("box", "tripod"):
         ann = load_annotation(run / f"{name}.yaml")  # loadable, mesh path resolves
         assert ann.mesh_path.samefile(folder / f"{name}.ply")
-        assert (run / f"{name}_gcs.png").stat().st_size > 1000
+        png = (run / f"{name}_gcs.png").read_bytes()
+        assert int.from_bytes(png[16:20], "big") >= 1200  # two 640 px cells (was 640 in all)
+        assert int.from_bytes(png[20:24], "big") >= 500
     tripod = load_annotation(run / "tripod.yaml")
     assert len(tripod.gcs) == 3 and tripod.gc_names[0] == "trunk"
     # the run moves (renamed, copied elsewhere): its YAMLs still find their meshes

@@ -105,3 +105,21 @@ def test_a_y_up_mesh_is_drawn_standing(tmp_path):
         shapes[up] = (np.ptp(ys) + 1) / (np.ptp(xs) + 1)
     assert shapes["y"] > 1.5 and shapes["auto"] > 1.5, shapes
     assert shapes["z"] < 1.0, shapes
+
+
+def test_gc_names_are_spread_so_no_two_overlap():
+    from ngc_gen.viz.render import label_boxes, spread_labels
+
+    rng = np.random.default_rng(0)
+    texts = [f"leg_{s}{i}" for s in "lr" for i in range(1, 4)] + ["head", "thorax", "abdomen",
+                                                                 "antenna_l", "antenna_r"]
+    xy = np.array([320.0, 280.0]) + rng.normal(0, 6, (len(texts), 2))  # a cluster of names
+    xy[0] = [40.0, 40.0]                                                  # and one far away
+    sizes = label_boxes(texts)
+    out = spread_labels(xy, sizes, 640.0, 560.0)
+    assert np.allclose(out[0], xy[0])  # a free label stays on its point
+    for i in range(len(texts)):
+        assert np.all(out[i] - sizes[i] / 2 >= 0) and np.all(out[i] + sizes[i] / 2 <= [640, 560])
+        for j in range(i):
+            gap = np.abs(out[i] - out[j]) - (sizes[i] + sizes[j]) / 2
+            assert gap.max() >= 0, (texts[i], texts[j])  # apart along x or y
