@@ -32,6 +32,28 @@ FIX = ("pass run=<dir or checkpoint> of a `train.py stage=fit` run (codes) or a 
        "`train.py stage=shape_latent` run (latents)")
 
 
+# what a shape-latent reconstruction writes, as metrics.json's `outputs` and the run's printout
+OUTPUTS = {
+    "meshes/<name>.ply": "the reconstruction in the frame the model was trained in (the input "
+                         "mesh normalised as prepared); metrics.json scores these against the "
+                         "input",
+    "shapes/<name>.ply, <name>.yaml": "the same surface with its GCs, mapped so the YAML's "
+                                      "normalize: {bound: 0.8} is the identity (the sample.py "
+                                      "convention): to edit or prepare again; rescaled, so a "
+                                      "score against the raw input mesh differs from meshes/'s",
+    "shapes.ckpt": "the reconstructed shapes for edit.py run=<this run> shape=<name>",
+    "latents.pt": "one latent per shape: sample.py mode=interpolate latents=<this file>",
+    "reconstruct.png": "per shape the input mesh (left) beside its reconstruction (right)",
+}
+
+
+def explain_outputs(run_dir: Path) -> str:
+    """The printed explanation of the run's files (OUTPUTS)."""
+    width = max(len(k) for k in OUTPUTS)
+    return "\n".join([f"outputs in {run_dir}:"] + [f"  {k:{width}s}  {v}"
+                                                     for k, v in OUTPUTS.items()])
+
+
 def checkpoint_kind(run) -> tuple[Path, str]:
     from ngc_gen.lit.checkpoint import load_checkpoint_dict, resolve_checkpoint
 
@@ -205,10 +227,30 @@ def _latents(cfg: DictConfig, path: Path) -> dict:
                int(cfg.reconstruct.refine_steps), "refine_l1": refined and refined[1],
                "steps": int(trained.trainer.global_step), "train_s": trained.seconds,
                "checkpoint": str(last), "latents": str(run_dir / "latents.pt"),
-               "edit_checkpoint": str(run_dir / "shapes.ckpt"), "resolution": res}
+               "edit_checkpoint": str(run_dir / "shapes.ckpt"), "resolution": res,
+               "outputs": OUTPUTS}
+    picture = render_reconstruction(prepared, run_dir, up=cfg.viz.up)
+    if picture is not None:
+        metrics["picture"] = str(picture)
     atomic_write_text(run_dir / "metrics.json", json.dumps(metrics, indent=2))
     print_metrics(metrics)
+    print(explain_outputs(run_dir))
     print(f"run directory: {run_dir}\ninterpolate toward a generated shape: python sample.py "
           f"run=<diffusion run> mode=interpolate latents={run_dir / 'latents.pt'} "
           f"a={prepared[0].name} b=0")
     return metrics
+
+
+def render_reconstruction(prepared, run_dir: Path, up="auto", limit: int = 8):
+    """run_dir/reconstruct.png: per shape (at most `limit`) the input mesh as prepared beside
+    meshes/<name>.ply, in the same frame; None if it could not be drawn."""
+    import trimesh
+
+    from ngc_gen.viz import render_grid, render_or_warn
+
+    rows = [[trimesh.Trimesh(s.mesh_vertices, s.mesh_faces, process=False),
+             trimesh.load(run_dir / "meshes" / f"{s.name}.ply", process=False)]
+            for s in prepared[:limit]]
+    return render_or_warn(render_grid, run_dir / "reconstruct.png", rows,
+                          labels=[s.name for s in prepared[:limit]],
+                          col_titles=["input", "reconstruction"], frame="row", up=up)

@@ -236,6 +236,11 @@ def test_reconstruct_a_held_out_creature_and_interpolate_to_a_generated_one(runs
     width = torch.load(runs["sl"] / "latents.pt", weights_only=True)["latents"].shape[1]
     assert lat["names"] == held_out and lat["latents"].shape == (1, width)
     assert set(metrics["shapes"]) == set(held_out) and (out / "shapes.ckpt").is_file()
+    # every file explained (metrics.json and the printout), and the picture of input vs result
+    from ngc_gen.app.reconstruct import OUTPUTS
+    assert metrics["outputs"] == OUTPUTS and "meshes/<name>.ply" in OUTPUTS
+    assert json.loads((out / "metrics.json").read_text())["outputs"] == OUTPUTS
+    assert (out / "reconstruct.png").stat().st_size > 1000
     # the reconstructed shape keeps the input's GCs (the frames its codes were fitted in), up to
     # the similarity that normalises the written mesh; decoded GCs would miss them by ~0.4 std
     given = np.concatenate([g.curve.points for g in load_annotation(
