@@ -17,14 +17,15 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from .arclength import ArcLength
+from .arclength import ArcLength, segment_lengths
 from .arrays import DEFAULT_CHUNK, as_numpy, as_tensor, check_points, chunked, dot
 from .curves import Curve, curve_from_dict
 from .errors import GeometryError
 from .frames import FrameField
 from .interp import interp
 from .relative import (RelativeTables, coarse_convex, coarse_cover, coarse_indices,
-                       near_cover, relative_coordinates)
+                       coarse_owned, coarse_reach, near_cover, relative_coordinates,
+                       segment_bulge, span_bounds)
 
 GC_KEYS = {"name", "curve", "up", "keys", "caps", "reparam"}
 COVER_SAMPLES = 16   # radius samples per polyline segment when sizing the cover balls
@@ -251,27 +252,39 @@ class GeneralizedCylinder:
             x = self.polyline.x.numpy()
             coarse = coarse_indices(len(x), max(2, round(math.sqrt(self.segments))))
             rep = (np.zeros(0), np.zeros(0)) if self.reparam is None else self.reparam
+            chord, bulge = segment_bulge(x, segment_lengths(self.curve, self.polyline.s).numpy())
+            owned = coarse_owned(coarse)
+            ctt = self.curvature_vectors()
+            span_k, span_dk = span_bounds(ctt, owned, self.segments, self.length)
             self._tables = RelativeTables(
                 breaks=breaks, coef=np.ascontiguousarray(coef), poly_x=np.ascontiguousarray(x),
                 poly_s=self.polyline.s.numpy().copy(),
                 poly_d=np.ascontiguousarray(self.curve.evaluate(self.polyline.s)[1].numpy()),
                 coarse=coarse,
                 cover=coarse_cover(x, self.cover_radii(), coarse),
-                convex=coarse_convex(self.curvature_samples(), coarse, self.segments,
+                convex=coarse_convex(np.linalg.norm(ctt, axis=1), coarse, self.segments,
                                      self.length),
+                chord=chord, bulge=bulge, owned=owned,
+                reach=coarse_reach(x, bulge, coarse, owned), span_k=span_k, span_dk=span_dk,
                 arc_t=self.arc.t_table.numpy().copy(), rep_arc=np.ascontiguousarray(rep[1]),
                 rep_t=np.ascontiguousarray(rep[0]),
                 frame_r=np.ascontiguousarray(self.frame_field.r_table.numpy()),
                 key_t=self._key_t.numpy().copy(), key_r=self._key_r.numpy().copy(),
                 key_w=self._key_w.numpy().copy(), twisted=self._twisted,
-                caps=np.asarray(self.caps, dtype=np.float64))
+                caps=np.asarray(self.caps, dtype=np.float64), length=float(self.length))
         return self._tables
+
+    def curvature_vectors(self) -> np.ndarray:
+        """(K COVER_SAMPLES + 1, 3) C_tt = kappa N (second derivative in arc length) at uniform
+        arc length: C'' less its part along C', over |C'|^2."""
+        ta = torch.linspace(0.0, 1.0, self.segments * COVER_SAMPLES + 1, dtype=torch.float64)
+        _, d1, d2 = self.curve.evaluate(self.arc.s_of_t(ta))
+        n2 = dot(d1, d1)[:, None]
+        return ((d2 - dot(d2, d1)[:, None] * d1 / n2) / n2).numpy()
 
     def curvature_samples(self) -> np.ndarray:
         """(K COVER_SAMPLES + 1,) curvature |C' x C''| / |C'|^3 at uniform arc length."""
-        ta = torch.linspace(0.0, 1.0, self.segments * COVER_SAMPLES + 1, dtype=torch.float64)
-        _, d1, d2 = self.curve.evaluate(self.arc.s_of_t(ta))
-        return (torch.linalg.cross(d1, d2).norm(dim=1) / d1.norm(dim=1) ** 3).numpy()
+        return np.linalg.norm(self.curvature_vectors(), axis=1)
 
     def cover_radii(self) -> np.ndarray:
         """(K+1,) radii of balls around the polyline vertices whose union holds the GC.

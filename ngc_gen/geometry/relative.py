@@ -14,14 +14,25 @@ Per point, in float64 whatever the input dtype (docs/gcs.md):
    until a step moves s by at most NEWTON_TOL: two steps reach rounding for ~90% of points, one
    for the rest. Where f'' <= 0 (q past the centre of curvature) it takes a Gauss-Newton step.
    C and C' at the foot come from the last evaluation by Taylor (no extra evaluation);
-4. frame, twist, radii and caps at the foot point as `GeneralizedCylinder` defines them: one
+4. global: that Newton finds a local minimum near the seed, which for a point nearly as close
+   to another arc (a tight bend, a curve passing close to itself) may not be the closest point.
+   A certificate rules out most of the curve at once: around a stationary foot t, f(t') >=
+   f(t) + f''(t) d^2 / 2 - (kappa + D |C_ttt|) d^3 / 6 with d = |t' - t| in arc length and D
+   = |C(t) - q| (f'' = 1 + (C - q).C_tt), so nothing within rho = 3 f''(t) / (kappa + D
+   |C_ttt|) of it is nearer (bounds over the nearest coarse vertex's span, `span_bounds`).
+   Every coarse ball (`reach`) not wholly inside that range and nearer than D is then searched:
+   each of its segments whose chord, less the arc's bulge (`segment_bulge`), comes nearer than
+   the best distance so far gets its own Newton. The foot is the global closest point for
+   every point; most points have no ball to search (a branch-free pass over the coarse balls);
+5. frame, twist, radii and caps at the foot point as `GeneralizedCylinder` defines them: one
    key-cell search for twist and radii, reciprocals instead of divisions where they are
    constants, sin and cos of the twist by fdlibm's polynomials (a third of libm's cost).
 
 A torch implementation of the same steps would run ~60 small kernels per chunk of points, each
 a pass over memory; fused, a point costs ~160 ns on one core (bench/geometry.py), about a third
-each for the seed, Newton and the rest. Results match the float64 definition to rounding (round
-trip ~1e-14 on points inside, float64); rel is written in the caller's dtype directly.
+each for the seed, Newton and the rest (the global step ~10%). Results match the float64
+definition to rounding (round trip ~1e-14 on points inside, float64; foot points within 1e-14 of
+a brute force's, `closest_check`); rel is written in the caller's dtype directly.
 """
 from __future__ import annotations
 
@@ -42,6 +53,10 @@ NEWTON_TOL = 1e-7
 # the kernels may fuse a * b + c into one rounding (FMA): a few percent; per point the same
 # compiled code runs whatever the batch, so results stay reproducible
 FASTMATH = {"contract"}
+# the closest-point certificate holds over the segments of the nearest coarse vertex and SPAN
+# coarse vertices each side: wide enough that the coarse balls a point may be nearer to than
+# its foot point lie within it, for most points
+SPAN = 2
 
 
 class RelativeTables(NamedTuple):
@@ -55,10 +70,17 @@ class RelativeTables(NamedTuple):
     cover (Kc+1,): radius of the ball around each coarse vertex; the balls enclose the GC.
     convex (Kc+1,): within this distance of a coarse vertex, |C(s) - q|^2 is convex over the
       arc between its coarse neighbours (0 where no such distance exists).
+    chord (K,), bulge (K,): |x_{j+1} - x_j| and how far segment j's arc strays from that chord
+      (`segment_bulge`).
+    owned (Kc+2,) int64: coarse vertex c owns segments owned[c] <= j < owned[c+1].
+    reach (Kc+1,): radius of a ball around coarse vertex c holding the arc of its segments.
+    span_k, span_dk (Kc+1,): bounds on |C_tt| and |C_ttt| (arc length) over the segments of
+      coarse vertices c - SPAN to c + SPAN (`span_bounds`).
     arc_t (M+1,): normalised arc length at s = linspace(0, 1, M+1).
     rep_arc, rep_t: the reparameterisation (arc length -> network t) or empty arrays.
     frame_r (Q+1, 3): RMF reference vectors at s = linspace(0, 1, Q+1).
     key_t (nk,), key_r (nk, 2), key_w (nk,) radians; twisted: any key twist != 0; caps (2,).
+    length: the curve's arc length (the polyline's vertices lie at arc length k L / K).
     """
 
     breaks: np.ndarray
@@ -69,6 +91,12 @@ class RelativeTables(NamedTuple):
     coarse: np.ndarray
     cover: np.ndarray
     convex: np.ndarray
+    chord: np.ndarray
+    bulge: np.ndarray
+    owned: np.ndarray
+    reach: np.ndarray
+    span_k: np.ndarray
+    span_dk: np.ndarray
     arc_t: np.ndarray
     rep_arc: np.ndarray
     rep_t: np.ndarray
@@ -78,6 +106,7 @@ class RelativeTables(NamedTuple):
     key_w: np.ndarray
     twisted: bool
     caps: np.ndarray
+    length: float
 
 
 def coarse_indices(n_vertices: int, stride: int) -> np.ndarray:
@@ -117,6 +146,60 @@ def coarse_convex(kappa: np.ndarray, coarse: np.ndarray, segments: int, length: 
     with np.errstate(divide="ignore", invalid="ignore"):
         rho = 1.0 / kmax - ell * (1 + 1e-6)
     return np.where(rho > 0, rho, 0.0)  # NaN (a cusp): 0, never convex
+
+
+def segment_bulge(poly_x: np.ndarray, arc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Chord lengths c_j = |x_{j+1} - x_j| (K,) and bulges b_j = sqrt(l_j^2 - c_j^2) / 2 of the
+    polyline's segments, l_j (K,) the arc length of segment j.
+
+    A point P on the arc of segment j has |P - x_j| + |P - x_{j+1}| <= l_j (chords are no
+    longer than arcs): it lies in the ellipsoid with foci x_j, x_{j+1} and major axis l_j, and
+    that ellipsoid lies within b_j (its semi-minor axis) of the chord. So the arc is no nearer
+    to q than |q - chord| - b_j: no curvature bound needed, and b_j ~ 0.14 kappa l_j^2."""
+    c = np.linalg.norm(np.diff(poly_x, axis=0), axis=1)
+    ell = np.maximum(arc * (1 + 1e-9), c)
+    return c, 0.5 * np.sqrt(ell * ell - c * c) + 1e-15
+
+
+def coarse_owned(coarse: np.ndarray) -> np.ndarray:
+    """(Kc+2,) segment bounds: coarse vertex c owns the segments j with owned[c] <= j <
+    owned[c+1], those nearer to it in index than to its coarse neighbours."""
+    mid = (coarse[:-1] + coarse[1:] + 1) // 2
+    return np.concatenate([[0], mid, [coarse[-1]]]).astype(np.int64)
+
+
+def coarse_reach(poly_x: np.ndarray, bulge: np.ndarray, coarse: np.ndarray, owned: np.ndarray
+                 ) -> np.ndarray:
+    """(Kc+1,) radius of a ball around coarse vertex c holding the arcs of its segments: each
+    arc lies within b_j of its chord (`segment_bulge`), so within the farther chord end plus b_j
+    of any centre."""
+    out = np.zeros(len(coarse))
+    for c in range(len(coarse)):
+        j = np.arange(owned[c], owned[c + 1])
+        ends = np.maximum(np.linalg.norm(poly_x[j] - poly_x[coarse[c]], axis=1),
+                          np.linalg.norm(poly_x[j + 1] - poly_x[coarse[c]], axis=1))
+        out[c] = (ends + bulge[j]).max() if len(j) else 0.0
+    return out * (1 + 1e-12) + 1e-15
+
+
+def span_bounds(ctt: np.ndarray, owned: np.ndarray, segments: int, length: float
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """(Kc+1,) bounds on |C_tt| (the curvature) and |C_ttt| in arc length t over the segments
+    of coarse vertices c - SPAN to c + SPAN, from ctt (K n + 1, 3): C_tt at n uniform arc-length
+    samples per segment. A window's largest sample (or difference quotient, for C_ttt) plus the
+    largest change between neighbouring ones (C is smooth: the excess between samples is of
+    that order), 5% on top."""
+    n = (len(ctt) - 1) // segments
+    kappa = np.linalg.norm(ctt, axis=1)
+    dq = np.linalg.norm(np.diff(ctt, axis=0), axis=1) * (segments * n / length)
+    slack_k = np.abs(np.diff(kappa)).max()
+    slack_dk = np.abs(np.diff(dq)).max() if len(dq) > 1 else 0.0
+    Kc = len(owned) - 2
+    lo = owned[np.maximum(np.arange(Kc + 1) - SPAN, 0)] * n
+    hi = owned[np.minimum(np.arange(Kc + 1) + SPAN + 1, Kc + 1)] * n
+    k = np.array([kappa[a:b + 1].max() for a, b in zip(lo, hi)])
+    dk = np.array([dq[a:b].max() for a, b in zip(lo, hi)])
+    return (k + slack_k) * 1.05, (dk + slack_dk) * 1.05
 
 
 @njit(cache=True, fastmath=FASTMATH)
@@ -238,10 +321,78 @@ def _fprime(qx, qy, qz, x, dx, k):
     return (x[k, 0] - qx) * dx[k, 0] + (x[k, 1] - qy) * dx[k, 1] + (x[k, 2] - qz) * dx[k, 2]
 
 
+@njit(cache=True, fastmath=FASTMATH, inline="always")  # (a call: 5 ns a point)
+def _newton(qx, qy, qz, s, lo, hi, breaks, coef):
+    """Newton on f(s) = |C(s) - q|^2 / 2 from s, kept within [lo, hi], until a step moves s by
+    at most NEWTON_TOL; where f'' <= 0 (q past the centre of curvature) a Gauss-Newton step.
+    Returns s, the last step, C, C', C'' where the last step started, and f'' (H) and |C'|^2
+    (gn) there."""
+    step = 0.0
+    H = gn = 1.0
+    cx = cy = cz = dx = dy = dz = ex = ey = ez = 0.0
+    for _ in range(NEWTON_MAX_STEPS):
+        cx, cy, cz, dx, dy, dz, ex, ey, ez = _curve(s, breaks, coef)
+        rx, ry, rz = cx - qx, cy - qy, cz - qz
+        g = rx * dx + ry * dy + rz * dz
+        gn = dx * dx + dy * dy + dz * dz
+        H = gn + rx * ex + ry * ey + rz * ez
+        s_new = min(max(s - g / (H if H > 1e-3 * gn else gn), lo), hi)
+        step = s_new - s
+        s = s_new
+        if abs(step) <= NEWTON_TOL:
+            break
+    return s, step, cx, cy, cz, dx, dy, dz, ex, ey, ez, H, gn
+
+
+@njit(cache=True, fastmath=FASTMATH)
+def _nearer_foot(qx, qy, qz, s, D2, cert_lo, cert_hi, dc, breaks, coef, poly_x, poly_s,
+                 owned, reach, chord, inv_chord, bulge):
+    """The global closest point, given a local one (parameter s, squared distance D2) and the
+    segments cert_lo <= j < cert_hi known to hold nothing nearer: every other segment whose arc
+    may come nearer than the best distance so far (its coarse ball first, then its chord less
+    its bulge) gets a Newton search of its own. dc: squared distances to the coarse vertices.
+    Returns (s, squared distance, whether s moved)."""
+    D = math.sqrt(D2)
+    moved = False
+    for c in range(reach.shape[0]):
+        j0, j1 = owned[c], owned[c + 1]
+        if j0 >= cert_lo and j1 <= cert_hi:
+            continue
+        r = D + reach[c]
+        if dc[c] >= r * r:
+            continue
+        dA = _dist2(qx, qy, qz, poly_x, j0)
+        for j in range(j0, j1):
+            dB = _dist2(qx, qy, qz, poly_x, j + 1)
+            if j < cert_lo or j >= cert_hi:
+                cj = chord[j]
+                x = (dA - dB + cj * cj) * (0.5 * inv_chord[j])  # along the chord from x_j
+                if x <= 0.0:
+                    e2, lam = dA, 0.0
+                elif x >= cj:
+                    e2, lam = dB, 1.0
+                else:
+                    e2, lam = dA - x * x, x * inv_chord[j]
+                lb = D + bulge[j]
+                if e2 < lb * lb:
+                    a, b = poly_s[j], poly_s[j + 1]
+                    sj = _newton(qx, qy, qz, a + lam * (b - a), a, b, breaks, coef)[0]
+                    cx, cy, cz = _curve(sj, breaks, coef)[:3]
+                    d2 = (cx - qx) ** 2 + (cy - qy) ** 2 + (cz - qz) ** 2
+                    if d2 < D2:
+                        s, D2, D, moved = sj, d2, math.sqrt(d2), True
+            dA = dB
+    return s, D2, moved
+
+
+POINTS_PER_TASK = 256  # points per parallel task (a task reuses one scratch row)
+
+
 @njit(cache=True, parallel=True, fastmath=FASTMATH)
 def _relative_kernel(q, out, measure, cull, breaks, coef, poly_x, poly_s, poly_d, coarse,
-                     coarse_x, cover2, convex2, arc_t, rep_arc, rep_t, frame_r, key_t, key_dt,
-                     key_r, key_w, twisted, inv_cap0, inv_cap1):
+                     coarse_x, cover2, convex2, chord, inv_chord, bulge, owned, reach, span_k,
+                     span_dk, arc_t, rep_arc, rep_t, frame_r, key_t, key_dt, key_r, key_w,
+                     twisted, inv_cap0, inv_cap1, length):
     n = q.shape[0]
     K = poly_x.shape[0] - 1
     Kc = coarse.shape[0] - 1
@@ -249,128 +400,156 @@ def _relative_kernel(q, out, measure, cull, breaks, coef, poly_x, poly_s, poly_d
     Q = frame_r.shape[0] - 1
     nk = key_t.shape[0]
     with_measure = measure.shape[0] > 0
-    for i in prange(n):
-        qx, qy, qz = float(q[i, 0]), float(q[i, 1]), float(q[i, 2])
-        # 1-2. nearest coarse vertex, cover test
-        best_c, best_d, covered = 0, np.inf, False
-        for c in range(Kc + 1):
-            d = _dist2(qx, qy, qz, coarse_x, c)
-            if d < best_d:
-                best_d, best_c = d, c
-            if cull:  # (a compare and an or per vertex in the hot loop otherwise)
-                covered |= d <= cover2[c]
-        if cull and not covered:
-            out[i, 0] = out[i, 1] = out[i, 2] = np.nan
-            if with_measure:
-                measure[i] = np.inf
-            continue
-        # nearest dense vertex between the coarse neighbours
-        k0 = coarse[max(best_c - 1, 0)]
-        k1 = coarse[min(best_c + 1, Kc)]
-        if best_d < convex2[best_c]:
-            # f convex over the window: the vertex distances fall, then rise, so descent from
-            # the coarse vertex stops at their minimum (3 steps on average instead of 2 stride)
-            k = coarse[best_c]
-            if k < k1 and _dist2(qx, qy, qz, poly_x, k + 1) < best_d:
-                while k < k1:
-                    d = _dist2(qx, qy, qz, poly_x, k + 1)
-                    if d >= best_d:
-                        break
-                    best_d, k = d, k + 1
-            else:
-                while k > k0:
-                    d = _dist2(qx, qy, qz, poly_x, k - 1)
-                    if d >= best_d:
-                        break
-                    best_d, k = d, k - 1
-        else:
-            k, best_d = k0, np.inf
-            for j in range(k0, k1 + 1):
-                d = _dist2(qx, qy, qz, poly_x, j)
+    # f(t') >= f(t) + f''(t) d^2 / 2 - (kappa + D |C_ttt|) d^3 / 6 for d = |t' - t| (f'(t) = 0)
+    rho_scale = 0.98 * 3.0 * K / length
+    for task in prange((n + POINTS_PER_TASK - 1) // POINTS_PER_TASK):
+        dc = np.empty(Kc + 1)
+        for i in range(task * POINTS_PER_TASK, min(n, (task + 1) * POINTS_PER_TASK)):
+            qx, qy, qz = float(q[i, 0]), float(q[i, 1]), float(q[i, 2])
+            # 1-2. nearest coarse vertex, cover test
+            best_c, best_d, covered = 0, np.inf, False
+            for c in range(Kc + 1):
+                d = _dist2(qx, qy, qz, coarse_x, c)
+                dc[c] = d
                 if d < best_d:
-                    best_d, k = d, j
-        # seed: the root of f' = (C - q).C' interpolated linearly between the vertex and its
-        # neighbour on the foot's side (f' known there from the tables: no curve evaluation)
-        gk = _fprime(qx, qy, qz, poly_x, poly_d, k)
-        j = min(k + 1, K) if gk < 0.0 else max(k - 1, 0)
-        den = gk - _fprime(qx, qy, qz, poly_x, poly_d, j)
-        lam = min(max(gk / den, 0.0), 1.0) if den != 0.0 else 0.0
-        s = poly_s[k] + lam * (poly_s[j] - poly_s[k])
-        lo = poly_s[max(k - 2, 0)]
-        hi = poly_s[min(k + 2, K)]
-        # 3. Newton on |C(s) - q|^2 / 2. The last step moves s by at most NEWTON_TOL, so C, C'
-        # there follow from the last evaluation by Taylor: what is left out, step^2 |C'''| / 2
-        # in C', is of the order of the error that step leaves in s
-        step = 0.0
-        cx = cy = cz = dx = dy = dz = ex = ey = ez = 0.0
-        for _ in range(NEWTON_MAX_STEPS):
-            cx, cy, cz, dx, dy, dz, ex, ey, ez = _curve(s, breaks, coef)
-            rx, ry, rz = cx - qx, cy - qy, cz - qz
-            g = rx * dx + ry * dy + rz * dz
-            gn = dx * dx + dy * dy + dz * dz
-            H = gn + rx * ex + ry * ey + rz * ez
-            if not H > 1e-3 * gn:
-                H = gn
-            s_new = min(max(s - g / H, lo), hi)
-            step = s_new - s
-            s = s_new
-            if abs(step) <= NEWTON_TOL:
-                break
-        if abs(step) <= NEWTON_TOL:
-            h2 = 0.5 * step
-            cx += step * (dx + h2 * ex)
-            cy += step * (dy + h2 * ey)
-            cz += step * (dz + h2 * ez)
-            dx += step * ex
-            dy += step * ey
-            dz += step * ez
-        else:  # not converged in NEWTON_MAX_STEPS
-            cx, cy, cz, dx, dy, dz, ex, ey, ez = _curve(s, breaks, coef)
-        # 4. frame at the foot point
-        inv = 1.0 / math.sqrt(dx * dx + dy * dy + dz * dz)
-        tx, ty, tz = dx * inv, dy * inv, dz * inv
-        j, w = _uniform_cell(s, M)
-        t = arc_t[j] * (1.0 - w) + arc_t[j + 1] * w
-        if rep_arc.shape[0] > 0:
-            t = _interp(t, rep_arc, rep_t)
-        j, w = _uniform_cell(s, Q)
-        rx = frame_r[j, 0] * (1.0 - w) + frame_r[j + 1, 0] * w
-        ry = frame_r[j, 1] * (1.0 - w) + frame_r[j + 1, 1] * w
-        rz = frame_r[j, 2] * (1.0 - w) + frame_r[j + 1, 2] * w
-        rt = rx * tx + ry * ty + rz * tz
-        nx, ny, nz = rx - rt * tx, ry - rt * ty, rz - rt * tz
-        inv = 1.0 / math.sqrt(nx * nx + ny * ny + nz * nz)
-        nx, ny, nz = nx * inv, ny * inv, nz * inv
-        bx, by, bz = ty * nz - tz * ny, tz * nx - tx * nz, tx * ny - ty * nx
-        # twist and radii from one key cell
-        j, w, j1 = 0, 0.0, 0
-        if nk > 1:
-            j, w = _key_cell(t, key_t, key_dt)
-            j1 = j + 1
-        if twisted:
-            si, co = _sincos(key_w[j] * (1.0 - w) + key_w[j1] * w)
-            nx, ny, nz, bx, by, bz = (co * nx + si * bx, co * ny + si * by, co * nz + si * bz,
-                                      co * bx - si * nx, co * by - si * ny, co * bz - si * nz)
-        ry_ = key_r[j, 0] * (1.0 - w) + key_r[j1, 0] * w
-        rz_ = key_r[j, 1] * (1.0 - w) + key_r[j1, 1] * w
-        # caps: past an end, distance along the end tangent and the offset across it
-        px, py, pz = qx - cx, qy - cy, qz - cz
-        along = px * tx + py * ty + pz * tz
-        u = 2.0 * t - 1.0
-        if s <= 0.0:
-            u = -1.0 + along * inv_cap0
-            px, py, pz = px - along * tx, py - along * ty, pz - along * tz
-        elif s >= 1.0:
-            u = 1.0 + along * inv_cap1
-            px, py, pz = px - along * tx, py - along * ty, pz - along * tz
-        a_ = (px * nx + py * ny + pz * nz) / ry_
-        b_ = (px * bx + py * by + pz * bz) / rz_
-        out[i, 0] = u
-        out[i, 1] = a_
-        out[i, 2] = b_
-        if with_measure:
-            e = max(abs(u) - 1.0, 0.0)
-            measure[i] = e * e + a_ * a_ + b_ * b_
+                    best_d, best_c = d, c
+                if cull:  # (a compare and an or per vertex in the hot loop otherwise)
+                    covered |= d <= cover2[c]
+            if cull and not covered:
+                out[i, 0] = out[i, 1] = out[i, 2] = np.nan
+                if with_measure:
+                    measure[i] = np.inf
+                continue
+            # nearest dense vertex between the coarse neighbours
+            k0 = coarse[max(best_c - 1, 0)]
+            k1 = coarse[min(best_c + 1, Kc)]
+            if best_d < convex2[best_c]:
+                # f convex over the window: the vertex distances fall, then rise, so descent
+                # from the coarse vertex stops at their minimum (3 steps on average instead of
+                # 2 stride)
+                k = coarse[best_c]
+                if k < k1 and _dist2(qx, qy, qz, poly_x, k + 1) < best_d:
+                    while k < k1:
+                        d = _dist2(qx, qy, qz, poly_x, k + 1)
+                        if d >= best_d:
+                            break
+                        best_d, k = d, k + 1
+                else:
+                    while k > k0:
+                        d = _dist2(qx, qy, qz, poly_x, k - 1)
+                        if d >= best_d:
+                            break
+                        best_d, k = d, k - 1
+            else:
+                k, best_d = k0, np.inf
+                for j in range(k0, k1 + 1):
+                    d = _dist2(qx, qy, qz, poly_x, j)
+                    if d < best_d:
+                        best_d, k = d, j
+            # seed: the root of f' = (C - q).C' interpolated linearly between the vertex and its
+            # neighbour on the foot's side (f' known there from the tables: no curve evaluation)
+            gk = _fprime(qx, qy, qz, poly_x, poly_d, k)
+            j = min(k + 1, K) if gk < 0.0 else max(k - 1, 0)
+            den = gk - _fprime(qx, qy, qz, poly_x, poly_d, j)
+            lam = min(max(gk / den, 0.0), 1.0) if den != 0.0 else 0.0
+            s = poly_s[k] + lam * (poly_s[j] - poly_s[k])
+            klo, khi = max(k - 2, 0), min(k + 2, K)
+            lo, hi = poly_s[klo], poly_s[khi]
+            # 3. Newton from the seed, within two dense segments each side. The last step moves
+            # s by at most NEWTON_TOL, so C, C' there follow from the last evaluation by Taylor:
+            # what is left out, step^2 |C'''| / 2 in C', is of the order of the error that step
+            # leaves in s
+            s, step, cx, cy, cz, dx, dy, dz, ex, ey, ez, H, gn = _newton(
+                qx, qy, qz, s, lo, hi, breaks, coef)
+            converged = abs(step) <= NEWTON_TOL
+            if converged:
+                h2 = 0.5 * step
+                cx += step * (dx + h2 * ex)
+                cy += step * (dy + h2 * ey)
+                cz += step * (dz + h2 * ez)
+                dx += step * ex
+                dy += step * ey
+                dz += step * ez
+            else:  # not converged in NEWTON_MAX_STEPS
+                cx, cy, cz, dx, dy, dz, ex, ey, ez = _curve(s, breaks, coef)
+            j, w = _uniform_cell(s, M)
+            t = arc_t[j] * (1.0 - w) + arc_t[j + 1] * w
+            # 4. the global closest point. Around a stationary s (or an end the curve leaves q
+            # from) nothing within rho in arc length is nearer where f = |C - q|^2 / 2 stays
+            # convex: f''(t') >= f''(t) - |t' - t| (kappa + D |C_ttt|) in arc length t
+            # (f'' = 1 + (C - q).C_tt), with the bounds of the coarse vertex's span. The other
+            # segments are searched where they might hold a nearer point
+            D2 = (cx - qx) ** 2 + (cy - qy) ** 2 + (cz - qz) ** 2
+            D = math.sqrt(D2)
+            span_lo = owned[max(best_c - SPAN, 0)]
+            span_hi = owned[min(best_c + SPAN + 1, Kc + 1)]
+            cert_lo = cert_hi = 0
+            if converged and H > 0.0 and (s > lo or klo == 0) and (s < hi or khi == K):
+                u = t * K  # in segments, and rho too:
+                du = rho_scale * H / (gn * (span_k[best_c] + D * span_dk[best_c]))
+                if span_lo <= u <= span_hi:
+                    a = u - du
+                    b = min(u + du, span_hi)
+                    cert_lo = span_lo if a <= span_lo else int(a) + 1
+                    cert_hi = max(int(b), cert_lo)
+            # is any coarse ball not wholly certified nearer than D? (no branches: most points
+            # have none, and then nothing more to do)
+            look = False
+            for c in range(Kc + 1):
+                r = D + reach[c]
+                look |= (dc[c] < r * r) & ((owned[c] < cert_lo) | (owned[c + 1] > cert_hi))
+            moved = False
+            if look:
+                s, D2, moved = _nearer_foot(qx, qy, qz, s, D2, cert_lo, cert_hi, dc, breaks,
+                                            coef, poly_x, poly_s, owned, reach, chord,
+                                            inv_chord, bulge)
+            if moved:
+                cx, cy, cz, dx, dy, dz, ex, ey, ez = _curve(s, breaks, coef)
+                j, w = _uniform_cell(s, M)
+                t = arc_t[j] * (1.0 - w) + arc_t[j + 1] * w
+            # 5. frame at the foot point
+            inv = 1.0 / math.sqrt(dx * dx + dy * dy + dz * dz)
+            tx, ty, tz = dx * inv, dy * inv, dz * inv
+            if rep_arc.shape[0] > 0:
+                t = _interp(t, rep_arc, rep_t)
+            j, w = _uniform_cell(s, Q)
+            rx = frame_r[j, 0] * (1.0 - w) + frame_r[j + 1, 0] * w
+            ry = frame_r[j, 1] * (1.0 - w) + frame_r[j + 1, 1] * w
+            rz = frame_r[j, 2] * (1.0 - w) + frame_r[j + 1, 2] * w
+            rt = rx * tx + ry * ty + rz * tz
+            nx, ny, nz = rx - rt * tx, ry - rt * ty, rz - rt * tz
+            inv = 1.0 / math.sqrt(nx * nx + ny * ny + nz * nz)
+            nx, ny, nz = nx * inv, ny * inv, nz * inv
+            bx, by, bz = ty * nz - tz * ny, tz * nx - tx * nz, tx * ny - ty * nx
+            # twist and radii from one key cell
+            j, w, j1 = 0, 0.0, 0
+            if nk > 1:
+                j, w = _key_cell(t, key_t, key_dt)
+                j1 = j + 1
+            if twisted:
+                si, co = _sincos(key_w[j] * (1.0 - w) + key_w[j1] * w)
+                nx, ny, nz, bx, by, bz = (co * nx + si * bx, co * ny + si * by, co * nz + si * bz,
+                                          co * bx - si * nx, co * by - si * ny, co * bz - si * nz)
+            ry_ = key_r[j, 0] * (1.0 - w) + key_r[j1, 0] * w
+            rz_ = key_r[j, 1] * (1.0 - w) + key_r[j1, 1] * w
+            # caps: past an end, distance along the end tangent and the offset across it
+            px, py, pz = qx - cx, qy - cy, qz - cz
+            along = px * tx + py * ty + pz * tz
+            u = 2.0 * t - 1.0
+            if s <= 0.0:
+                u = -1.0 + along * inv_cap0
+                px, py, pz = px - along * tx, py - along * ty, pz - along * tz
+            elif s >= 1.0:
+                u = 1.0 + along * inv_cap1
+                px, py, pz = px - along * tx, py - along * ty, pz - along * tz
+            a_ = (px * nx + py * ny + pz * nz) / ry_
+            b_ = (px * bx + py * by + pz * bz) / rz_
+            out[i, 0] = u
+            out[i, 1] = a_
+            out[i, 2] = b_
+            if with_measure:
+                e = max(abs(u) - 1.0, 0.0)
+                measure[i] = e * e + a_ * a_ + b_ * b_
 
 
 @njit(cache=True, parallel=True, fastmath=FASTMATH)
@@ -415,9 +594,11 @@ def relative_coordinates(tables: RelativeTables, q: np.ndarray, cull: bool = Fal
         key_dt = 1.0 / np.diff(T.key_t) if len(T.key_t) > 1 else np.ones(1)
         _relative_kernel(q, out, measure, bool(cull), T.breaks, T.coef, T.poly_x, T.poly_s,
                          T.poly_d, T.coarse, np.ascontiguousarray(T.poly_x[T.coarse]),
-                         T.cover ** 2, T.convex ** 2, T.arc_t, T.rep_arc, T.rep_t, T.frame_r,
-                         T.key_t, key_dt, T.key_r, T.key_w, bool(T.twisted),
-                         1.0 / float(T.caps[0]), 1.0 / float(T.caps[1]))
+                         T.cover ** 2, T.convex ** 2, T.chord,
+                         1.0 / np.maximum(T.chord, 1e-300), T.bulge,
+                         T.owned, T.reach, T.span_k, T.span_dk, T.arc_t, T.rep_arc, T.rep_t,
+                         T.frame_r, T.key_t, key_dt, T.key_r, T.key_w, bool(T.twisted),
+                         1.0 / float(T.caps[0]), 1.0 / float(T.caps[1]), float(T.length))
     return out, measure
 
 
