@@ -97,6 +97,10 @@ bench-extract: setup  # dense, prefiltered and sparse extraction of bench-deform
 bench-generate: setup
 	$(BIN)/python bench/generate.py
 
+.PHONY: bench-transfer
+bench-transfer: setup  # the quadruped template on the posed animals (rig withheld), creatures, chair/torus/sphere
+	$(BIN)/python bench/transfer.py
+
 bench-animals: setup  # rigged animals: GCs from the rig, rest-pose fits, generation vs held-out clips / species
 	$(BIN)/python bench/animals.py
 
