@@ -199,7 +199,7 @@ def span_bounds(ctt: np.ndarray, owned: np.ndarray, segments: int, length: float
     hi = owned[np.minimum(np.arange(Kc + 1) + SPAN + 1, Kc + 1)] * n
     k = np.array([kappa[a:b + 1].max() for a, b in zip(lo, hi)])
     dk = np.array([dq[a:b].max() for a, b in zip(lo, hi)])
-    return (k + slack_k) * 1.05, (dk + slack_dk) * 1.05
+    return (k + slack_k) * 1.05 + 1e-12, (dk + slack_dk) * 1.05  # (no 0 to divide by)
 
 
 @njit(cache=True, fastmath=FASTMATH)
