@@ -70,7 +70,7 @@ class TransferSettings:
     up: str = "auto"
     front: str = "auto"
     missing_cost: float = 6.0
-    max_match_cost: float = 2.0
+    max_match_cost: float = 4.0
     min_matched: float = 0.6
     refine_steps: int = 60
 
@@ -264,6 +264,21 @@ def _split_by(arc: np.ndarray, fractions: list[float]) -> list[int]:
     return [0] + [int(np.clip(np.searchsorted(arc, c), 1, len(arc) - 2)) for c in cuts] + [len(arc) - 1]
 
 
+def _bend_near(P: np.ndarray, arc: np.ndarray, i: int, window: float = 0.2) -> int:
+    """The index within `window` x the path's length of i where the path (P, 3) bends most
+    (the angle between the chords over that window before and after): a neck meets its head
+    at a bend, not at a fixed share of the length."""
+    w = window * arc[-1]
+    cand = np.flatnonzero((np.abs(arc - arc[i]) <= w) & (arc >= w / 2) & (arc <= arc[-1] - w / 2))
+    if len(cand) == 0:
+        return i
+    before = P[cand] - P[np.searchsorted(arc, arc[cand] - w / 2).clip(0, len(P) - 1)]
+    after = P[np.searchsorted(arc, arc[cand] + w / 2).clip(0, len(P) - 1)] - P[cand]
+    cos = (before * after).sum(1) / np.maximum(
+        np.linalg.norm(before, axis=1) * np.linalg.norm(after, axis=1), 1e-12)
+    return int(np.clip(cand[int(np.argmin(cos))], 1, len(P) - 2))
+
+
 def correspond(template: Template, tree: Tree, body: BodyFrame, settings: TransferSettings,
                where: str | None = None) -> tuple[dict[str, np.ndarray], np.ndarray, list[str], float]:
     """Paths (node indices, root side first) of the matched template GCs, the template GC index
@@ -333,6 +348,7 @@ def correspond(template: Template, tree: Tree, body: BodyFrame, settings: Transf
                                            template.gc(c).place["start"]) / 1.0) for c in chain]
         cut = _split_by(arc, lengths) if len(own) > len(chain) else \
             list(np.linspace(0, len(own) - 1, len(chain) + 1).astype(int))
+        cut = [cut[0]] + [_bend_near(tree.nodes[own], arc, c) for c in cut[1:-1]] + [cut[-1]]
         for k, c in enumerate(chain):
             paths[c] = own[cut[k]: cut[k + 1] + 1]
             done.add(c)
@@ -360,7 +376,7 @@ def correspond(template: Template, tree: Tree, body: BodyFrame, settings: Transf
             continue
         R = tree.radius[p]
         k = int(np.argmax(R <= 1.25 * float(np.median(R[len(R) // 2:]))))
-        labels[p[:k]] = names.index(par)
+        labels[p[: k // 2]] = names.index(par)  # (the rest of the root, a hip, is the limb's)
         paths[name] = p[k // 2:] if len(p) - k // 2 >= 2 else p
     src = np.flatnonzero(labels >= 0)
     _, _, source = dijkstra(tree.graph, indices=src, min_only=True, return_predecessors=True)
