@@ -3,12 +3,13 @@
 reject_s: seconds from starting a command with a bad input until it exits (each must exit 2:
 checked); edit_s_128: `edit.py run=<fit run of the ant> edit=posed_ant_leg
 extract.resolution=128` end to end (picture included), with the bytecode the Makefile's setup
-writes; edit_s_128_no_bytecode: the same with no bytecode at all; help_s: the slowest
-`--help` of train.py, edit.py and sample.py; setup_s_added: what `python -m
-ngc_gen.app.bytecode` (the setup step) takes on an empty bytecode cache.
+writes; edit_s_128_no_bytecode: the same with no bytecode and no numba kernel cache (a fresh
+install without that step); help_s: the slowest `--help` of train.py, edit.py and sample.py;
+setup_s_added: what `python -m ngc_gen.app.bytecode` (the setup step) takes on empty caches.
 
-The bytecode cases run with PYTHONPYCACHEPREFIX pointing at a folder of this bench (empty, or
-filled by the setup step), so nothing of the checkout's own __pycache__ is read or changed.
+The bytecode cases run with PYTHONPYCACHEPREFIX and NUMBA_CACHE_DIR pointing at folders of this
+bench (empty, or filled by the setup step), so nothing of the checkout's own __pycache__ is read
+or changed.
 Each figure is the median of `--repeat` runs. Writes bench/results/cli.json.
 
     python bench/cli.py [--repeat 3]
@@ -103,8 +104,11 @@ def main(argv=None) -> int:
         warm, cold = work / "pyc_setup", work / "pyc_none"
         base = {**os.environ, "PYTHONDONTWRITEBYTECODE": "1", "OMP_NUM_THREADS": "1",
                 "PYTHONPATH": str(ROOT)}
-        env_warm = {**base, "PYTHONPYCACHEPREFIX": str(warm)}
-        env_cold = {**base, "PYTHONPYCACHEPREFIX": str(cold)}
+        # numba's kernel cache too: filled by the setup step, or empty before each cold run
+        env_warm = {**base, "PYTHONPYCACHEPREFIX": str(warm),
+                    "NUMBA_CACHE_DIR": str(work / "numba_setup")}
+        env_cold = {**base, "PYTHONPYCACHEPREFIX": str(cold),
+                    "NUMBA_CACHE_DIR": str(work / "numba_none")}
 
         t0 = time.perf_counter()  # the setup step on an empty bytecode cache
         subprocess.run([PY, "-m", "ngc_gen.app.bytecode"], cwd=ROOT, env=env_warm, check=True,
@@ -120,7 +124,11 @@ def main(argv=None) -> int:
         edit = ["edit.py", f"run={fit}", "edit=posed_ant_leg", "extract.resolution=128",
                 f"out_dir={work}/edit", "threads=1"]
         edit_warm = median(lambda: timed(edit, env_warm, expect=0), args.repeat)
-        edit_cold = median(lambda: timed(edit, env_cold, expect=0), args.repeat)
+        def cold_edit():  # a fresh install without the setup step: no .pyc, no kernel cache
+            shutil.rmtree(work / "numba_none", ignore_errors=True)
+            return timed(edit, env_cold, expect=0)
+
+        edit_cold = median(cold_edit, args.repeat)
         shutil.rmtree(cold, ignore_errors=True)
         print(f"edit at 128^3: {edit_warm:.2f} s with bytecode, {edit_cold:.2f} s without; "
               f"setup adds {setup_s:.1f} s; --help {max(help_by.values()):.2f} s")

@@ -335,6 +335,20 @@ def editor(r: dict) -> str:
     ok = sum(c["preview_s"] <= 0.3 for c in r["cases"])
     lines += ["", f"Medians of {s['repeats']}; {ok} of {len(r['cases'])} previews within the "
                   f"0.3 s target."]
+    if r.get("browser"):
+        def sec(x):
+            return "-" if x is None else f"{x:.2f}"
+
+        target = s.get("browser_target_s", 0.5)
+        lines += ["", "In the browser (headless Chromium; input event -> mesh drawn):", ""]
+        lines += rows_table(
+            ["shape", "typed into", f"preview drawn (s)", "server preview extraction (s)",
+             "refined drawn (s)", "server refine extraction (s)"],
+            [[c["shape"], c["interaction"], sec(c["preview_s"]), sec(c["server_preview_s"]),
+              sec(c["refine_s"]), sec(c["server_refine_s"])] for c in r["browser"]])
+        ok = sum(c["preview_s"] is not None and c["preview_s"] <= target for c in r["browser"])
+        lines += ["", f"{ok} of {len(r['browser'])} previews drawn within the {target:g} s "
+                      f"target (refined: after the {s['refine_delay_s']:g} s idle delay)."]
     return "\n".join(lines)
 
 
@@ -508,7 +522,22 @@ def animals(r: dict) -> str:
     return "\n".join(lines)
 
 
-TABLES = {"animals": animals, "autogc": autogc, "condition": condition, "ddp": ddp, "deform": deform, "demo": demo,
+def cli(r: dict) -> str:
+    t = r["targets"]
+    rows = [[f"`{case}`", f"{sec:.2f}"] for case, sec in r["reject_s"].items()]
+    lines = rows_table(["bad input", "exit 2 after (s)"], rows)
+    ok = sum(v <= t["reject_s"] for v in r["reject_s"].values())
+    lines += ["", f"{ok} of {len(r['reject_s'])} rejections within the {t['reject_s']:g} s "
+                  f"target. An edit of the ant at 128^3 (`edit.py run=<fit> edit=posed_ant_leg "
+                  f"extract.resolution=128`, picture included): {r['edit_s_128']:.2f} s with "
+                  f"the setup's bytecode (target {t['edit_s_128']:g} s), "
+                  f"{r['edit_s_128_no_bytecode']:.2f} s without; `--help` {r['help_s']:.2f} s "
+                  f"(slowest of the three); the bytecode step adds {r['setup_s_added']:.1f} s "
+                  f"to `make setup`. Medians of {r['repeat']}, PYTHONDONTWRITEBYTECODE=1."]
+    return "\n".join(lines)
+
+
+TABLES = {"animals": animals, "cli": cli, "autogc": autogc, "condition": condition, "ddp": ddp, "deform": deform, "demo": demo,
           "editor": editor, "extract": extract, "fit": fit, "fit_ablation": fit_ablation,
           "generate": generate, "geometry": geometry, "reconstruct": reconstruct,
           "sparse_settings": sparse_settings, "up_axis": up_axis}
