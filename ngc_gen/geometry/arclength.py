@@ -46,13 +46,13 @@ class ArcLength:
         return interp_uniform(s, self.t_table.to(device=s.device, dtype=s.dtype))
 
 
-def segment_lengths(curve: Curve, s: torch.Tensor, sub: int = 8) -> torch.Tensor:
-    """(len(s) - 1,) arc length of the curve between consecutive parameters s (increasing):
-    4-point Gauss-Legendre on `sub` equal pieces of each interval (|C'| is smooth: ~1e-15
-    relative for a 128-segment polyline)."""
-    u = ((torch.arange(sub, dtype=s.dtype)[:, None] + torch.as_tensor(_GL_X, dtype=s.dtype)[None])
+def arc_lengths(curve: Curve, a: torch.Tensor, b: torch.Tensor, sub: int = 8) -> torch.Tensor:
+    """(n,) arc length of the curve from parameter a to b (n,) each: 4-point Gauss-Legendre on
+    `sub` equal pieces of each interval (|C'| is smooth: ~1e-15 relative for a segment of a
+    128-segment polyline)."""
+    u = ((torch.arange(sub, dtype=a.dtype)[:, None] + torch.as_tensor(_GL_X, dtype=a.dtype)[None])
          / sub).reshape(-1)
-    h = s[1:] - s[:-1]
-    nodes = (s[:-1, None] + h[:, None] * u[None]).reshape(-1)
+    h = b - a
+    nodes = (a[:, None] + h[:, None] * u[None]).reshape(-1)
     speed = torch.linalg.norm(curve.evaluate(nodes)[1], dim=1).reshape(len(h), sub, 4)
-    return h / sub * (speed * torch.as_tensor(_GL_W, dtype=s.dtype)).sum((1, 2))
+    return h / sub * (speed * torch.as_tensor(_GL_W, dtype=a.dtype)).sum((1, 2))

@@ -71,8 +71,8 @@ def chunked(fn: Callable[[torch.Tensor], torch.Tensor], x: torch.Tensor,
 
 
 def dot(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
-    """Row-wise dot product of (N, D) tensors.
+    """Dot product over the last axis of (..., D) tensors (row-wise for (N, D)).
 
     A matrix-vector product with ones: about 6x faster than (a * b).sum(1) for D = 3 on CPU,
     and this sits on the per-point hot path of every relative-coordinate query."""
-    return (a * b) @ torch.ones(a.shape[1], dtype=a.dtype, device=a.device)
+    return (a * b) @ torch.ones(a.shape[-1], dtype=a.dtype, device=a.device)

@@ -6,14 +6,15 @@ independent reference it is held to, shared by tests/geometry and bench/geometry
 and the bench's `closest_point_excess_max` come from the same generator. Everything is
 vectorised torch over points (Python loops run over GCs and chunks only).
 
-Cases (`closest_point_cases`): Bezier curves of degree 1-5 from three families (gently to
+Cases (`closest_point_cases`): Bezier curves of degree 1-5 from four families (gently to
 sharply turning random walks; control points scattered in a box: loops and tight bends; flat
-boxes turned in space, kept when two arcs far apart along the curve pass close: tubes that
-overlap themselves), radii up to the curvature limit 1 / max kappa, and points
+boxes turned in space, kept when two arcs pass close (CLOSE_ARCS): far apart along the curve,
+or near enough along it for both to lie in the kernel's local window: tubes that overlap
+themselves), radii up to the curvature limit 1 / max kappa, and points
   - uniform in the GC (tube and caps, in relative coordinates), a third of them on the tube's
     surface (at a tight bend: at the centre of curvature, where |C(t) - q| is flattest);
-  - nearly equidistant from two arcs: the midpoint of two curve points far apart along the
-    curve, moved until its two local foot points are equally far, then nudged by 1e-9 to 1e-3
+  - nearly equidistant from two arcs: the midpoint of two curve points more than two limits
+    apart along the curve, moved until its two local foot points are equally far, then nudged by 1e-9 to 1e-3
     of the radius (which arc is closer is then a matter of that nudge).
 """
 from __future__ import annotations
@@ -24,7 +25,8 @@ from typing import Iterator, NamedTuple
 import numpy as np
 import torch
 
-from .arclength import _GL_W, _GL_X
+from .arclength import arc_lengths
+from .arrays import dot
 from .curves import BezierCurve
 from .cylinder import GeneralizedCylinder
 from .errors import GeometryError
@@ -40,26 +42,19 @@ def _polish(gc: GeneralizedCylinder, q: torch.Tensor, s: torch.Tensor, lo: torch
     for _ in range(steps):
         C, d1, d2 = gc.curve.evaluate(s)
         r = C - q
-        g = (r * d1).sum(1)
-        gn = (d1 * d1).sum(1)
-        H = gn + (r * d2).sum(1)
+        g, gn = dot(r, d1), dot(d1, d1)
+        H = gn + dot(r, d2)
         H = torch.where(H > 1e-3 * gn, H, gn)
         s = torch.minimum(torch.maximum(s - g / H, lo), hi)
     return s
 
 
-def _dot(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
-    """Dot product over the last axis (of length 3), as a matmul: several times faster than
-    (a * b).sum(-1) in torch on CPU."""
-    return (a * b) @ torch.ones(3, dtype=a.dtype)
-
-
 def _segment_distance(p: torch.Tensor, A: torch.Tensor, E: torch.Tensor) -> torch.Tensor:
     """Distance from p (..., 3) to the segments [A, E] (..., 3) (broadcast)."""
     AE = E - A
-    lam = (_dot(p - A, AE) / _dot(AE, AE).clamp(min=1e-300)).clamp(0.0, 1.0)
+    lam = (dot(p - A, AE) / dot(AE, AE).clamp(min=1e-300)).clamp(0.0, 1.0)
     e = A + lam[..., None] * AE - p
-    return _dot(e, e).sqrt()
+    return dot(e, e).sqrt()
 
 
 def _capsules(curve, samples: int, levels) -> list:
@@ -77,11 +72,7 @@ def _capsules(curve, samples: int, levels) -> list:
     first = torch.arange(0, samples, size, dtype=torch.float64)
     sa, sb = first / (samples - 1), (first + size - 1) / (samples - 1)
     A, E = curve.evaluate(sa)[0], curve.evaluate(sb)[0]
-    u = torch.as_tensor(np.concatenate([_GL_X / 2, 0.5 + _GL_X / 2]))
-    w = torch.as_tensor(np.concatenate([_GL_W, _GL_W]) / 2)
-    nodes = (sa[:, None] + (sb - sa)[:, None] * u[None]).reshape(-1)
-    speed = curve.evaluate(nodes)[1].norm(dim=1).reshape(len(sa), len(u))
-    arc = (sb - sa) * (speed * w).sum(1) * (1 + 1e-10)
+    arc = arc_lengths(curve, sa, sb, sub=2) * (1 + 1e-10)
     chord = (E - A).norm(dim=1)
     out = [(A, E, 0.5 * (arc * arc - chord * chord).clamp(min=0).sqrt() + 1e-15)]
     for size in reversed(levels[:-2]):
@@ -132,7 +123,7 @@ def _candidates(curve, caps, q, samples, levels):
         A, E, dev = (x[bi] for x in caps[level])
         p = q[pi]
         lower = _segment_distance(p, A, E) - dev
-        upper = torch.minimum(_dot(A - p, A - p), _dot(E - p, E - p)).sqrt()
+        upper = torch.minimum(dot(A - p, A - p), dot(E - p, E - p)).sqrt()
         bound = torch.full((len(q),), math.inf, dtype=upper.dtype).scatter_reduce(
             0, pi, upper, "amin")
         keep = lower <= bound[pi]
@@ -144,7 +135,7 @@ def _candidates(curve, caps, q, samples, levels):
     k = levels[-2]
     idx = bi[:, None] * k + torch.arange(k)[None]  # (pairs, k) the blocks' samples
     e = curve.evaluate(idx.reshape(-1).double() / (samples - 1))[0].reshape(len(bi), k, 3)
-    d, j = _dot(e - q[pi][:, None], e - q[pi][:, None]).min(1)
+    d, j = dot(e - q[pi][:, None], e - q[pi][:, None]).min(1)
     return pi, idx.gather(1, j[:, None])[:, 0], d
 
 

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from .arclength import ArcLength, segment_lengths
+from .arclength import ArcLength, arc_lengths
 from .arrays import DEFAULT_CHUNK, as_numpy, as_tensor, check_points, chunked, dot
 from .curves import Curve, curve_from_dict
 from .errors import GeometryError
@@ -252,7 +252,8 @@ class GeneralizedCylinder:
             x = self.polyline.x.numpy()
             coarse = coarse_indices(len(x), max(2, round(math.sqrt(self.segments))))
             rep = (np.zeros(0), np.zeros(0)) if self.reparam is None else self.reparam
-            chord, bulge = segment_bulge(x, segment_lengths(self.curve, self.polyline.s).numpy())
+            ps = self.polyline.s
+            chord, bulge = segment_bulge(x, arc_lengths(self.curve, ps[:-1], ps[1:]).numpy())
             owned = coarse_owned(coarse)
             ctt = self.curvature_vectors()
             span_k, span_dk = span_bounds(ctt, owned, self.segments, self.length)
