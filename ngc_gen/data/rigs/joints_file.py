@@ -110,4 +110,4 @@ def load_joints_rig(path: str | os.PathLike, mesh: str | os.PathLike | None = No
                rotation=np.tile([0.0, 0.0, 0.0, 1.0], (len(names), 1)), scale=np.ones((len(names), 3)),
                joints=np.arange(len(names)), inverse_bind=ibm, vertices=V,
                faces=np.asarray(m.faces, np.int64), skin_joints=skin_joints, skin_weights=weights,
-               clips={}, source=src)
+               clips={}, source=src, oriented=False)

@@ -76,6 +76,9 @@ class Rig:
     skin_weights: np.ndarray
     clips: dict[str, Clip] = field(default_factory=dict)
     source: str = "<rig>"
+    #: the joints' rotations are real (glTF exporters point each joint's +y along its bone);
+    #: False for a joints file, whose joints have positions only
+    oriented: bool = True
 
     def __post_init__(self):
         self.order = topological_order(self.parent, self.names, self.source)
@@ -135,6 +138,14 @@ class Rig:
     def joint_positions(self, clip: str | None = None, time: float = 0.0) -> np.ndarray:
         """(J, 3) world position of every skin joint at the pose."""
         return self.world_matrices(clip, time)[self.joints, :3, 3]
+
+    def bone_axes(self, clip: str | None = None, time: float = 0.0) -> np.ndarray | None:
+        """(J, 3) unit +y axis of every joint at the pose (along its bone), None when the rig
+        is not `oriented`."""
+        if not self.oriented:
+            return None
+        y = self.world_matrices(clip, time)[self.joints, :3, 1]
+        return y / np.maximum(np.linalg.norm(y, axis=1, keepdims=True), 1e-12)
 
     def skin_matrices(self, clip: str | None = None, time: float = 0.0) -> np.ndarray:
         """(J, 4, 4) T_j B_j^-1 of every joint at the pose."""

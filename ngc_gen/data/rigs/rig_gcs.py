@@ -7,7 +7,8 @@
    weights of a GC's chain and `skinned` joints summed; the proxy's samples take the weights
    of the nearest point of the posed mesh).
 3. Per GC: a least-squares Bezier of the template's degree through its chain's posed joints,
-   extended to the surface past the ends the template marks free; the frame starts from the
+   extended to the surface past the ends the template marks free (a one-joint chain along
+   its bone); the frame starts from the
    template's `up`; radii per key are the smallest ellipses holding the GC's own samples near
    the key, caps the extent of those past the ends.
 4. Coverage repair (`grow_to_cover`): each GC first grows to hold its own samples near it,
@@ -166,15 +167,17 @@ def _extended(end: np.ndarray, d: np.ndarray, own: np.ndarray) -> np.ndarray | N
     return end + d * (tip - r) if tip - r > 1e-3 * max(r, 1e-3) else None
 
 
-def chain_polyline(chain: np.ndarray, own: np.ndarray, extend: tuple[bool, bool]) -> np.ndarray:
+def chain_polyline(chain: np.ndarray, own: np.ndarray, extend: tuple[bool, bool],
+                   axis: np.ndarray | None = None) -> np.ndarray:
     """The polyline (k', 3) a GC's curve is fitted through: its chain's posed joints (k, 3),
     extended to the surface at the ends `extend` marks. A one-joint chain runs from the joint
-    toward the centroid of its own samples."""
+    along `axis` (its bone, (3,)), or without one toward the centroid of its own samples (which
+    ears or antlers pull off the head's own direction)."""
     P = np.asarray(chain, np.float64)
     if len(own) == 0:
         return P
     if len(P) == 1:
-        d = own.mean(0) - P[0]
+        d = own.mean(0) - P[0] if axis is None else np.asarray(axis, np.float64).copy()
         if not np.linalg.norm(d) > 1e-9:
             return P
         d /= np.linalg.norm(d)
@@ -275,6 +278,7 @@ def pose_shape(rig: Rig, template: Template, clip: str | None = None, time: floa
     closed = closed_posed_mesh(V, rig.faces, st.resolution, st.seed)
     mesh, center, scale = normalize(closed, st.bound)
     joints = (rig.joint_positions(clip, time) - center) * scale
+    axes = rig.bone_axes(clip, time)  # normalising is a similarity: directions unchanged
     # per-vertex weight of each GC, then per surface sample of the posed (open) mesh
     wgc = np.zeros((len(V), G))
     cols = owner_j[rig.skin_joints]
@@ -291,7 +295,9 @@ def pose_shape(rig: Rig, template: Template, clip: str | None = None, time: floa
     gcs = []
     for g, tgc in enumerate(template.gcs):
         own = fit_pts[owner == g]
-        poly = chain_polyline(joints[resolved[tgc.name]["chain"]], own, tgc.extend)
+        chain = resolved[tgc.name]["chain"]
+        poly = chain_polyline(joints[chain], own, tgc.extend,
+                              axes[chain[0]] if axes is not None and len(chain) == 1 else None)
         gcs.append(template_gc(tgc, poly, own, st.margin, floor, where))
     for g in range(G):  # alone: a sample inside another GC must still end up in its own
         own = fit_pts[owner == g]

@@ -209,3 +209,18 @@ def test_template_gcs_on_a_rig_follow_its_chains(tmp_path):
     assert up[0][1] < shoulder[1] - 0.01 and abs(up[0][0] - shoulder[0]) < 1e-6
     np.testing.assert_allclose(low[0], elbow, atol=1e-6)
     assert low[-1][0] > hand[0] + 0.01
+
+
+def test_a_one_joint_chain_follows_its_bone_not_its_antlers(small):
+    from ngc_gen.data.rigs.rig_gcs import chain_polyline
+
+    np.testing.assert_allclose(small.bone_axes()[1], [0, 1, 0], atol=1e-9)
+    np.testing.assert_allclose(small.bone_axes("Bend", 1.0)[1], [-1, 0, 0], atol=1e-6)
+    rng = np.random.default_rng(0)
+    snout = rng.uniform([-0.1, -0.1, 0.0], [0.1, 0.1, 1.0], (2000, 3))     # the head, along +z
+    antler = rng.uniform([-0.05, 0.0, 0.0], [0.05, 1.5, 0.1], (2000, 3))   # a tall antler, +y
+    own = np.concatenate([snout, antler])
+    along = chain_polyline(np.zeros((1, 3)), own, (False, True), axis=np.array([0.0, 0.0, 1.0]))
+    assert along.shape == (2, 3) and along[1, 2] > 0.7 and abs(along[1, 1]) < 1e-9
+    pulled = chain_polyline(np.zeros((1, 3)), own, (False, True))  # no bone axis: the centroid
+    assert pulled[1, 1] > pulled[1, 2]
