@@ -8,7 +8,7 @@ BIN := $(VENV)/bin
 # the benches, in the order `make bench` runs them (sparse-settings reads deform's and autogc's
 # fits; condition and reconstruct reuse generate's; fit-ablation reads fit's ceiling)
 BENCHES := geometry up-axis fit fit-ablation deform extract autogc sparse-settings editor \
-	generate condition reconstruct ddp demo cli animals
+	generate condition reconstruct ddp demo cli animals transfer
 
 .PHONY: setup chromium test test-all bench bench-report $(addprefix bench-,$(BENCHES)) bench-up \
 	demo demo-animals clean

@@ -9,6 +9,10 @@ seconds with every core (the fused kernel follows torch's thread count; target >
 cores, meaningful on an idle machine: the load average is recorded). Baseline in the same run:
 the plain polyline projection over all 128 segments (the alternative docs/gcs.md describes), with its
 round-trip error next to ours; round trips of float64 and of float32 points (target < 1e-5).
+Closest points: the property test's generator and brute force (ngc_gen.geometry.closest_check:
+random Bezier GCs of degrees 1-5, points inside and nearly equidistant from two arcs):
+closest_point_excess_max, how much farther the kernel's foot point is than the brute force's
+(target <= 1e-9), over closest_point_points points (>= 1e5).
 Preparation: `prepare_shape` from scratch (empty cache) for 100k samples on the shipped shapes.
 """
 from __future__ import annotations
@@ -27,6 +31,7 @@ sys.path.insert(0, str(ROOT))
 
 from bench._harness import Bench, load_1min  # noqa: E402
 from ngc_gen.geometry import GeneralizedCylinder  # noqa: E402
+from ngc_gen.geometry.closest_check import closest_point_check  # noqa: E402
 
 GC = {"name": "bench", "curve": {"type": "bezier", "points": [[-0.6, 0, 0], [-0.2, 0.4, 0.1],
                                                               [0.2, -0.3, 0.2], [0.6, 0.1, 0]]},
@@ -104,6 +109,10 @@ def bench_relcoords(n=1_000_000):
             "roundtrip_err_polyline": err_poly}
 
 
+def bench_closest_point():
+    return closest_point_check()
+
+
 def bench_prepare():
     from ngc_gen.data.annotations import load_annotation
     from ngc_gen.data.autogc.auto import AutoGCSettings, auto_annotation
@@ -140,6 +149,7 @@ def main():
     bench = Bench("geometry")   # the machine record (bench/_harness.py) is added on writing
     res = {"omp_wait_policy": os.environ.get("OMP_WAIT_POLICY")}
     res.update(bench_relcoords())
+    res.update(bench_closest_point())
     res.update(bench_prepare())
     print(f"machine load (1 min average) at start: {bench.load_before}"
           f" on {os.cpu_count()} cores: timings are only meaningful on an idle machine")
@@ -152,6 +162,9 @@ def main():
     print(f"  round-trip error: newton {res['roundtrip_err_newton']:.2e} (float32 points "
           f"{res['roundtrip_err_newton_float32']:.2e}), polyline "
           f"{res['roundtrip_err_polyline']:.2e}")
+    print(f"closest point   : foot at most {res['closest_point_excess_max']:.1e} farther than the "
+          f"brute force's over {res['closest_point_points']} points in "
+          f"{res['closest_point_gcs']} random GCs (target <= 1e-9)")
     print(f"prepare         : {res['prepare_s_per_shape']:.2f} s/shape for "
           f"{res['prepare_n_samples']} samples (target <= 2)")
     for k, v in res["prepare_shapes"].items():

@@ -537,10 +537,30 @@ def cli(r: dict) -> str:
     return "\n".join(lines)
 
 
+def transfer(r: dict) -> str:
+    a, c = r["animals"], r["creatures"]
+    rows = [["posed animals, rig withheld", a["n"], pct(a["matched"], 1), pct(a["purity_mean"], 1),
+             pct(a["purity_worst"], 1), f"{a['endpoint_err_median']:.3f}",
+             f"{a['s_per_mesh']:.1f}"],
+            ["procedural creatures, annotations withheld", c["n"], "", pct(c["purity_mean"], 1),
+             "", "", ""]]
+    lines = rows_table(["collection", "meshes", "matched", "purity mean", "purity worst",
+                        "endpoint error (median, x length)", "s / mesh"], rows)
+    gen = r.get("generator") or {}
+    measured = [k for k in ("rig", "transferred") if (gen.get(k) or {}).get("mmd_cd") is not None]
+    lines += ["", "Refused by the quadruped template: "
+              + (", ".join(f"`{n}`" for n in r["refused"]) or "none")
+              + " (of a chair, a torus and a sphere). Generator trained on transferred GCs "
+              + ("against rig GCs: " + "; ".join(
+                  f"{k} MMD-CD {1e3 * gen[k]['mmd_cd']:.3f} x1e-3, 1-NNA {pct(gen[k]['nna_cd'], 1)}"
+                  for k in measured) if measured else "against rig GCs: not measured yet") + "."]
+    return "\n".join(lines)
+
+
 TABLES = {"animals": animals, "cli": cli, "autogc": autogc, "condition": condition, "ddp": ddp, "deform": deform, "demo": demo,
           "editor": editor, "extract": extract, "fit": fit, "fit_ablation": fit_ablation,
           "generate": generate, "geometry": geometry, "reconstruct": reconstruct,
-          "sparse_settings": sparse_settings, "up_axis": up_axis}
+          "sparse_settings": sparse_settings, "transfer": transfer, "up_axis": up_axis}
 
 
 def scalars(res: dict) -> str:

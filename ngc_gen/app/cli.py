@@ -48,12 +48,15 @@ def os_error_message(e: OSError) -> str:
 
 def one_line_message(e: BaseException) -> str | None:
     """The one-line message of a bad-input error, or None if `e` is a bug (traceback)."""
-    from omegaconf.errors import MissingMandatoryValue
+    from omegaconf.errors import InterpolationToMissingValueError, MissingMandatoryValue
 
     if isinstance(e, user_error_types()):
         return " ".join(str(e).split("\n"))
-    if isinstance(e, MissingMandatoryValue):
-        key = getattr(e, "full_key", None) or str(e).split(":")[-1].strip()
+    if isinstance(e, (MissingMandatoryValue, InterpolationToMissingValueError)):
+        # the ??? key itself, also when it was met resolving another key (data.name: ${.path})
+        named = re.search(r"Missing mandatory value: (\S+)", str(e))
+        key = named.group(1) if named else (getattr(e, "full_key", None)
+                                            or str(e).split(":")[-1].strip())
         return f"{key} is not set (??? in the config). Fix: pass {key}=<value>"
     if isinstance(e, OSError) and e.errno in ENVIRONMENT_ERRNOS:
         return os_error_message(e)

@@ -20,10 +20,13 @@ def load_checkpoint_dict(path: Path, fix: str, map_location="cpu") -> dict:
     """torch.load(weights_only=True) with a DataError for files that are not checkpoints."""
     try:
         ckpt = torch.load(path, map_location=map_location, weights_only=True)
-    except pickle.UnpicklingError as e:  # weights_only refused a Python object in the file
+    except pickle.UnpicklingError as e:
         blocked = re.search(r"GLOBAL (\S+)", str(e))
+        if not blocked:  # not a pickle weights_only can read at all (text, truncated, other)
+            raise DataError(f"{path} is not a loadable checkpoint (not a torch file)",
+                            fix=fix) from None
         raise DataError(f"{path} holds pickled Python objects besides tensors and plain data"
-                        + (f" ({blocked.group(1)})" if blocked else "") + "; it is refused "
+                        f" ({blocked.group(1)}); it is refused "
                         "because loading it could run code from the file",
                         fix=f"{fix}; use checkpoints this project wrote, and never turn the "
                             "weights_only protection off for a file you did not make") from None

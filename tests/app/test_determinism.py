@@ -37,7 +37,7 @@ def test_same_seed_and_config_give_identical_runs(tmp_path):
     a, b = tmp_path / "a", tmp_path / "b"
     ma, mb = fit(folder, a), fit(folder, b)
     assert without_timings(ma) == without_timings(mb) and ma["mean"]["cd"] > 0
-    cache = "cache/prepared/folder/torus.npz"
+    cache = "cache/prepared/meshes/torus.npz"
     assert (a / cache).read_bytes() == (b / cache).read_bytes()
     wa, wb = (torch.load(r / "run/checkpoints/last.ckpt", weights_only=True)["state_dict"]
               for r in (a, b))

@@ -18,7 +18,7 @@ def test_folder_dataset_prepares_with_auto_gc(tmp_path):
     assert r.returncode == 0, r.stderr
     assert "pill" in r.stdout and "brick" in r.stdout and "100.000%" in r.stdout
     assert "pill: GCs trunk" in r.stdout  # every shape's GC names are printed
-    cached = sorted(p.name for p in (tmp_path / "cache/prepared/folder").glob("*.npz"))
+    cached = sorted(p.name for p in (tmp_path / "cache/prepared/meshes").glob("*.npz"))
     assert cached == ["brick.npz", "pill.npz"]
 
 

@@ -102,6 +102,11 @@ class Animals:
         self.settings = RigGCSettings.from_config(gcs)
         self.download, self.workers, self.progress = download, workers, progress
 
+    @property
+    def gcs(self) -> dict:
+        """The GC settings as the config gives them (data.gcs)."""
+        return asdict(self.settings)
+
     # ---- names and splits -------------------------------------------------------------------
     def entries(self) -> list[dict]:
         """Every shape of the dataset: {name, species, clip, frame, split}, in a fixed order."""
