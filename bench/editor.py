@@ -108,12 +108,14 @@ def time_case(server, act, repeats: int) -> dict:
             "preview_all_s": prev, "refine_all_s": ref}
 
 
-# in the page: the time of each Enter in a number box (the input event), and per status line
-# "mesh: version V, R^3" the time it appeared and the time two animation frames later (the
-# frame that draws the mesh the same message brought has been rendered)
+# in the page: the time of the first input event (the box's value changed, or Enter) since the
+# bench cleared it, and per status line "mesh: version V, R^3" the time it appeared and the time
+# two animation frames later (the frame that draws the mesh the same message brought)
 INSTRUMENT_JS = """() => {
   const rec = window.__ngc = {input: null, shown: {}};
-  document.addEventListener('keydown', e => { if (e.key === 'Enter') rec.input = performance.now(); }, true);
+  const first = () => { if (rec.input === null) rec.input = performance.now(); };
+  document.addEventListener('input', first, true);
+  document.addEventListener('keydown', e => { if (e.key === 'Enter') first(); }, true);
   const re = /mesh: version (\\d+), (\\d+)\\^3, \\d+ faces, ([\\d.]+) s/;
   new MutationObserver(() => {
     const m = document.body.innerText.match(re);
@@ -163,6 +165,7 @@ def browser_latency(cfg, gc: str, repeats: int) -> list[dict]:
                 rows = []
                 for i in range(repeats):
                     version = session.version + 1
+                    page.evaluate("window.__ngc.input = null")
                     browser.set_number(page, label, value(i))
                     try:
                         browser.wait_for_mesh(page, version, ref, 60)
@@ -181,6 +184,8 @@ def browser_latency(cfg, gc: str, repeats: int) -> list[dict]:
                         "preview_s": None if not shown_p or shown_p["drawn"] is None
                         else (shown_p["drawn"] - t_in) / 1e3,
                         "refine_s": (shown_r["drawn"] - t_in) / 1e3,
+                        "preview_status_s": None if not shown_p
+                        else (shown_p["status"] - t_in) / 1e3,
                         "server_preview_s": shown_p and shown_p["server_s"],
                         "server_refine_s": shown_r["server_s"]})
                     if not session.ops or session.ops[-1].get("gc") != gc:

@@ -344,10 +344,12 @@ def editor(r: dict) -> str:
         target = s.get("browser_target_s", 0.5)
         lines += ["", "In the browser (headless Chromium; input event -> mesh drawn):", ""]
         lines += rows_table(
-            ["shape", "typed into", f"preview drawn (s)", "server preview extraction (s)",
-             "refined drawn (s)", "server refine extraction (s)"],
-            [[c["shape"], c["interaction"], sec(c["preview_s"]), sec(c["server_preview_s"]),
-              sec(c["refine_s"]), sec(c["server_refine_s"])] for c in r["browser"]])
+            ["shape", "typed into", "preview's status line (s)", "preview drawn (s)",
+             "server preview extraction (s)", "refined drawn (s)",
+             "server refine extraction (s)"],
+            [[c["shape"], c["interaction"], sec(c.get("preview_status_s")), sec(c["preview_s"]),
+              sec(c["server_preview_s"]), sec(c["refine_s"]), sec(c["server_refine_s"])]
+             for c in r["browser"]])
         ok = sum(c["preview_s"] is not None and c["preview_s"] <= target for c in r["browser"])
         lines += ["", f"{ok} of {len(r['browser'])} previews drawn within the {target:g} s "
                       f"target (refined: after the {s['refine_delay_s']:g} s idle delay)."]
