@@ -1,4 +1,4 @@
-"""`make demo` on a fresh clone, timed: what a new user waits for (README "Two commands").
+"""`make demo` on a fresh clone, timed: what a new user waits for (README, "Two commands").
 
     python bench/demo.py [--commit HEAD] [--workdir /tmp]
 

@@ -3,6 +3,9 @@
     python bench/report.py            # rewrite the tables in bench/README.md (make bench-report)
     python bench/report.py --check    # exit 1 and show the difference if a table is stale
 
+The project README's "Results at a glance" is the `glance` block: one headline per bench
+(`GLANCE[name](result)`), from the same results.
+
 Each bench's section of bench/README.md holds one block between `<!-- table:<name> -->` and
 `<!-- /table:<name> -->`; everything between the markers is replaced by `block(name, result)`:
 the bench's tables (`TABLES[name](result)`) and one line from its machine record
@@ -24,6 +27,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "bench/results"
 README = ROOT / "bench/README.md"
+PAGES = (README, ROOT / "README.md")   # the project README holds the `glance` block
 BLOCK = re.compile(r"(<!-- table:(?P<name>[a-z_]+) -->\n)(?P<body>.*?)(<!-- /table:(?P=name) -->)",
                    re.S)
 
@@ -567,6 +571,145 @@ TABLES = {"animals": animals, "cli": cli, "autogc": autogc, "condition": conditi
           "sparse_settings": sparse_settings, "transfer": transfer, "up_axis": up_axis}
 
 
+# ---- the README's "Results at a glance": one line per bench, from the same results ------------
+def sci(x: float, exp: int = -3) -> str:
+    """x in units of 10^exp: sci(6.6e-3) -> '6.60e-3'."""
+    return f"{x / 10.0 ** exp:.2f}e{exp}"
+
+
+def _glance_demo(r):
+    m, f = r["measured"], r["steps"]["fit"]
+    return (f"`make demo` on a fresh clone: {m['make_demo_wall_s']:.0f} s, setup included; fit CD "
+            f"{sci(f['cd'], -4)}, F-score {f['fscore']:.3f}; edit eps_V "
+            f"{pct(r['steps']['edit']['eps_v'], 3)}")
+
+
+def _glance_fit(r):
+    n, d = r["methods"]["ngc"], r["methods"]["deepsdf"]
+    return (f"{len(r['shapes'])} shapes, {r['steps']} steps: NGC CD {sci(n['cd'], -4)}, NC "
+            f"{n['nc']:.3f}, F {n['fscore']:.3f}; DeepSDF, same budget: {sci(d['cd'], -4)}, "
+            f"{d['nc']:.3f}, {d['fscore']:.3f}")
+
+
+def _glance_fit_ablation(r):
+    runs = r["runs"]
+    best = max(runs, key=lambda k: runs[k]["fscore"])
+    b = runs["baseline"]
+    return (f"{len(runs)} recipes screened; best `{best}` against `baseline`: F {b['fscore']:.3f} "
+            f"-> {runs[best]['fscore']:.3f}, fragments {b['fragments']} -> "
+            f"{runs[best]['fragments']}")
+
+
+def _glance_deform(r):
+    m = r["mean"]
+    return (f"volume change NGC {pct(m['ngc']['eps_v'])} vs ARAP {pct(m['arap']['eps_v'])} (mean "
+            f"of {len(r['cases'])} edits); edit to mesh at 256^3 {r['edit_to_mesh_s_256']:.2f} s vs "
+            f"ARAP {r['arap_s_matched']:.2f} s")
+
+
+def _glance_extract(r):
+    c = next(c for c in r["cases"] if c["shape"] == "creature" and c["resolution"] == 256)
+    return (f"creature at 256^3: 1/{1 / c['sparse_over_dense_evals']:.0f} of the dense "
+            f"evaluations, {c['sparse_s']:.2f} s, "
+            + ("mesh identical to the reference" if c["identical_mesh"] else
+               f"{c['faces_differing']} faces differ from the reference"))
+
+
+def _glance_sparse_settings(r):
+    t = r["summary"]["track"]
+    return f"default settings: {t['identical']} of {t['cases']} fitted meshes identical to the reference"
+
+
+def _glance_reconstruct(r):
+    return f"held-out creatures into the generator: CD {r['ratio']['mean']:.2f}x a direct fit"
+
+
+def _glance_generate(r):
+    g, t = r["generated"], r["train_set"]
+    return (f"MMD-CD {sci(g['mmd_cd'])}, COV {pct(g['cov_cd'], 1)}, 1-NNA {pct(g['nna_cd'], 1)} "
+            f"(training meshes {sci(t['mmd_cd'])}, {pct(t['cov_cd'], 1)}, {pct(t['nna_cd'], 1)})")
+
+
+def _glance_condition(r):
+    return (f"GC error {r['gc_err']:.3f} std; Chamfer to the source {sci(r['cd_conditional'])} vs "
+            f"{sci(r['cd_unconditional'])} unconditioned")
+
+
+def _glance_autogc(r):
+    t, c = r["targets"], r["creatures"]
+    return (f"{len(r['meshes'])} meshes, coverage >= {pct(t['coverage_min'], 2)}, at most "
+            f"{t['time_s_max']:.1f} s each; {pct(c['part_single_gc_mean'], 1)} of a creature part "
+            f"in one GC")
+
+
+def _glance_editor(r):
+    pre = [c["preview_s"] for c in r["cases"]]
+    ref = [c["refine_s"] for c in r["cases"]]
+    line = (f"an interaction to its preview in {span(pre)} s, refined at "
+            f"{r['settings']['refine_resolution']}^3 in {span(ref)} s (server side)")
+    drawn = [c["preview_s"] for c in r.get("browser", []) if c["preview_s"] is not None]
+    if drawn:
+        line += f"; drawn in headless Chromium {span(drawn)} s after the input"
+    return line
+
+
+def _glance_geometry(r):
+    line = (f"relative coordinates at {r['relcoords_points_per_s_wall_all_cores'] / 1e6:.1f}M "
+            f"points/s, round trip {r['roundtrip_err_newton']:.1e}")
+    if "closest_point_excess_max" in r:
+        line += f"; foot point within {r['closest_point_excess_max']:.0e} of the brute force's"
+    return line
+
+
+def _glance_ddp(r):
+    return f"2 CPU processes: {r['speedup_samples_per_s']:.2f}x the samples per second of one"
+
+
+def _glance_up_axis(r):
+    t = r["totals"]
+    return f"up axis right in {t['right']} of {t['orientations']} orientations"
+
+
+def _glance_animals(r):
+    c = r["clips"]
+    return (f"{r['n_train']} posed animals: vs held-out clips 1-NNA {pct(c['generated']['nna_cd'], 1)}"
+            f" (ceiling {pct(c['train_set']['nna_cd'], 1)}, floor {pct(c['noise']['nna_cd'], 1)});"
+            f" rig GCs purity >= {pct(r['purity_worst'], 1)}; rest-pose fits F >= "
+            f"{r['fit_fscore_min']:.3f}")
+
+
+def _glance_transfer(r):
+    a = r["animals"]
+    return (f"quadruped template on {a['n']} posed animals, rig withheld: {pct(a['matched'], 1)} "
+            f"matched, purity {pct(a['purity_mean'], 1)} (worst GC {pct(a['purity_worst'], 1)}); "
+            f"creatures {pct(r['creatures']['purity_mean'], 1)}")
+
+
+def _glance_cli(r):
+    rej = r["reject_s"].values()
+    return (f"bad input rejected in {span(list(rej))} s; an edit at 128^3 {r['edit_s_128']:.1f} s "
+            f"end to end; `--help` {r['help_s']:.1f} s")
+
+
+GLANCE = {"demo": _glance_demo, "fit": _glance_fit, "fit_ablation": _glance_fit_ablation,
+          "deform": _glance_deform, "extract": _glance_extract,
+          "sparse_settings": _glance_sparse_settings, "reconstruct": _glance_reconstruct,
+          "generate": _glance_generate, "condition": _glance_condition, "animals": _glance_animals,
+          "transfer": _glance_transfer, "autogc": _glance_autogc, "editor": _glance_editor,
+          "cli": _glance_cli, "geometry": _glance_geometry, "ddp": _glance_ddp,
+          "up_axis": _glance_up_axis}
+
+
+def glance(results: Path = RESULTS) -> str:
+    """The README's results table: one headline per bench that has a result."""
+    rows = []
+    for name, fn in GLANCE.items():
+        path = Path(results) / f"{name}.json"
+        if path.is_file():
+            rows.append([f"[{name}](bench/README.md#{name})", fn(json.loads(path.read_text()))])
+    return "\n".join(rows_table(["benchmark", "headline (latest result)"], rows)) + "\n"
+
+
 def scalars(res: dict) -> str:
     """A bench without a table of its own here yet: its top-level numbers, strings and
     booleans as a key / value table."""
@@ -581,7 +724,10 @@ def table(name: str, res: dict) -> str:
 
 
 def block(name: str, results: Path = RESULTS) -> str:
-    """What bench/README.md holds between the markers of `name`."""
+    """What bench/README.md holds between the markers of `name` (`glance`: the project
+    README's results table)."""
+    if name == "glance":
+        return glance(results)
     path = Path(results) / f"{name}.json"
     if not path.is_file():
         return f"No result yet: run `make bench-{name.replace('_', '-')}`.\n"
@@ -602,23 +748,26 @@ def blocks_in(text: str) -> list[str]:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--check", action="store_true", help="exit 1 if bench/README.md is stale")
+    ap.add_argument("--check", action="store_true", help="exit 1 if a page is stale")
     args = ap.parse_args(argv)
-    old = README.read_text()
-    new = render(old)
-    if args.check:
-        if new != old:
+    stale = 0
+    for page in PAGES:
+        old = page.read_text()
+        new = render(old)
+        if new == old:
+            continue
+        name = str(page.relative_to(ROOT))
+        if args.check:
             sys.stdout.writelines(difflib.unified_diff(
-                old.splitlines(True), new.splitlines(True), "bench/README.md", "generated"))
-            return 1
-        return 0
-    if new != old:
+                old.splitlines(True), new.splitlines(True), name, "generated"))
+            stale = 1
+            continue
         sys.path.insert(0, str(ROOT))
         from bench._harness import write_atomic
 
-        write_atomic(README, new)
-        print(f"rewrote {README.relative_to(ROOT)}: {', '.join(blocks_in(new))}")
-    return 0
+        write_atomic(page, new)
+        print(f"rewrote {name}: {', '.join(blocks_in(new))}")
+    return stale
 
 
 if __name__ == "__main__":

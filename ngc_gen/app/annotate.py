@@ -1,4 +1,4 @@
-"""Stage `annotate`: automatic GCs for every mesh of a dataset (README "Automatic GCs").
+"""Stage `annotate`: automatic GCs for every mesh of a dataset (docs/autogc.md).
 
     python train.py stage=annotate data=folder data.path=DIR [annotate.write_beside=true]
 

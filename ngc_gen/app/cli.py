@@ -175,7 +175,7 @@ def busy_cores(window: float = 0.25, stat: str = "/proc/stat") -> float:
 
 def auto_threads(cores: int | None = None, load: float | None = None) -> int:
     """The `threads=auto` rule: the cores no other job is using, at least one. Measured here
-    (bench notes in README "Threads"): on 2 cores, an NGC training step takes 77 ms with one
+    (docs/scaling.md, "Threads, seeds, progress"): on 2 cores, an NGC training step takes 77 ms with one
     thread and 334 ms with two while one other process runs, because torch's two threads wait
     on each other when one is descheduled; on an idle machine two threads are faster. `load`:
     the busy cores (default `busy_cores()`, sampled now)."""

@@ -120,7 +120,7 @@ def run_edit(cfg) -> dict:
 
     # ---- outputs (nothing above wrote a file) ----
     # GCs and mesh share the fitted NGC frame: `normalize: false` keeps it, so the file can be
-    # prepared and fitted again as it is (an AnnotatedShapes list, see the README)
+    # prepared and fitted again as it is (an AnnotatedShapes list, docs/editing.md)
     edited = Annotation(name=f"{shape}_{program.name}", mesh=str(out_dir / "deformed.ply"),
                         gcs=edited.gcs, bound=None)
     header = (f"# GCs of '{shape}' after edit program '{program.name}' ({program.source}), in "

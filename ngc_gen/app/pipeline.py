@@ -90,7 +90,7 @@ def plan(cfg: DictConfig, run_dir: Path) -> list[tuple[str, DictConfig]]:
             raise _fail(f"step {step!r} asks for several processes ({trainer.get('strategy')}, "
                         f"devices {trainer.get('devices')})", step,
                         fix=f"run it as its own command: python train.py stage={step} "
-                            f"trainer=ddp ... (README, Scaling out)")
+                            f"trainer=ddp ... (docs/scaling.md)")
         out.append((step, composed))
     return out
 

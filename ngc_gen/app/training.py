@@ -82,7 +82,7 @@ def quiet_lightning() -> None:
     # so an epoch shorter than log_every_n_steps loses no log line (Lightning warns anyway)
     warnings.filterwarnings("ignore", message=r".*smaller than the logging interval")
     # resuming (ngc_gen.app.resume): the run directory's logs and checkpoints are continued on
-    # purpose, and the interrupted epoch's batches are drawn again (README, "Scaling out")
+    # purpose, and the interrupted epoch's batches are drawn again (docs/scaling.md)
     for message in (r"Experiment logs directory .* exists and is not empty",
                     r"Checkpoint directory .* exists and is not empty",
                     r"You're resuming from a checkpoint that ended before the epoch ended"):

@@ -24,6 +24,20 @@ def test_the_readme_tables_equal_the_results():
                            "`make bench-report` (python bench/report.py)")
 
 
+def test_the_project_readme_results_equal_the_results(tmp_path):
+    """README.md's "Results at a glance" is generated too, and follows a changed result."""
+    text = (ROOT / "README.md").read_text()
+    assert "<!-- table:glance -->" in text
+    assert report.render(text) == text, ("README.md's results table differs from "
+                                         "bench/results/*.json: run `make bench-report`")
+    shutil.copytree(ROOT / "bench/results", tmp_path / "results")
+    path = tmp_path / "results/ddp.json"
+    res = json.loads(path.read_text())
+    res["speedup_samples_per_s"] = 1.91
+    path.write_text(json.dumps(res))
+    assert "1.91x the samples per second" in report.render(text, tmp_path / "results")
+
+
 def test_a_changed_result_changes_its_table(tmp_path):
     """The check above has teeth: a figure changed in a JSON shows in the regenerated text."""
     shutil.copytree(ROOT / "bench/results", tmp_path / "results")
