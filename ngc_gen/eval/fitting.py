@@ -179,9 +179,10 @@ def mesh_chamfer(a: trimesh.Trimesh, b: trimesh.Trimesh, n: int = 30_000, seed: 
     return total
 
 
-def component_sizes(mesh: trimesh.Trimesh) -> np.ndarray:
-    """Face count of each connected component (faces joined through shared vertices; vertices at
-    the same position count as one, so an unmerged triangle soup is not split), largest first."""
+def face_components(mesh: trimesh.Trimesh) -> np.ndarray:
+    """(F,) int64 connected-component label of each face, labels 0..C-1 (faces joined through
+    shared vertices; vertices at the same position count as one, so an unmerged triangle soup
+    is not split)."""
     faces = np.asarray(mesh.faces, dtype=np.int64)
     if len(faces) == 0:
         return np.zeros(0, dtype=np.int64)
@@ -189,7 +190,14 @@ def component_sizes(mesh: trimesh.Trimesh) -> np.ndarray:
     f = vid.reshape(-1)[faces]
     edges = np.concatenate([f[:, [0, 1]], f[:, [1, 2]]])
     labels = trimesh.graph.connected_component_labels(edges, node_count=int(vid.max()) + 1)
-    return np.sort(np.bincount(labels[f[:, 0]]))[::-1]
+    _, out = np.unique(labels[f[:, 0]], return_inverse=True)
+    return out.reshape(-1).astype(np.int64)
+
+
+def component_sizes(mesh: trimesh.Trimesh) -> np.ndarray:
+    """Face count of each connected component (``face_components``), largest first."""
+    labels = face_components(mesh)
+    return np.sort(np.bincount(labels))[::-1] if len(labels) else np.zeros(0, dtype=np.int64)
 
 
 def fragments(mesh: trimesh.Trimesh, fraction: float = 0.01) -> int:

@@ -256,7 +256,7 @@ def test_each_entry_point_composes_its_own_groups():
 
 @pytest.mark.parametrize("script, groups", [
     ("train.py", {"annotate", "callbacks", "data", "diffusion", "experiment", "extract", "logger",
-                  "model",
+                  "metrics", "model",
                   "paths", "prepare", "reconstruct", "shape_latent", "trainer", "viz"}),
     ("edit.py", {"edit", "editor", "extract", "viz"}),
     ("sample.py", {"extract", "mode", "viz"}),

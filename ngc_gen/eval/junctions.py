@@ -1,0 +1,190 @@
+"""Junction measure: is a fit worse where GCs meet than elsewhere, and does it leave loose pieces?
+
+NGC takes the minimum of per-GC networks, each trained only inside its own GC; where GCs
+overlap, and at a GC's boundary inside another GC (where the minimum stops seeing that GC),
+nothing makes the networks agree, and a seam (crease, ridge, step) can appear that the global
+metrics average away. Conventions (distances in the meshes' own units):
+
+- *Relative radius* of a point in a GC: rho = sqrt(max(|u| - 1, 0)^2 + a^2 + b^2) from its
+  relative coordinates (u, a, b) (docs/gcs.md): rho <= 1 inside, 1 on the GC's boundary, in units
+  of the GC's radii (and cap lengths past an end).
+- *Junction* sample: at least two GCs have rho <= 1 + ``band``. That is the overlap of two GCs
+  (``band`` = 0) grown by a band of relative width ``band`` around each GC boundary that lies
+  inside another GC: a point just outside GC g but inside GC h (g's boundary inside the union),
+  or just inside g near h's boundary. Every other sample is *elsewhere*.
+- ``n_samples`` points on the fitted surface (``sample_surface``, deterministic); for each, its
+  exact distance to the true surface and the angle (degrees, orientation ignored, in [0, 90])
+  between its face's normal and the normal of the nearest true face. The true surface is the
+  boundary of the solid the truth bounds: faces inside another closed piece (the ant's) are left
+  out, as in ``sample_boundary`` (a face is kept when any of 4 points on it is on the boundary).
+- ``junction_ratio_dist`` = mean distance on junction samples / mean distance elsewhere;
+  ``junction_ratio_normal`` the same with the angle. 1: junctions no worse than the rest.
+  NaN when either set is empty (one GC has no junction); 1 when both means are 0, inf when only
+  the one elsewhere is. Distances and angles at rounding level (``ROUNDING``) count as 0.
+- ``extra_pieces``: the fit's pieces beyond the truth's. A fitted mesh is a level set, whose
+  connected components (``face_components``) never intersect, so each is a piece. The truth's
+  pieces are its components joined where they come closer than ``join`` (intersecting closed
+  pieces, like the ant's, are one solid; gaps under a grid cell are not resolved by any fit).
+  Each fitted piece is matched to the true piece its faces are nearest to (majority of up to 32
+  faces per piece); extra_pieces = sum over true pieces of (fitted pieces matched - 1, if
+  positive): a loose horn tip, a floater and a piece broken in two each count one.
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+import trimesh
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
+
+from ngc_gen.eval.fitting import _to_surface, face_components
+from ngc_gen.eval.sampling import is_empty, on_solid_boundary, sample_surface
+from ngc_gen.geometry import GeneralizedCylinder
+
+FACES_PER_PIECE = 32      # faces of each fitted piece that vote for its true piece
+MAX_JOIN_SAMPLES = 400_000
+ROUNDING = 1e-9           # distances under this x the truth's box diagonal, and angles whose
+                          # cosine is this close to 1, are 0 (float64 rounding, not error)
+
+
+def relative_radius(points: np.ndarray, gcs: Sequence[GeneralizedCylinder],
+                    reach: float) -> np.ndarray:
+    """(G, N) rho of points (N, 3) in every GC (module docstring), exact up to rho = 1 + reach
+    and inf beyond: only points inside a GC's box grown by reach x its largest radius or cap
+    are solved for, the others cannot come that close."""
+    points = np.asarray(points, dtype=np.float64)
+    rho = np.full((len(gcs), len(points)), np.inf)
+    for g, gc in enumerate(gcs):
+        lo, hi = gc.bounds()
+        pad = reach * max(*(r for k in gc.keys for r in k.radii), *gc.caps) * 1.01  # lerped radii
+        cand = np.flatnonzero(((points >= lo - pad) & (points <= hi + pad)).all(axis=1))
+        if len(cand) == 0:
+            continue
+        rel = np.asarray(gc.to_relative(points[cand]))
+        rho[g, cand] = np.sqrt(np.clip(np.abs(rel[:, 0]) - 1.0, 0.0, None) ** 2
+                               + rel[:, 1] ** 2 + rel[:, 2] ** 2)
+    return rho
+
+
+def junction_mask(points: np.ndarray, gcs: Sequence[GeneralizedCylinder],
+                  band: float) -> np.ndarray:
+    """(N,) bool: the point is a junction sample, at least two GCs have rho <= 1 + band."""
+    if band < 0:
+        raise ValueError(f"band must be >= 0 (a relative radius), got {band}")
+    if len(gcs) < 2:
+        return np.zeros(len(points), dtype=bool)
+    return (relative_radius(points, gcs, band) <= 1.0 + band).sum(0) >= 2
+
+
+def boundary_faces(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
+    """The mesh less the faces that lie wholly inside another closed piece (none of 4 points on
+    the face, its centroid and the midpoints toward its corners, has the outside on a side);
+    a mesh that is not watertight is returned as it is (its inside is not defined)."""
+    if not mesh.is_watertight:
+        return mesh
+    tri = np.asarray(mesh.vertices, dtype=np.float64)[np.asarray(mesh.faces)]
+    cen = tri.mean(1)
+    pts = np.concatenate([cen[:, None], 0.5 * (cen[:, None] + tri)], 1)      # (F, 4, 3)
+    nrm = np.repeat(np.asarray(mesh.face_normals, dtype=np.float64), 4, axis=0)
+    keep = on_solid_boundary(mesh, pts.reshape(-1, 3), nrm).reshape(-1, 4).any(1)
+    if keep.all():
+        return mesh
+    return trimesh.Trimesh(mesh.vertices, np.asarray(mesh.faces)[keep], process=False)
+
+
+def solid_pieces(mesh: trimesh.Trimesh, join: float, seed: int = 0) -> tuple[np.ndarray, int]:
+    """((F,) piece label of each face, piece count): connected components joined where they
+    come closer than `join` (two surface samples of different components within `join`, with
+    samples dense enough, <= join / 2 apart on average, that intersecting pieces always meet)."""
+    comp = face_components(mesh)
+    n_comp = int(comp.max()) + 1 if len(comp) else 0
+    if n_comp <= 1:
+        return comp, n_comp
+    n = int(np.clip(np.ceil(4.0 * float(mesh.area) / join ** 2), 10_000, MAX_JOIN_SAMPLES))
+    points, face = trimesh.sample.sample_surface(mesh, n, seed=int(seed))
+    lab = comp[face]
+    pairs = cKDTree(points).query_pairs(float(join), output_type="ndarray")
+    a, b = lab[pairs[:, 0]], lab[pairs[:, 1]]
+    cross = a != b
+    graph = coo_matrix((np.ones(int(cross.sum())), (a[cross], b[cross])), shape=(n_comp, n_comp))
+    n_pieces, piece_of_comp = connected_components(graph, directed=False)
+    return piece_of_comp[comp].astype(np.int64), int(n_pieces)
+
+
+def extra_pieces(pred_mesh: trimesh.Trimesh, gt_mesh: trimesh.Trimesh, join: float,
+                 seed: int = 0) -> dict:
+    """{extra_pieces, pieces, gt_pieces} (module docstring): the fit's components matched to
+    the truth's solid pieces by the nearest true face of up to FACES_PER_PIECE of their faces."""
+    gt_piece, n_gt = solid_pieces(gt_mesh, join, seed)
+    comp = face_components(pred_mesh)
+    n_pred = int(comp.max()) + 1 if len(comp) else 0
+    if n_pred == 0:
+        return {"extra_pieces": 0, "pieces": 0, "gt_pieces": n_gt}
+    # up to FACES_PER_PIECE faces of each component, in a fixed random order
+    order = np.random.default_rng(seed).permutation(len(comp))
+    order = order[np.argsort(comp[order], kind="stable")]
+    first = np.searchsorted(comp[order], np.arange(n_pred))
+    rank = np.arange(len(order)) - first[comp[order]]
+    voters = order[rank < FACES_PER_PIECE]
+    cen = np.asarray(pred_mesh.vertices, dtype=np.float64)[np.asarray(pred_mesh.faces)[voters]]
+    _, near = _to_surface(cen.mean(1), gt_mesh)
+    votes = comp[voters] * n_gt + gt_piece[near]
+    key, count = np.unique(votes, return_counts=True)
+    best = np.lexsort((-count, key // n_gt))                 # per component, most votes first
+    kc = key[best] // n_gt
+    winner = key[best][np.r_[True, kc[1:] != kc[:-1]]] % n_gt
+    per_piece = np.bincount(winner, minlength=n_gt)
+    return {"extra_pieces": int(np.clip(per_piece - 1, 0, None).sum()), "pieces": n_pred,
+            "gt_pieces": n_gt}
+
+
+def _ratio(num: float, den: float) -> float:
+    if np.isnan(num) or np.isnan(den):
+        return float("nan")
+    if den == 0.0:
+        return 1.0 if num == 0.0 else float("inf")
+    return float(num / den)
+
+
+def junction_metrics(pred_mesh: trimesh.Trimesh, gt_mesh: trimesh.Trimesh,
+                     gcs: Sequence[GeneralizedCylinder], n_samples: int = 30_000,
+                     band: float = 0.1, join: float = 0.01, seed: int = 0) -> dict:
+    """The junction measure of pred_mesh against gt_mesh with the shape's GCs (conventions in
+    the module docstring; defaults are conf/metrics/default.yaml's `junctions`).
+
+    Keys: junction_ratio_dist, junction_ratio_normal, junction_dist, elsewhere_dist (mean
+    distances), junction_normal_deg, elsewhere_normal_deg (mean angles), junction_share (share
+    of the samples that are junction samples), extra_pieces, pieces, gt_pieces. An empty
+    prediction gives NaN figures and no pieces; an empty truth raises ValueError.
+    """
+    if is_empty(gt_mesh):
+        raise ValueError("ground-truth mesh is empty (no faces or zero area)")
+    nan = float("nan")
+    if is_empty(pred_mesh):
+        return {"junction_ratio_dist": nan, "junction_ratio_normal": nan, "junction_dist": nan,
+                "elsewhere_dist": nan, "junction_normal_deg": nan, "elsewhere_normal_deg": nan,
+                "junction_share": nan, "extra_pieces": 0, "pieces": 0,
+                "gt_pieces": solid_pieces(gt_mesh, join, seed)[1]}
+    points, normals = sample_surface(pred_mesh, n_samples, seed)
+    truth = boundary_faces(gt_mesh)
+    dist, face = _to_surface(points, truth)
+    cos = np.abs(np.einsum("nd,nd->n", normals, np.asarray(truth.face_normals)[face]))
+    angle = np.degrees(np.arccos(np.clip(cos, 0.0, 1.0)))
+    # rounding is no error: a fit equal to the truth has ratio 1, not a ratio of rounding noise
+    dist[dist < ROUNDING * float(np.linalg.norm(np.ptp(truth.vertices, axis=0)))] = 0.0
+    angle[cos > 1.0 - ROUNDING] = 0.0
+    j = junction_mask(points, gcs, band)
+
+    def mean(x, m):
+        return float(x[m].mean()) if m.any() else nan
+
+    out = {"junction_dist": mean(dist, j), "elsewhere_dist": mean(dist, ~j),
+           "junction_normal_deg": mean(angle, j), "elsewhere_normal_deg": mean(angle, ~j),
+           "junction_share": float(j.mean())}
+    out["junction_ratio_dist"] = _ratio(out["junction_dist"], out["elsewhere_dist"])
+    out["junction_ratio_normal"] = _ratio(out["junction_normal_deg"], out["elsewhere_normal_deg"])
+    out.update(extra_pieces(pred_mesh, gt_mesh, join, seed))
+    return out

@@ -1,0 +1,128 @@
+"""The junction measure on a scene with a known answer: two overlapping capsules (an arm along
+-x, a thinner one along +y, meeting at the origin), each inside a GC 10% wider than itself."""
+import inspect
+
+import numpy as np
+import pytest
+import trimesh
+from skimage.measure import marching_cubes
+
+from ngc_gen.eval.junctions import (boundary_faces, junction_mask, junction_metrics,
+                                    solid_pieces)
+from ngc_gen.geometry import GeneralizedCylinder
+
+A = (np.array([-0.6, 0.0, 0.0]), np.array([0.0, 0.0, 0.0]), 0.2)
+B = (np.array([0.0, 0.0, 0.0]), np.array([0.0, 0.6, 0.0]), 0.15)
+AWAY = np.array([-0.45, 0.0, 0.2])        # on A's side, far from B
+
+
+def capsule_sdf(p, a, b, r):
+    ab = b - a
+    t = np.clip((p - a) @ ab / (ab @ ab), 0.0, 1.0)
+    return np.linalg.norm(p - (a + t[:, None] * ab), axis=1) - r
+
+
+def level_set(res=64):
+    """The union of the two capsules (exact min of their distances), marching cubes."""
+    x = np.linspace(-1.0, 1.0, res)
+    g = np.stack(np.meshgrid(x, x, x, indexing="ij"), -1).reshape(-1, 3)
+    f = np.minimum(capsule_sdf(g, *A), capsule_sdf(g, *B)).reshape(res, res, res)
+    v, faces, _, _ = marching_cubes(f, 0.0, spacing=(x[1] - x[0],) * 3)
+    return trimesh.Trimesh(v - 1.0, faces[:, ::-1], process=False)
+
+
+def gc(name, a, b, r):
+    return GeneralizedCylinder.from_dict({
+        "name": name, "curve": {"type": "bezier", "points": [a.tolist(), b.tolist()]},
+        "keys": [{"t": 0.0, "radii": [r, r]}], "caps": [r, r]})
+
+
+@pytest.fixture(scope="module")
+def scene():
+    truth = level_set()
+    gcs = [gc("a", A[0], A[1], 1.1 * A[2]), gc("b", B[0], B[1], 1.1 * B[2])]
+    return truth, gcs
+
+
+def displaced(truth, centre, height=0.03, sigma=0.1):
+    """The truth with every vertex moved out along its normal by a small wave everywhere
+    (0.002 +- 0.001: a little error in distance and normal all over) plus a Gaussian bump of
+    `height` at `centre`."""
+    v = np.asarray(truth.vertices)
+    d = 0.002 + 0.001 * np.sin(25.0 * v[:, 0]) * np.cos(25.0 * v[:, 1])
+    d = d + height * np.exp(-((v - centre) ** 2).sum(1) / (2 * sigma ** 2))
+    return trimesh.Trimesh(v + d[:, None] * truth.vertex_normals, truth.faces, process=False)
+
+
+def test_junction_samples_are_where_both_gcs_reach(scene):
+    _, gcs = scene
+    pts = np.array([[0.0, 0.0, 0.0],        # inside both
+                    [-0.5, 0.0, 0.0],       # inside a only, far from b
+                    [0.0, 0.5, 0.0],        # inside b only, far from a
+                    [-0.1, 0.23, 0.0],      # inside b, just past a's boundary (rho_a 1.05)
+                    [-0.1, 0.35, 0.0]])     # inside b, well past a's boundary (rho_a 1.6)
+    assert junction_mask(pts, gcs, 0.1).tolist() == [True, False, False, True, False]
+    assert junction_mask(pts, gcs, 0.0).tolist() == [True, False, False, False, False]
+    assert not junction_mask(pts, gcs[:1], 0.1).any()     # one GC: no junction
+
+
+def test_a_bump_at_the_junction_raises_the_ratio_and_one_elsewhere_lowers_it(scene):
+    truth, gcs = scene
+    j = junction_mask(truth.vertices, gcs, 0.1)
+    at_junction = truth.vertices[j][np.argmax(truth.vertices[j][:, 1])]
+    seam = junction_metrics(displaced(truth, at_junction), truth, gcs)
+    away = junction_metrics(displaced(truth, AWAY), truth, gcs)
+    assert 0.02 < seam["junction_share"] < 0.2
+    assert seam["junction_ratio_dist"] > 2.0 and seam["junction_ratio_normal"] > 2.0
+    assert away["junction_ratio_dist"] < 0.8 and away["junction_ratio_normal"] < 0.8
+    assert seam["extra_pieces"] == away["extra_pieces"] == 0
+
+
+def test_the_truth_itself_scores_one_and_no_extra_piece(scene):
+    truth, gcs = scene
+    m = junction_metrics(truth, truth, gcs)
+    assert m["junction_ratio_dist"] == m["junction_ratio_normal"] == 1.0
+    assert m["junction_dist"] == m["elsewhere_dist"] == 0.0
+    assert (m["extra_pieces"], m["pieces"], m["gt_pieces"]) == (0, 1, 1)
+
+
+def test_a_loose_sphere_is_one_extra_piece(scene):
+    truth, gcs = scene
+    loose = trimesh.creation.icosphere(subdivisions=2, radius=0.05).apply_translation(
+        [0.6, 0.5, 0.0])
+    m = junction_metrics(trimesh.util.concatenate([truth, loose]), truth, gcs)
+    assert (m["extra_pieces"], m["pieces"], m["gt_pieces"]) == (1, 2, 1)
+    # the same sphere in the truth too: matched, not extra
+    both = trimesh.util.concatenate([truth, loose])
+    assert junction_metrics(both, both, gcs)["extra_pieces"] == 0
+
+
+def test_intersecting_true_pieces_are_one_solid(scene):
+    """A truth made of two closed capsules through each other (like the ant's pieces) is one
+    piece; its faces inside the other capsule are not part of the true surface."""
+    fit, gcs = scene
+    a = trimesh.creation.capsule(height=0.6, radius=A[2], count=[24, 24])
+    a.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 2, [0, 1, 0]))
+    a.apply_translation([-0.3, 0.0, 0.0])
+    b = trimesh.creation.capsule(height=0.6, radius=B[2], count=[24, 24])
+    b.apply_transform(trimesh.transformations.rotation_matrix(-np.pi / 2, [1, 0, 0]))
+    b.apply_translation([0.0, 0.3, 0.0])
+    truth = trimesh.util.concatenate([a, b])
+    piece, n = solid_pieces(truth, join=0.01)
+    assert n == 1 and len(np.unique(piece)) == 1
+    outer = boundary_faces(truth)
+    assert 0 < len(truth.faces) - len(outer.faces) < 0.3 * len(truth.faces)
+    assert np.linalg.norm(outer.triangles_center, axis=1).min() > 0.1   # the inner caps are gone
+    m = junction_metrics(fit, truth, gcs)
+    assert (m["extra_pieces"], m["gt_pieces"]) == (0, 1)
+    far = b.copy().apply_translation([0.0, 0.0, 0.5])   # apart: two pieces
+    assert solid_pieces(trimesh.util.concatenate([a, far]), join=0.01)[1] == 2
+
+
+def test_defaults_are_the_metrics_group():
+    """The library's defaults are conf/metrics/default.yaml's `junctions` (one home)."""
+    from ngc_gen.app.config import compose_config
+
+    conf = compose_config(overrides=["stage=fit"]).metrics.junctions
+    sig = inspect.signature(junction_metrics).parameters
+    assert {k: sig[k].default for k in conf} == dict(conf)
