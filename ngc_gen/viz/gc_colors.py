@@ -9,6 +9,7 @@ import numpy as np
 import trimesh
 
 from .gc_mesh import gc_surface
+from .screenshot import save_screenshot
 
 PALETTE = ("#e6194b", "#3cb44b", "#4363d8", "#f58231", "#911eb4", "#42d4f4", "#f032e6",
            "#bfef45", "#469990", "#9a6324", "#800000", "#808000", "#000075", "#fabed4")
@@ -59,11 +60,4 @@ def render_gc_collection(cells: list[tuple[str, trimesh.Trimesh, list]], names: 
         p.camera.view_angle = VIEW_ANGLE
         p.camera_position = [tuple(c + dist * d), tuple(c), tuple(u)]
         p.reset_camera_clipping_range()
-    p.render()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp.png")
-    p.screenshot(str(tmp))
-    p.close()
-    os.replace(tmp, path)
-    return path
+    return save_screenshot(p, path)

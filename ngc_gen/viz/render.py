@@ -8,6 +8,8 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
+from .screenshot import save_screenshot
+
 log = logging.getLogger(__name__)
 
 COLORS = ("#c8a27a", "#7fa7c9", "#9cc28c", "#d08c8c")
@@ -182,14 +184,7 @@ def render_grid(rows: list[list], path, labels: list[str] | None = None,
                     reset_camera=False)
                 names.GetMapper().PlaceAllLabelsOn()  # VTK drops overlapping ones otherwise
                 p.reset_camera_clipping_range()
-    p.render()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp.png")
-    p.screenshot(str(tmp))
-    p.close()
-    os.replace(tmp, path)
-    return path
+    return save_screenshot(p, path)
 
 
 def render_gallery(meshes: list, names: list[str], path, per_row: int = 4, **kwargs) -> Path:
