@@ -20,11 +20,12 @@ from pathlib import Path
 
 import yaml
 
+from ngc_gen.data.annotation_file import read_annotation_yaml
 from ngc_gen.data.atomic import atomic_write_text
 from ngc_gen.data.errors import DataError
 from ngc_gen.data.mesh.io import is_resource, resolve_mesh_path
 from ngc_gen.geometry import GeneralizedCylinder, GeometryError
-from ngc_gen.values import NumberError, is_number, load_yaml, read_number
+from ngc_gen.values import NumberError, is_number, read_number
 
 # decoder_frame: written by sample.py beside re-centred GCs (read by conditioning, not by fits)
 TOP_KEYS = {"name", "mesh", "normalize", "gcs", "decoder_frame"}
@@ -243,19 +244,7 @@ def annotation_from_dict(d, source: str | os.PathLike | None = None) -> Annotati
 def load_annotation(path: str | os.PathLike) -> Annotation:
     """Read and validate an annotation YAML file (raises DataError with file/GC/field)."""
     path = Path(path)
-    if not path.is_file():
-        raise DataError("annotation file not found", path=path, fix="check the path")
-    try:
-        d = load_yaml(path.read_text(encoding="utf-8"))
-    except yaml.YAMLError as e:
-        mark = getattr(e, "problem_mark", None)
-        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
-        problem = getattr(e, "problem", None) or str(e)
-        fix = ("remove or rename one of the two entries" if "appears twice" in problem
-               else "correct the YAML syntax (indentation, brackets, 'key: value')")
-        raise DataError(f"malformed YAML{where}: {problem}", path=path, fix=fix) from e
-    except UnicodeDecodeError as e:
-        raise DataError(f"not a UTF-8 text file ({e})", path=path, fix="save the annotation as UTF-8 YAML") from e
+    d = read_annotation_yaml(path)
     return annotation_from_dict(d, source=path)
 
 

@@ -8,12 +8,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import yaml
-
+from ngc_gen.data.annotation_file import read_annotation_yaml
 from ngc_gen.data.errors import DataError
 from ngc_gen.data.mesh.header import check_mesh_file
 from ngc_gen.data.mesh_folder import mesh_files
-from ngc_gen.values import load_yaml
 
 RESOURCE_PREFIXES = ("pyvista:",)  # shipped meshes (`mesh.io.RESOURCE_SCHEMES`): read later
 
@@ -30,20 +28,7 @@ def check_annotation_file(path) -> None:
     """An annotation YAML (docs/gcs.md): a mapping with `mesh` and a non-empty `gcs` list of
     uniquely named GCs, whose mesh file passes `check_mesh_file`. DataError naming the file."""
     path = Path(path)
-    if not path.is_file():
-        raise DataError("annotation file not found", path=path, fix="check the path")
-    try:
-        d = load_yaml(path.read_text(encoding="utf-8"))
-    except yaml.YAMLError as e:
-        mark = getattr(e, "problem_mark", None)
-        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
-        problem = getattr(e, "problem", None) or " ".join(str(e).split())
-        fix = ("remove or rename one of the two entries" if "appears twice" in problem
-               else "correct the YAML syntax (indentation, brackets, 'key: value')")
-        raise DataError(f"malformed YAML{where}: {problem}", path=path, fix=fix) from None
-    except UnicodeDecodeError as e:
-        raise DataError(f"not a UTF-8 text file ({e})", path=path,
-                        fix="save the annotation as UTF-8 YAML") from None
+    d = read_annotation_yaml(path)
     if not isinstance(d, dict):
         return  # load_annotation explains what an annotation must be
     gcs = d.get("gcs")
