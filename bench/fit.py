@@ -6,13 +6,21 @@ the same shapes with the same number of steps, batch size and samples per shape.
     python bench/fit.py --deepsdf-long 20000      # DeepSDF's recipe, long (resumable)
 
 Writes bench/results/fit.json ({methods: {ngc, ngc_1gc, deepsdf: {cd, hd, emd, nc, fscore,
-fragments, gt_fragments, train_s, load}}, shapes, ..., machine}; nc = mean normal consistency,
-fscore = mean F-score@0.01, fragments = components under 1% of the faces summed over the shapes,
-load = the 1-, 5- and 15-minute load averages before and after that method's training; machine:
-bench/_harness.py); its table is bench/README.md's (bench/report.py). Also checks on the fitted
-NGC that the extractor's GC prefilter is exact (identical grids with and without it) and records
-both evaluation counts. Runs go to bench/runs/fit/<method> and start
-fresh: the training is what this bench measures, so it is never taken from a cache.
+fragments, gt_fragments, train_s, load}}, shapes, junctions, ..., machine}; nc = mean normal
+consistency, fscore = mean F-score@0.01, fragments = components under 1% of the faces summed
+over the shapes, load = the 1-, 5- and 15-minute load averages before and after that method's
+training; machine: bench/_harness.py); its table is bench/README.md's (bench/report.py).
+Also checks on the fitted NGC that the extractor's GC prefilter is exact (identical grids with
+and without it) and records both evaluation counts. Runs go to bench/runs/fit/<method> and
+start fresh: the training is what this bench measures, so it is never taken from a cache.
+
+`junctions`: one entry per shape and run, {name, gcs, recipe, method, junction_ratio_dist,
+junction_ratio_normal, extra_pieces, nc, fscore} (ngc_gen.eval.junctions; docs/metrics.md):
+the fit's error where GCs meet / elsewhere, loose pieces, and the shape's NC and F@0.01. gcs:
+the GCs the fit used (`annotated`: the fitbench's own); recipe: `before` (today's NGC recipe),
+`deepsdf` (the single network, scored at the same shape's GCs), or the tag of a screening run
+with `--set`; method: the run (ngc, deepsdf, deepsdf_long_at_ngc_time). ngc_1gc has one GC
+and so no junction: it is not listed.
 
 Screening (ablations): `--tag NAME` writes runs and results to bench/runs/fit/NAME/ instead,
 `--set` adds overrides to the NGC methods, `--limit N` keeps N of the 6 creatures.
@@ -75,10 +83,11 @@ def run(method: str, steps: int, resolution: int, batch_size: int, run_root: Pat
 
 
 def score_checkpoint(cfg, checkpoint: Path, out_dir: Path, **mesh_kwargs) -> dict:
-    """Mesh and score every shape of a fit checkpoint (the fit stage's own scoring)."""
+    """Mesh and score every shape of a fit checkpoint (the fit stage's own scoring, the
+    junction measure at the shapes' prepared GCs included)."""
     import torch
 
-    from ngc_gen.app.fit import reconstruct
+    from ngc_gen.app.fit import junction_settings, named_gcs, reconstruct
     from ngc_gen.app.prepare import prepare_dataset
     from ngc_gen.lit.checkpoint import load_autodecoder
 
@@ -88,7 +97,8 @@ def score_checkpoint(cfg, checkpoint: Path, out_dir: Path, **mesh_kwargs) -> dic
     with torch.no_grad():
         return reconstruct(module, out_dir, gt, resolution=cfg.extract.resolution,
                            bound=cfg.extract.bound, chunk=cfg.extract.chunk,
-                           seed=cfg.metrics_seed, **mesh_kwargs)
+                           seed=cfg.metrics_seed, gcs=named_gcs(prepared),
+                           junctions=junction_settings(cfg), **mesh_kwargs)
 
 
 LONG_MARKS = (42, 100, 200, 300, 400, 600, 900, 1200, 1800, 3600, 7200, 14400)
@@ -157,6 +167,8 @@ def deepsdf_long(steps: int, resolution: int, batch_size: int, ngc_seconds: floa
         seconds, step = clock_of(early)
         m = score_checkpoint(cfg, early, run_dir / f"meshes_at_{fit[-1]:g}s", **COARSE)
         out["at_ngc_time"] = method_summary({**m, "train_s": seconds, "steps": step})
+        out["at_ngc_time"]["junctions"] = junction_rows(m["shapes"], "deepsdf",
+                                                        "deepsdf_long_at_ngc_time")
     return out
 
 
@@ -168,9 +180,10 @@ def ceiling(resolution: int) -> dict:
     import trimesh
 
     from ngc_gen.app.config import compose_config
+    from ngc_gen.app.fit import junction_settings
     from ngc_gen.app.prepare import prepare_dataset
     from ngc_gen.data.mesh.sdf import signed_distance
-    from ngc_gen.eval import reconstruction_metrics
+    from ngc_gen.eval import junction_metrics, reconstruction_metrics
     from ngc_gen.extract.world import extract_world_mesh
 
     cfg = compose_config(overrides=["stage=fit", "data=fitbench", "run_dir=/tmp/ngc-ceiling"])
@@ -180,10 +193,13 @@ def ceiling(resolution: int) -> dict:
             return torch.from_numpy(signed_distance(x.double().numpy(), s.mesh_vertices,
                                                     s.mesh_faces)).float()
         mesh = extract_world_mesh(exact, resolution, 1.0, coarse_step=4, lipschitz=1.0).mesh
-        m = reconstruction_metrics(mesh, trimesh.Trimesh(s.mesh_vertices, s.mesh_faces,
-                                                         process=False))
+        truth = trimesh.Trimesh(s.mesh_vertices, s.mesh_faces, process=False)
+        m = reconstruction_metrics(mesh, truth, seed=cfg.metrics_seed)
+        m.update(junction_metrics(mesh, truth, s.gcs(), seed=cfg.metrics_seed,
+                                  **junction_settings(cfg)))
         per[s.name] = {k: m[k] for k in ("cd", "hd", "normal_consistency", "fscore",
-                                         "fragments")}
+                                         "fragments", "junction_ratio_dist",
+                                         "junction_ratio_normal", "extra_pieces")}
     mean = {k: float(np.mean([p[k] for p in per.values()])) for k in ("cd", "hd")}
     mean.update(nc=float(np.mean([p["normal_consistency"] for p in per.values()])),
                 fscore=float(np.mean([p["fscore"] for p in per.values()])),
@@ -263,8 +279,8 @@ def rescore(run_dir: Path, resolution: int) -> dict:
     metrics = json.loads(metrics_path.read_text())
     cfg = OmegaConf.load(run_dir / "config.yaml")
     base = compose_config(overrides=["stage=fit"])
-    for group in ("prepare", "extract"):   # keys added since the run: today's defaults
-        cfg[group] = OmegaConf.merge(base[group], cfg[group])
+    for group in ("prepare", "extract", "metrics"):   # keys added since the run: today's defaults
+        cfg[group] = OmegaConf.merge(base[group], cfg.get(group) or {})
     cfg.extract.resolution = int(resolution)
     checkpoint = run_dir / "checkpoints/last.ckpt"
     coarse = COARSE if cfg.model.decoder.get("_target_", "").endswith("DeepSDFDecoder") else {}
@@ -272,6 +288,33 @@ def rescore(run_dir: Path, resolution: int) -> dict:
                    checkpoint=str(checkpoint))
     write_atomic(metrics_path, json.dumps(metrics, indent=2))
     return metrics
+
+
+GCS = "annotated"   # the fitbench's GCs: the ant's hand annotation, the creatures' own parts
+
+
+def junction_rows(per_shape: dict, recipe: str, method: str, gcs: str = GCS) -> list[dict]:
+    """A run's per-shape metrics -> its entries of fit.json's `junctions` (shapes scored
+    before the junction measure existed are left out)."""
+    return [{"name": name, "gcs": gcs, "recipe": recipe, "method": method,
+             "junction_ratio_dist": m["junction_ratio_dist"],
+             "junction_ratio_normal": m["junction_ratio_normal"],
+             "extra_pieces": m["extra_pieces"], "nc": m["normal_consistency"],
+             "fscore": m["fscore"]}
+            for name, m in per_shape.items() if "junction_ratio_dist" in m]
+
+
+def all_junction_rows(res: dict, tag: str | None) -> list[dict]:
+    """fit.json's `junctions`: the NGC and DeepSDF runs' rows, then DeepSDF's own recipe at
+    NGC's training time where --deepsdf-long scored it."""
+    rows = []
+    for method in ("ngc", "deepsdf"):
+        per = res.get("per_shape", {}).get(method, {})
+        overrides = res.get("methods", {}).get(method, {}).get("overrides") or []
+        custom = [o for o in overrides if ".limit=" not in o]   # --set, not --limit
+        recipe = "deepsdf" if method == "deepsdf" else tag or "custom" if custom else "before"
+        rows += junction_rows(per, recipe, method)
+    return rows + res.get("deepsdf_long", {}).get("at_ngc_time", {}).get("junctions", [])
 
 
 def method_summary(metrics: dict) -> dict:
@@ -357,6 +400,7 @@ def main():
         res["ceiling"] = ceiling(args.resolution)
     from bench.report import table
 
+    res["junctions"] = all_junction_rows(res, args.tag)
     bench.write(res)
     picture(res, out / "fit.png", run_root)
     print(table("fit", earlier()))

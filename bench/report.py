@@ -195,7 +195,47 @@ def fit(res: dict) -> str:
         lines.append(f"GC prefilter on the fitted {p['shape']} at {p['resolution']}^3: grids "
                      f"identical {p['identical_grid']}, meshes identical {p['identical_mesh']}; "
                      f"{p['eval_ratio']:.0f}x fewer network evaluations than dense.")
+    if res.get("junctions"):
+        lines += ["", *fit_junctions(res["junctions"],
+                                     res.get("ceiling", {}).get("per_shape", {}))]
     return "\n".join(lines)
+
+
+JUNCTION_TARGET = 1.3   # junction error / elsewhere error, distance and normal (issue 32)
+
+
+def fit_junctions(rows: list[dict], ceiling: dict | None = None) -> list[str]:
+    """fit.json's `junctions`: per shape and run, the fit's error where GCs meet / elsewhere
+    (distance, normal angle), extra pieces, NC and F@0.01, beside the ceiling's junction
+    ratios (the shape's exact SDF on the same grid, where measured); then how many meet the
+    targets."""
+    def r(x):
+        return "-" if x is None or x != x else f"{x:.2f}"
+
+    def ceil(name):
+        c = (ceiling or {}).get(name, {})
+        if "junction_ratio_dist" not in c:
+            return "-"
+        return f"{r(c['junction_ratio_dist'])} / {r(c['junction_ratio_normal'])}"
+
+    out = rows_table(["shape", "GCs", "recipe", "junction / elsewhere: distance", "normal",
+                      "extra pieces", "NC", "F@0.01", "ceiling: distance / normal"],
+                     [[j["name"], j["gcs"], j["recipe"], r(j["junction_ratio_dist"]),
+                       r(j["junction_ratio_normal"]), j["extra_pieces"], f"{j['nc']:.3f}",
+                       f"{j['fscore']:.3f}", ceil(j["name"])] for j in rows])
+    for recipe in dict.fromkeys(j["recipe"] for j in rows):
+        mine = [j for j in rows if j["recipe"] == recipe]
+        ratios = [max(j["junction_ratio_dist"], j["junction_ratio_normal"]) for j in mine
+                  if j["junction_ratio_dist"] is not None]   # None: no junction
+        met = sum(x <= JUNCTION_TARGET for x in ratios)
+        out.append("")
+        out.append(f"{recipe}: junction / elsewhere <= {JUNCTION_TARGET} (distance and normal) "
+                   f"on {met} of {len(ratios)} meshes"
+                   + (f", worst {max(ratios):.2f}" if ratios else "")
+                   + f"; {sum(j['extra_pieces'] for j in mine)} extra pieces; NC >= 0.95 on "
+                   f"{sum(j['nc'] >= 0.95 for j in mine)}, F >= 0.95 on "
+                   f"{sum(j['fscore'] >= 0.95 for j in mine)} of {len(mine)}.")
+    return out
 
 
 def fit_ablation(res: dict) -> str:

@@ -74,16 +74,25 @@ def run_fit(cfg: DictConfig) -> dict:
 
 def score_fit(cfg: DictConfig, module, prepared: list[PreparedShape], run_dir: Path):
     """(metrics, ground truth): every shape of a trained AutoDecoder meshed into
-    run_dir/meshes and scored against its prepared mesh (`reconstruct`), settings from the
-    `extract` group and `metrics_seed`."""
+    run_dir/meshes and scored against its prepared mesh and GCs (`reconstruct`), settings from
+    the `extract` and `metrics` groups and `metrics_seed`."""
     gt = {s.name: (s.mesh_vertices, s.mesh_faces) for s in prepared}
     mesh_kwargs = ({} if module.hparams.kind == "deepsdf"   # its own world-space extractor
                    else {"settings": sparse_settings(cfg.extract.sparse)})
     with torch.no_grad():
         metrics = reconstruct(module, run_dir / "meshes", gt, resolution=cfg.extract.resolution,
                               bound=cfg.extract.bound, chunk=cfg.extract.chunk,
-                              seed=cfg.metrics_seed, **mesh_kwargs)
+                              seed=cfg.metrics_seed, gcs=named_gcs(prepared),
+                              junctions=junction_settings(cfg), **mesh_kwargs)
     return metrics, gt
+
+
+def junction_settings(cfg: DictConfig) -> dict:
+    """`metrics.junctions` (conf/metrics/default.yaml) as keyword arguments of
+    `ngc_gen.eval.junction_metrics`."""
+    from omegaconf import OmegaConf
+
+    return OmegaConf.to_container(cfg.metrics.junctions, resolve=True)
 
 
 def named_gcs(prepared: list[PreparedShape]) -> dict:
@@ -119,25 +128,43 @@ def render_comparison(gt: dict, run_dir: Path, gcs: dict | None = None, up="auto
                                                 "fitted"], frame="row", up=up)
 
 
+PRINTED = {"cd": "cd", "hd": "hd", "emd": "emd", "cd_l1": "cd_l1", "fscore": "fscore",
+           "normal_consistency": "normal_consistency", "fragments": "fragments",
+           "junction_ratio_dist": "jct_dist", "junction_ratio_normal": "jct_normal",
+           "extra_pieces": "extra_pieces"}   # metrics key -> column of the printed table
+
+
+def _num(x) -> float:
+    return float("nan") if x is None else x
+
+
 def print_metrics(metrics: dict) -> None:
-    cols = ("cd", "hd", "emd", "cd_l1", "fscore", "normal_consistency", "fragments",
-            "watertight")
-    w = {c: max(12, len(c) + 2) for c in cols}
-    print(f"\n{'shape':20s}" + "".join(f"{c:>{w[c]}s}" for c in cols))
+    cols = {k: h for k, h in PRINTED.items()
+            if k in metrics["mean"] or not k.startswith(("junction", "extra"))}
+    w = {c: max(12, len(h) + 2) for c, h in cols.items()}
+    print(f"\n{'shape':20s}" + "".join(f"{h:>{w[c]}s}" for c, h in cols.items())
+          + f"{'watertight':>12s}")
     for name, m in {**metrics["shapes"], "mean": metrics["mean"]}.items():
-        vals = "".join(f"{m.get(c, float('nan')):{w[c]}.3g}" for c in cols[:-1])
+        vals = "".join(f"{_num(m.get(c)):{w[c]}.3g}" for c in cols)
         print(f"{name:20s}{vals}{str(m.get('watertight', '')):>12s}")
     print("cd: DeepSDF Chamfer (30k points each way, squared, summed means); hd: Hausdorff; "
           "emd: exact assignment on 2048 points; fscore@0.01; fragments: components under 1% "
-          "of the faces")
+          "of the faces" + ("; jct_dist, jct_normal: error (distance, normal angle) where GCs "
+                            "meet / elsewhere; extra_pieces: loose pieces the truth has not"
+                            if "extra_pieces" in cols else ""))
 
 
 def reconstruct(module, out_dir: Path, gt: dict, resolution: int = 256, bound: float = 1.0,
-                chunk: int = 65536, seed: int = 0, **mesh_kwargs) -> dict:
+                chunk: int = 65536, seed: int = 0, gcs: dict | None = None,
+                junctions: dict | None = None, **mesh_kwargs) -> dict:
     """Extract every shape into out_dir/<name>.ply and score it against its ground truth
     gt[name] = (vertices, faces) in the normalised frame. Returns {shapes, mean}.
+    With `gcs` ({name: its GCs}) each shape also gets the junction measure
+    (`ngc_gen.eval.junction_metrics`, keyword arguments `junctions`); a junction figure's
+    mean is over the shapes that have one (a shape with one GC has none: None).
     mesh_kwargs go to `autodecoder_mesh` (e.g. coarse_step for a DeepSDF module)."""
-    from ngc_gen.eval import reconstruction_metrics
+    from ngc_gen.eval import junction_metrics, reconstruction_metrics
+    from ngc_gen.eval.junctions import FIGURES as JUNCTION_FIGURES
     from ngc_gen.shape import autodecoder_mesh
 
     out_dir = Path(out_dir)
@@ -149,13 +176,22 @@ def reconstruct(module, out_dir: Path, gt: dict, resolution: int = 256, bound: f
         atomic_write(out_dir / f"{meta['name']}.ply",
                      lambda f, m=res.mesh: f.write(m.export(file_type="ply")))
         V, F = gt[meta["name"]]
-        m = reconstruction_metrics(res.mesh, trimesh.Trimesh(V, F, process=False), seed=seed)
+        truth = trimesh.Trimesh(V, F, process=False)
+        m = reconstruction_metrics(res.mesh, truth, seed=seed)
+        if gcs is not None:
+            m.update(junction_metrics(res.mesh, truth, gcs[meta["name"]], seed=seed,
+                                      **(junctions or {})))
         m.update(n_network_evals=int(res.stats["n_network_evals"]),
                  extract_s=float(res.stats["seconds"]))
         per[meta["name"]] = {k: (float(v) if isinstance(v, (float, np.floating)) else v)
                              for k, v in m.items()}
     keys = [k for k, v in next(iter(per.values())).items()
             if isinstance(v, (int, float)) and not isinstance(v, bool)]
-    mean = {k: float(np.mean([p[k] for p in per.values()])) for k in keys}
+    mean = {k: float(np.mean([p[k] for p in per.values()])) for k in keys
+            if k not in JUNCTION_FIGURES}
+    if gcs is not None:  # over the shapes that have the figure (None: no junction sample)
+        for k in JUNCTION_FIGURES:
+            have = [p[k] for p in per.values() if p.get(k) is not None]
+            mean[k] = float(np.mean(have)) if have else None
     mean["watertight"] = float(np.mean([bool(p.get("watertight")) for p in per.values()]))
     return {"shapes": per, "mean": mean, "resolution": resolution}

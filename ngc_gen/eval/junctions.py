@@ -19,8 +19,8 @@ metrics average away. Conventions (distances in the meshes' own units):
   out, as in ``sample_boundary`` (a face is kept when any of 4 points on it is on the boundary).
 - ``junction_ratio_dist`` = mean distance on junction samples / mean distance elsewhere;
   ``junction_ratio_normal`` the same with the angle. 1: junctions no worse than the rest.
-  NaN when either set is empty (one GC has no junction); 1 when both means are 0, inf when only
-  the one elsewhere is. Distances and angles at rounding level (``ROUNDING``) count as 0.
+  None when either set is empty (one GC has no junction); 1 when both means are 0, inf when
+  only the one elsewhere is. Distances and angles at rounding level (``ROUNDING``) count as 0.
 - ``extra_pieces``: the fit's pieces beyond the truth's. A fitted mesh is a level set, whose
   connected components (``face_components``) never intersect, so each is a piece. The truth's
   pieces are its components joined where they come closer than ``join`` (intersecting closed
@@ -46,6 +46,8 @@ from ngc_gen.geometry import GeneralizedCylinder
 
 FACES_PER_PIECE = 32      # faces of each fitted piece that vote for its true piece
 MAX_JOIN_SAMPLES = 400_000
+FIGURES = ("junction_ratio_dist", "junction_ratio_normal", "junction_dist", "elsewhere_dist",
+           "junction_normal_deg", "elsewhere_normal_deg", "junction_share")   # None-able
 ROUNDING = 1e-9           # distances under this x the truth's box diagonal, and angles whose
                           # cosine is this close to 1, are 0 (float64 rounding, not error)
 
@@ -141,9 +143,9 @@ def extra_pieces(pred_mesh: trimesh.Trimesh, gt_mesh: trimesh.Trimesh, join: flo
             "gt_pieces": n_gt}
 
 
-def _ratio(num: float, den: float) -> float:
-    if np.isnan(num) or np.isnan(den):
-        return float("nan")
+def _ratio(num: float | None, den: float | None) -> float | None:
+    if num is None or den is None:
+        return None
     if den == 0.0:
         return 1.0 if num == 0.0 else float("inf")
     return float(num / den)
@@ -157,16 +159,14 @@ def junction_metrics(pred_mesh: trimesh.Trimesh, gt_mesh: trimesh.Trimesh,
 
     Keys: junction_ratio_dist, junction_ratio_normal, junction_dist, elsewhere_dist (mean
     distances), junction_normal_deg, elsewhere_normal_deg (mean angles), junction_share (share
-    of the samples that are junction samples), extra_pieces, pieces, gt_pieces. An empty
-    prediction gives NaN figures and no pieces; an empty truth raises ValueError.
+    of the samples that are junction samples), extra_pieces, pieces, gt_pieces. A mean over
+    no sample, and a ratio with one, is None (JSON null); an empty prediction has only None
+    figures and no pieces; an empty truth raises ValueError.
     """
     if is_empty(gt_mesh):
         raise ValueError("ground-truth mesh is empty (no faces or zero area)")
-    nan = float("nan")
     if is_empty(pred_mesh):
-        return {"junction_ratio_dist": nan, "junction_ratio_normal": nan, "junction_dist": nan,
-                "elsewhere_dist": nan, "junction_normal_deg": nan, "elsewhere_normal_deg": nan,
-                "junction_share": nan, "extra_pieces": 0, "pieces": 0,
+        return {**dict.fromkeys(FIGURES), "extra_pieces": 0, "pieces": 0,
                 "gt_pieces": solid_pieces(gt_mesh, join, seed)[1]}
     points, normals = sample_surface(pred_mesh, n_samples, seed)
     truth = boundary_faces(gt_mesh)
@@ -179,7 +179,7 @@ def junction_metrics(pred_mesh: trimesh.Trimesh, gt_mesh: trimesh.Trimesh,
     j = junction_mask(points, gcs, band)
 
     def mean(x, m):
-        return float(x[m].mean()) if m.any() else nan
+        return float(x[m].mean()) if m.any() else None
 
     out = {"junction_dist": mean(dist, j), "elsewhere_dist": mean(dist, ~j),
            "junction_normal_deg": mean(angle, j), "elsewhere_normal_deg": mean(angle, ~j),

@@ -64,6 +64,12 @@ def test_fit_recovers_a_watertight_mesh(torus_run):
     parts = mesh.split(only_watertight=False)
     assert max(len(p.faces) for p in parts) > 0.95 * len(mesh.faces)  # one torus, few specks
     assert "torus" in r.stdout and "cd" in r.stdout
+    # the junction measure of every fit (ngc_gen.eval.junctions), per shape and in the mean
+    for key in ("junction_ratio_dist", "junction_ratio_normal", "junction_share",
+                "extra_pieces", "gt_pieces"):
+        assert key in torus and key in metrics["mean"], key
+    assert torus["gt_pieces"] == 1 and torus["pieces"] >= 1
+    assert "extra_pieces" in r.stdout
 
 
 @pytest.mark.slow  # three short fits in subprocesses, ~2 min: `make test-all`

@@ -51,6 +51,28 @@ def test_a_changed_result_changes_its_table(tmp_path):
     assert "run `make bench-ddp`" in report.block("ddp", tmp_path / "results")
 
 
+def test_the_fit_table_lists_the_junctions_when_measured(tmp_path):
+    """bench/fit.py's `junctions` entries (issue 32) get a table and a targets line."""
+    shutil.copytree(ROOT / "bench/results", tmp_path / "results")
+    path = tmp_path / "results/fit.json"
+    res = json.loads(path.read_text())
+    row = {"name": "ant", "gcs": "annotated", "recipe": "before", "method": "ngc",
+           "junction_ratio_dist": 1.87, "junction_ratio_normal": 1.25, "extra_pieces": 2,
+           "nc": 0.961, "fscore": 0.982}
+    res["junctions"] = [row, {**row, "recipe": "deepsdf", "method": "deepsdf",
+                              "junction_ratio_dist": 1.1, "extra_pieces": 0}]
+    path.write_text(json.dumps(res))
+    block = report.block("fit", tmp_path / "results")
+    assert "| ant | annotated | before | 1.87 | 1.25 | 2 | 0.961 | 0.982 | - |" in block
+    res["ceiling"]["per_shape"]["ant"].update(junction_ratio_dist=1.4, junction_ratio_normal=1.6)
+    path.write_text(json.dumps(res))
+    block = report.block("fit", tmp_path / "results")
+    assert "| ant | annotated | before | 1.87 | 1.25 | 2 | 0.961 | 0.982 | 1.40 / 1.60 |" in block
+    assert "before: junction / elsewhere <= 1.3 (distance and normal) on 0 of 1 meshes, worst " \
+           "1.87; 2 extra pieces" in block
+    assert "deepsdf: junction / elsewhere <= 1.3 (distance and normal) on 1 of 1" in block
+
+
 def test_every_bench_has_a_section_and_every_result_a_table():
     text = report.README.read_text()
     headings = re.findall(r"^## (\S+)$", text, re.M)
