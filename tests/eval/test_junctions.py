@@ -109,6 +109,36 @@ def test_a_loose_sphere_is_one_extra_piece(scene):
     assert junction_metrics(both, both, gcs)["extra_pieces"] == 0
 
 
+def test_a_cut_through_a_thick_part_is_extra_and_a_cut_sliver_is_not(scene):
+    """The fit cut through capsule A (a gap of 0.04 at x = -0.4: the tip is loose) has one extra
+    piece; a truth of two balls joined by a rod 0.004 thick, fitted without the rod, has none:
+    the truth there is a sliver no grid resolves."""
+    truth, gcs = scene
+    res = 64
+    x = np.linspace(-1.0, 1.0, res)
+    g = np.stack(np.meshgrid(x, x, x, indexing="ij"), -1).reshape(-1, 3)
+
+    def mesh(f):
+        v, faces, _, _ = marching_cubes(f.reshape(res, res, res), 0.0, spacing=(x[1] - x[0],) * 3)
+        return trimesh.Trimesh(v - 1.0, faces[:, ::-1], process=False)
+
+    union = np.minimum(capsule_sdf(g, *A), capsule_sdf(g, *B))
+    cut = mesh(np.maximum(union, 0.02 - np.abs(g[:, 0] + 0.4)))
+    m = junction_metrics(cut, truth, gcs)
+    assert (m["extra_pieces"], m["pieces"], m["sliver_breaks"]) == (1, 2, 0)
+    balls = [trimesh.creation.icosphere(3, radius=0.25).apply_translation([s, 0, 0])
+             for s in (-0.4, 0.4)]
+    rod = trimesh.creation.cylinder(radius=0.002, height=0.6, sections=12)
+    rod.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 2, [0, 1, 0]))
+    dumbbell = trimesh.util.concatenate([*balls, rod])
+    fit = trimesh.util.concatenate(balls)
+    pieces = junction_metrics(fit, dumbbell, gcs)
+    assert (pieces["gt_pieces"], pieces["pieces"], pieces["extra_pieces"],
+            pieces["sliver_breaks"]) == (1, 2, 0, 1)
+    apart = junction_metrics(fit, trimesh.util.concatenate(balls), gcs)   # truly two: matched
+    assert (apart["gt_pieces"], apart["extra_pieces"], apart["sliver_breaks"]) == (2, 0, 0)
+
+
 def test_intersecting_true_pieces_are_one_solid(scene):
     """A truth made of two closed capsules through each other (like the ant's pieces) is one
     piece; its faces inside the other capsule are not part of the true surface."""
