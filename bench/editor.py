@@ -118,7 +118,7 @@ INSTRUMENT_JS = """() => {
   document.addEventListener('keydown', e => { if (e.key === 'Enter') first(); }, true);
   const re = /mesh: version (\\d+), (\\d+)\\^3, \\d+ faces, ([\\d.]+) s/;
   new MutationObserver(() => {
-    const m = document.body.innerText.match(re);
+    const m = document.body.textContent.match(re);  // not innerText: it forces a layout per mutation
     if (!m) return;
     const key = m[1] + ':' + m[2];
     if (key in rec.shown) return;
