@@ -185,7 +185,7 @@ def _gap_to_gc(gc: GeneralizedCylinder, q: np.ndarray) -> np.ndarray:
     rho = sqrt(max(|u|-1, 0)^2 + a^2 + b^2) is 1 on the boundary. An upper bound of the true
     distance, in the normalised frame, comparable between GCs of different sizes."""
     rel = np.asarray(gc.to_relative(q))
-    rho = np.sqrt(np.clip(np.abs(rel[:, 0]) - 1.0, 0.0, None) ** 2 + rel[:, 1] ** 2 + rel[:, 2] ** 2)
+    rho = np.sqrt(GeneralizedCylinder.relative_measure(rel))
     core = np.asarray(gc.to_world(np.stack([np.clip(rel[:, 0], -1.0, 1.0), 0 * rho, 0 * rho], axis=1)))
     gap = np.clip(1.0 - 1.0 / np.maximum(rho, 1e-12), 0.0, None) * np.linalg.norm(q - core, axis=1)
     return np.where(np.isfinite(gap), gap, np.inf)

@@ -214,7 +214,7 @@ def _carry(entry, name: str, old, new, gcs: dict, op: str) -> None:
         g = gcs[c]
         ends = curve_points_at(g, [0.0, 1.0])
         rel = old.to_relative(ends)
-        measure = np.clip(np.abs(rel[:, 0]) - 1, 0, None) ** 2 + rel[:, 1] ** 2 + rel[:, 2] ** 2
+        measure = GeneralizedCylinder.relative_measure(np.asarray(rel))
         R, t = local_motion(old, new, ends[int(np.argmin(measure))])
         gcs[c] = g.transformed(R, t)
 

@@ -71,8 +71,7 @@ def relative_radius(points: np.ndarray, gcs: Sequence[GeneralizedCylinder],
         if len(cand) == 0:
             continue
         rel = np.asarray(gc.to_relative(points[cand]))
-        rho[g, cand] = np.sqrt(np.clip(np.abs(rel[:, 0]) - 1.0, 0.0, None) ** 2
-                               + rel[:, 1] ** 2 + rel[:, 2] ** 2)
+        rho[g, cand] = np.sqrt(GeneralizedCylinder.relative_measure(rel))
     return rho
 
 
@@ -188,30 +187,20 @@ def _closest_point(p: np.ndarray, mesh: trimesh.Trimesh) -> tuple[np.ndarray, in
 
 def _crossing(mesh: trimesh.Trimesh, q: np.ndarray, face: int) -> tuple[float, float]:
     """(inward, outward): distances from surface point q (on `face`) along the face's normal,
-    into the solid and out of it, to the next face crossed (Moller-Trumbore over all faces);
-    inward is the side whose winding number is above 1/2; inf where no face is crossed."""
+    into the solid and out of it, to the next face crossed (libigl's ray casting); inward is
+    the side whose winding number is above 1/2; inf where no face is crossed."""
     n = np.asarray(mesh.face_normals[face], dtype=np.float64)
     V = np.ascontiguousarray(mesh.vertices, dtype=np.float64)
     Fa = np.ascontiguousarray(mesh.faces, dtype=np.int64)
     eps = 1e-6 * float(np.linalg.norm(np.ptp(V, axis=0)))
     w = igl.fast_winding_number(V, Fa, (q - 100 * eps * n)[None])[0]
     inward = -n if abs(w) > 0.5 else n
-    tri = V[Fa]
-    e1, e2 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
-    sv = q - tri[:, 0]
-    qv = np.cross(sv, e1)
     out = []
     for ray in (inward, -inward):
-        h = np.cross(ray, e2)
-        det = np.einsum("fd,fd->f", e1, h)
-        ok = np.abs(det) > 1e-300
-        inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
-        u = inv * np.einsum("fd,fd->f", sv, h)
-        v = inv * (qv @ ray)
-        t = inv * np.einsum("fd,fd->f", e2, qv)
-        hit = ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > eps)
-        hit[face] = False
-        out.append(float(t[hit].min()) if hit.any() else float("inf"))
+        hits = igl.ray_mesh_intersect(np.ascontiguousarray(q, dtype=np.float64),
+                                      np.ascontiguousarray(ray), V, Fa) or []
+        t = [h[1] for h in hits if h[0] != face and h[1] > eps]
+        out.append(float(min(t)) if t else float("inf"))
     return out[0], out[1]
 
 

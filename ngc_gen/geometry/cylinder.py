@@ -350,13 +350,19 @@ class GeneralizedCylinder:
         return back(chunked(self._to_world, x, self.chunk))
 
     @staticmethod
-    def inside_relative(rel):
-        """(N, 3) relative coords -> (N,) bool: max(|u|-1, 0)^2 + a^2 + b^2 <= 1."""
+    def relative_measure(rel):
+        """(N, 3) relative coords -> (N,) rho^2 = max(|u|-1, 0)^2 + a^2 + b^2: 1 on the GC's
+        boundary, below inside (rho: the relative radius, in units of the radii and caps)."""
         if isinstance(rel, torch.Tensor):
             e = torch.clamp(rel[:, 0].abs() - 1.0, min=0.0)
         else:
             e = np.clip(np.abs(rel[:, 0]) - 1.0, 0.0, None)
-        return e * e + rel[:, 1] ** 2 + rel[:, 2] ** 2 <= 1.0
+        return e * e + rel[:, 1] ** 2 + rel[:, 2] ** 2
+
+    @staticmethod
+    def inside_relative(rel):
+        """(N, 3) relative coords -> (N,) bool: inside, `relative_measure` <= 1."""
+        return GeneralizedCylinder.relative_measure(rel) <= 1.0
 
     def contains(self, points):
         """points (N, 3) -> (N,) bool inside the GC (tube plus half-ellipsoid caps)."""

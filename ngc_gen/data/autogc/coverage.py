@@ -22,7 +22,7 @@ def rho_matrix(gcs: Sequence[GeneralizedCylinder], points: np.ndarray) -> tuple[
     u = np.zeros((len(gcs), len(points)))
     for g, gc in enumerate(gcs):
         rel = np.asarray(gc.to_relative(points))
-        rho[g] = np.sqrt(np.clip(np.abs(rel[:, 0]) - 1.0, 0.0, None) ** 2 + rel[:, 1] ** 2 + rel[:, 2] ** 2)
+        rho[g] = np.sqrt(GeneralizedCylinder.relative_measure(rel))
         u[g] = rel[:, 0]
     return rho, u
 
