@@ -22,6 +22,7 @@ import yaml
 # light imports only: the program and out_dir are checked before torch loads (`run_edit`)
 from ngc_gen.edit.errors import EditError
 
+from .background_render import BackgroundRenderer
 from .checkpoints import fit_checkpoint
 from .checks import check_edit, edit_output_dir
 from .config import sparse_settings
@@ -60,7 +61,12 @@ def run_edit(cfg) -> dict:
     check_edit(cfg)  # again for callers other than edit.py (the pipeline, tests); cheap
     parts = program_from_config(cfg)
     out_dir = edit_output_dir(cfg, parts["name"])
+    # the picture's renderer warms up in a child while torch and the model load here
+    with BackgroundRenderer(enabled=bool(cfg.get("picture", True))) as renderer:
+        return _apply(cfg, parts, out_dir, renderer, t_start)
 
+
+def _apply(cfg, parts: dict, out_dir: Path, renderer, t_start: float) -> dict:
     from ngc_gen.data.annotations import Annotation
     from ngc_gen.data.atomic import atomic_write, atomic_write_text
     from ngc_gen.data.errors import DataError
@@ -137,7 +143,8 @@ def run_edit(cfg) -> dict:
                                      width=100))
     if cfg.get("picture", True):
         metrics["picture"] = render_edit(before.mesh, gcs, after.mesh, edited.gcs,
-                                         out_dir / "edit.png", program.name, up=cfg.viz.up)
+                                         out_dir / "edit.png", program.name, up=cfg.viz.up,
+                                         renderer=renderer)
     metrics["time_total_s"] = time.perf_counter() - t_start
     metrics["out_dir"] = str(out_dir)
     atomic_write_text(out_dir / "metrics.json", json.dumps(_json_safe(metrics), indent=2))
@@ -146,9 +153,10 @@ def run_edit(cfg) -> dict:
 
 
 def render_edit(before, gcs, after, edited_gcs, path: Path, program: str,
-                up="auto") -> str | None:
+                up="auto", renderer=None) -> str | None:
     """edit.png: the shape before and after, its GCs drawn translucent, one camera for both,
-    looking across the edited GCs' motion (`viz.camera.edit_view`); `up`: `viz.up`."""
+    looking across the edited GCs' motion (`viz.camera.edit_view`); `up`: `viz.up`.
+    `renderer`: a `BackgroundRenderer` to draw in (None: draw here)."""
     import numpy as np
 
     from ngc_gen.viz import gcs_surface, render_grid, render_or_warn
@@ -158,9 +166,9 @@ def render_edit(before, gcs, after, edited_gcs, path: Path, program: str,
     u = resolve_up(up, [before])
     view = edit_view(np.concatenate([np.asarray(m.vertices) for m in (before, after, *shells)]),
                      gcs, edited_gcs, u)
-    done = render_or_warn(render_grid, path, [[(before, shells[0]), (after, shells[1])]],
-                          col_titles=["before", f"after {program}"], frame="row",
-                          view=view, up=u)
+    draw = render_or_warn if renderer is None else renderer.render
+    done = draw(render_grid, path, [[(before, shells[0]), (after, shells[1])]],
+                col_titles=["before", f"after {program}"], frame="row", view=view, up=u)
     return None if done is None else str(done)
 
 
