@@ -1,14 +1,13 @@
 """A renderer that starts before the work does: a forked child imports pyvista and opens its
 first off-screen OpenGL context (about 1.2 s on two cores, measured: import 0.46 s, first
-plotter 0.78 s, later ones 0.04 s) while the parent loads torch and the model, and then runs
+plotter 0.78 s, later ones 0.04 s) while the parent loads the model and meshes it, then runs
 the parent's render calls. A command that ends in one picture (`edit.py`) waits only for the
 drawing itself.
 
-Fork is used because the child must start from the light parent before torch loads (a spawned
-child would import the entry point again); where fork is not available, or the child has died,
-the call runs in the parent as it would without this module. It lives in the app layer, not
-in `ngc_gen.viz`, because importing that package loads torch: the parent forks before it does
-any heavy import of its own.
+Fork is used because the child must start at once from the parent as it is (a spawned child
+would import the entry point and torch again); where fork is not available, or the child has
+died, the call runs in the parent as it would without this module. It lives in the app layer,
+not in `ngc_gen.viz`, so creating it imports nothing heavy; the child imports `ngc_gen.viz`.
 """
 from __future__ import annotations
 
