@@ -94,6 +94,8 @@ class EditorServer:
         self.server.scene.configure_environment_map(hdri=None if env is None else str(env))
         if env is None:  # no image-based light: an ambient light keeps the mesh readable
             self.server.scene.add_light_ambient("/ambient", intensity=1.5)
+        self.shadows = bool(editor.get("shadows", False))
+        self.server.scene.configure_default_lights(cast_shadow=self.shadows)
         self._lock = threading.RLock()
         self._handles: list = []
         self._drawn: dict = {}  # GC name -> (GC drawn, scene node)
@@ -201,7 +203,9 @@ class EditorServer:
         mesh = result.mesh
         if len(mesh.faces):
             self.server.scene.add_mesh_simple("/shape", mesh.vertices, mesh.faces,
-                                              color=MESH_COLOR, side="double")
+                                              color=MESH_COLOR, side="double",
+                                              cast_shadow=self.shadows,
+                                              receive_shadow=self.shadows)
         self.status.content = (f"{STATUS_PREFIX} version {version}, {resolution}^3, "
                                f"{len(mesh.faces)} faces, {seconds:.2f} s")
 
