@@ -67,7 +67,7 @@ demo-animals: $(VENV)/.installed
 	$(BIN)/python train.py experiment=animals data.frames=$(ANIMALS_FRAMES) stage=shape_latent hydra.run.dir=$(DEMO_ANIMALS)/shape_latent
 	$(BIN)/python train.py experiment=animals data.frames=$(ANIMALS_FRAMES) stage=diffusion shape_latent_run=$(DEMO_ANIMALS)/shape_latent hydra.run.dir=$(DEMO_ANIMALS)/diffusion
 	$(BIN)/python sample.py run=$(DEMO_ANIMALS)/diffusion mode=generate n=8 seed=0 hydra.run.dir=$(DEMO_ANIMALS)/generate
-	$(BIN)/python sample.py run=$(DEMO_ANIMALS)/diffusion mode=interpolate a=wolf_walk_00 b=horse_walk_00 hydra.run.dir=$(DEMO_ANIMALS)/interpolate
+	$(BIN)/python sample.py run=$(DEMO_ANIMALS)/diffusion mode=interpolate a=wolf_gallop_00 b=horse_gallop_00 hydra.run.dir=$(DEMO_ANIMALS)/interpolate
 	$(BIN)/python edit.py run=$(DEMO_ANIMALS)/generate edit=posed_animal_leg shape=sample_000 out_dir=$(DEMO_ANIMALS)/edit
 
 # every bench one after another (never side by side: they time themselves), then the tables of

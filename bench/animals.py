@@ -13,8 +13,9 @@ many shapes as the reference):
   generated   EDM samples (Heun, 18 steps) decoded to GCs + codes, meshed at --resolution
   train_set   the ceiling: training meshes (random subsets)
   noise       the floor: latents ~ N(mean, std^2) per dimension of the trained latents
-References: `clips` = training species at held-out clips, `species` = held-out species at
-every clip. nearest_train_cd_median: the median over generated shapes of the Chamfer distance
+References: `clips` = training species at their held-out clips (data.heldout_clips_by_species:
+3 per species, rotated so every clip stays in training for other species), `species` =
+held-out species at every clip. nearest_train_cd_median: the median over generated shapes of the Chamfer distance
 to the nearest training mesh. interp_max_over_mean: along wolf -> horse (8 steps, training
 latents), the largest consecutive-step Chamfer over their mean. purity, coverage: over every
 built shape (train, test and rest). fit_fscore_min: the 12 rest poses fitted with their

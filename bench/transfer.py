@@ -79,7 +79,10 @@ def one(task):
     if truth_yaml:
         truth = load_annotation(truth_yaml)
         pts, _ = sample_surface(mesh.vertices, mesh.faces, SAMPLES, np.random.default_rng(1))
-        purity, errs = _truth_scores(truth.gcs, tr.gcs, pts)
+        # the true GCs of the template's parts, by name (the rig template has GCs the transfer
+        # template has not: the antlers carved out of the head count as the head's here)
+        by_name = {g.name: g for g in truth.gcs}
+        purity, errs = _truth_scores([by_name[g.name] for g in tr.gcs], tr.gcs, pts)
         out.update(purity=[float(p) for p in purity], endpoint_err=[float(e) for e in errs])
     return out
 

@@ -48,7 +48,7 @@ from ngc_gen.data.errors import DataError
 TEMPLATE_VERSION = 1
 TOP_KEYS = {"version", "name", "description", "gcs", "frame"}
 GC_KEYS = {"name", "joints", "skinned", "degree", "keys", "up", "extend", "parent", "attach",
-           "symmetric", "place"}
+           "symmetric", "place", "carve"}
 DEFAULT_FRAME = {"up": (0.0, 0.0, 1.0), "front": (1.0, 0.0, 0.0)}
 _GLOB = set("*?[")
 
@@ -72,6 +72,7 @@ class TemplateGC:
     attach: float | None = None
     symmetric: str | None = None
     place: dict | None = None  # {start: (3,), end: (3,), radius: float} (module docstring)
+    carve: dict | None = None  # {from: GC name, side: (3,) or None} (module docstring)
 
     def to_dict(self) -> dict:
         d = {"name": self.name, "joints": list(self.joints), "skinned": list(self.skinned),
@@ -84,6 +85,10 @@ class TemplateGC:
             d["place"] = {"start": [round(float(x), 5) for x in self.place["start"]],
                           "end": [round(float(x), 5) for x in self.place["end"]],
                           "radius": round(float(self.place["radius"]), 5)}
+        if self.carve is not None:
+            d["carve"] = {"from": self.carve["from"], "side": None if self.carve["side"] is None
+                          else [float(x) for x in self.carve["side"]]}
+            del d["joints"], d["skinned"], d["extend"]
         return d
 
 
@@ -156,6 +161,9 @@ class Template:
         out: dict[str, dict[str, list[int]]] = {}
         owner: dict[int, str] = {}
         for g in self.gcs:
+            if g.carve is not None:  # its surface is carved out of another GC's (pose_shape)
+                out[g.name] = {"chain": [], "skinned": []}
+                continue
             if not g.joints:
                 raise DataError(f"template GC has no joints (template {self.source or self.name})",
                                 path=where, gc=g.name, field="joints",
@@ -208,6 +216,20 @@ def _place(p, path, gc) -> dict | None:
             "radius": float(p["radius"])}
 
 
+def _carve(c, path, gc) -> dict | None:
+    if c is None:
+        return None
+    ok = isinstance(c, dict) and set(c) <= {"from", "side"} and isinstance(c.get("from"), str)
+    side = c.get("side") if ok else None
+    if ok and side is not None:
+        ok = _vec3(side) and np.linalg.norm(side) > 0
+    if not ok:
+        _fail(f"carve must be {{from: <GC name>, side: [x, y, z] or null}}, got {c!r}", path, gc,
+              "carve", "e.g. carve: {from: head, side: [1, 0, 0]}")
+    return {"from": c["from"], "side": None if side is None else
+            tuple(float(x) / float(np.linalg.norm(side)) for x in side)}
+
+
 def _frame(f, path) -> dict | None:
     if f is None:
         return None
@@ -253,7 +275,11 @@ def template_from_dict(d, source: str | os.PathLike | None = None) -> Template:
         bad = set(g) - GC_KEYS
         if bad:
             _fail(f"unknown keys {sorted(bad)}", path, gname, fix=f"use only {sorted(GC_KEYS)}")
-        joints = _names(g.get("joints"), path, gname, "joints", "place" in g)
+        carve = _carve(g.get("carve"), path, gname)
+        if carve is not None and any(k in g for k in ("joints", "skinned", "extend")):
+            _fail("a carved GC takes its surface from another GC; it has no joints, skinned or "
+                  "extend", path, gname, "carve", "remove joints, skinned and extend, or carve")
+        joints = _names(g.get("joints"), path, gname, "joints", "place" in g or carve is not None)
         place = _place(g.get("place"), path, gname)
         skinned = _names(g.get("skinned"), path, gname, "skinned", True)
         degree = g.get("degree", 3)
@@ -285,7 +311,8 @@ def template_from_dict(d, source: str | os.PathLike | None = None) -> Template:
                 _fail(f"{fld} must be a GC name or null, got {v!r}", path, gname, fld)
         out.append(TemplateGC(gname, joints, skinned, int(degree), tuple(float(t) for t in keys),
                               tuple(float(x) for x in up), tuple(extend), g.get("parent"),
-                              None if attach is None else float(attach), g.get("symmetric"), place))
+                              None if attach is None else float(attach), g.get("symmetric"), place,
+                              carve))
     names = [g.name for g in out]
     dupes = sorted({n for n in names if names.count(n) > 1})
     if dupes:
@@ -300,6 +327,13 @@ def template_from_dict(d, source: str | os.PathLike | None = None) -> Template:
         if g.symmetric is not None and out[names.index(g.symmetric)].symmetric != g.name:
             _fail(f"symmetric partner {g.symmetric!r} does not name {g.name!r} back", path,
                   g.name, "symmetric", "give both GCs of a pair each other's name")
+    for i, g in enumerate(out):
+        if g.carve is None:
+            continue
+        src = g.carve["from"]
+        if src not in names[:i] or out[names.index(src)].carve is not None:
+            _fail(f"carve.from {src!r} must be an earlier GC of the template that is not itself "
+                  "carved", path, g.name, "carve", f"use one of {names[:i]}")
     for g in out:  # parents form a tree
         seen, p = {g.name}, g.parent
         while p is not None:

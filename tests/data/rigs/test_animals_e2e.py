@@ -28,7 +28,7 @@ def runs(tmp_path_factory):
     base = tmp_path_factory.mktemp("animals")
     common = ["experiment=animals", f"data.rigs_dir={cache}", f"data.out_dir={base}/data",
               "data.species=[wolf,horse]", "data.heldout_species=[]", "data.clips=[Walk,Idle]",
-              "data.heldout_clips=[]", "data.frames=1", "data.workers=1",
+              "data.heldout_clips=[]", "data.heldout_clips_by_species=null", "data.frames=1", "data.workers=1",
               "data.gcs.samples=20000", "data.gcs.check_samples=50000",
               f"prepare.cache_dir={base}/prepared", "prepare.n_samples=4000",
               "+prepare.coverage_samples=20000", "batch_size=1024", "logger=csv",
