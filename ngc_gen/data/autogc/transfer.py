@@ -279,6 +279,23 @@ def _bend_near(P: np.ndarray, arc: np.ndarray, i: int, window: float = 0.2) -> i
     return int(np.clip(cand[int(np.argmin(cos))], 1, len(P) - 2))
 
 
+def _before_side_branches(path: np.ndarray, arc: np.ndarray, cut: list[int], degree: np.ndarray,
+                          window: float = 0.2) -> list[int]:
+    """Inner cuts of a chain's path (node indices, junction first) moved to just before the
+    first junction of side branches (unmatched ends: ears, horns, antlers) within `window` x
+    the path's length of them: what branches off at a neck's top stands out of the head, so the
+    junction is the head's, and the side branches, labelled by the nearest GC along the tree,
+    are too."""
+    side = np.flatnonzero(degree[path] >= 3)
+    side = side[(side > 0) & (side < len(path) - 1)]
+    out = list(cut)
+    for k in range(1, len(out) - 1):
+        near = side[np.abs(arc[side] - arc[out[k]]) <= window * arc[-1]]
+        if len(near):
+            out[k] = int(np.clip(near.min() - 1, out[k - 1] + 1, out[k + 1] - 1))
+    return out
+
+
 def correspond(template: Template, tree: Tree, body: BodyFrame, settings: TransferSettings,
                where: str | None = None) -> tuple[dict[str, np.ndarray], np.ndarray, list[str], float]:
     """Paths (node indices, root side first) of the matched template GCs, the template GC index
@@ -332,7 +349,7 @@ def correspond(template: Template, tree: Tree, body: BodyFrame, settings: Transf
         ml = matched_leaves[g.name]
         if ml:
             top_node[g.name] = junction(set(below[g.name]), leaf_path[ml[0]])
-    done = set()
+    done, chained = set(), set()  # chained: GCs that start at a cut of their parent's path
     for leaf, node in assign.items():  # chains of template GCs above one matched leaf
         chain = [leaf]
         while template.gc(chain[-1]).parent is not None and \
@@ -349,9 +366,12 @@ def correspond(template: Template, tree: Tree, body: BodyFrame, settings: Transf
         cut = _split_by(arc, lengths) if len(own) > len(chain) else \
             list(np.linspace(0, len(own) - 1, len(chain) + 1).astype(int))
         cut = [cut[0]] + [_bend_near(tree.nodes[own], arc, c) for c in cut[1:-1]] + [cut[-1]]
+        cut = _before_side_branches(np.asarray(own), arc, cut, tree.degree)
         for k, c in enumerate(chain):
             paths[c] = own[cut[k]: cut[k + 1] + 1]
             done.add(c)
+            if k > 0:
+                chained.add(c)
     for g in template.gcs:  # GCs above several matched leaves: between their children's junctions
         if g.name in done or not matched_leaves[g.name]:
             continue
@@ -369,10 +389,12 @@ def correspond(template: Template, tree: Tree, body: BodyFrame, settings: Transf
     labels = np.full(len(tree.nodes), -1)
     for name, p in paths.items():
         labels[p] = names.index(name)
-    # a limb's first nodes inside its parent's body are the parent's (its root's surface)
+    # a limb's first nodes inside its parent's body are the parent's (its root's surface); not
+    # for a GC that continues its parent's path past a cut (a head on its neck: its skull is
+    # thicker than its snout, and is the head's)
     for name, p in paths.items():
         par = template.gc(name).parent
-        if par is None or par not in paths or len(p) < 4:
+        if par is None or par not in paths or len(p) < 4 or name in chained:
             continue
         R = tree.radius[p]
         k = int(np.argmax(R <= 1.25 * float(np.median(R[len(R) // 2:]))))
