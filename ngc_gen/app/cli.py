@@ -259,6 +259,7 @@ def hydra_entry(main) -> None:
     register_resolvers()
     if os.environ.get("HYDRA_FULL_ERROR") and not os.environ.get(OURS):
         main()
+        skip_final_collection()
         return
     # Hydra raises instead of printing and exiting 1; the marker tells our own child processes
     # (DDP ranks) that the setting is ours, not the user's
@@ -270,3 +271,14 @@ def hydra_entry(main) -> None:
         if message is None:
             raise
         fail(message, e)
+    skip_final_collection()
+
+
+def skip_final_collection() -> None:
+    """At the end of a command: leave the objects alive now to the interpreter's exit, so its
+    shutdown does not trace them all once more (with torch loaded, about 1M objects: exiting
+    took 0.9 s, 0.1 s with this; measured on `python -c "import torch"`). Exit handlers,
+    buffers and files are unaffected: nothing is skipped but the garbage collector's pass."""
+    import gc
+
+    gc.freeze()
