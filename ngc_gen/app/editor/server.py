@@ -223,7 +223,9 @@ class EditorServer:
             surf = gc_surface(g, n_u=32, n_theta=16)
             node = self.server.scene.add_mesh_simple(
                 f"/gcs/{g.name}", surf.vertices, surf.faces, color=GC_COLOR, opacity=0.2,
-                side="double", cast_shadow=False, receive_shadow=False)
+                side="front", cast_shadow=False, receive_shadow=False)  # a translucent shell:
+            # its near side is enough, and one pass instead of two (software WebGL in headless
+            # Chromium, idle machine: preview drawn 0.41-0.70 s vs 0.60-0.79 s double-sided)
             node.on_click(functools.partial(self._on_pick, g.name))  # click a GC: select it
             label = self.server.scene.add_label(  # its name in the view, at its middle
                 f"/labels/{g.name}", g.name, position=tuple(float(x) for x in gc_middle(g)),
