@@ -116,6 +116,7 @@ class Animals:
         self.name, self.template, self.rigs_dir = name, Path(template), Path(rigs_dir)
         self.out_dir, self.species, self.heldout_species = Path(out_dir), species, heldout_species
         self.clips, self.heldout_clips, self.frames = clips, heldout_clips, int(frames)
+        self.heldout_clips_by_species = by_species or None  # as configured
         self._held = held
         self.split, self.limit = split, limit
         self.settings = RigGCSettings.from_config(gcs)
