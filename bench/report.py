@@ -549,7 +549,7 @@ def animals(r: dict) -> str:
     rows = [("generated", "generated (EDM, 18 Heun steps)"), ("train_set", "training meshes (ceiling)"),
             ("noise", "noise latents N(mean, std), no diffusion (floor)")]
     lines = []
-    for key, title in (("clips", f"{r['n_heldout_clips']} held-out clips of training species"),
+    for key, title in (("clips", f"{r['n_heldout_clips']} shapes of training species at held-out clips"),
                        ("species", f"{r['n_heldout_species']} shapes of held-out species")):
         lines += [f"| vs {title} | MMD-CD (x1e-3) | COV-CD (%) | 1-NNA-CD (%) |", "|---|---|---|---|"]
         lines += [f"| {label} | {1e3 * r[key][k]['mmd_cd']:.3f} | {100 * r[key][k]['cov_cd']:.1f} | "
