@@ -397,6 +397,12 @@ def editor(r: dict) -> str:
         ok = sum(c["preview_s"] is not None and c["preview_s"] <= target for c in r["browser"])
         lines += ["", f"{ok} of {len(r['browser'])} previews drawn within the {target:g} s "
                       f"target (refined: after the {s['refine_delay_s']:g} s idle delay)."]
+        first = [c["preview_s"] for c in r.get("browser_first_edits") or []
+                 if c["preview_s"] is not None]
+        if first:
+            lines += ["", "The first edits after the page opens, before these (the page compiles "
+                          "what it draws the first time): previews drawn in "
+                          + ", ".join(f"{x:.2f}" for x in first) + " s."]
     return "\n".join(lines)
 
 
