@@ -61,7 +61,7 @@ def run_edit(cfg) -> dict:
     check_edit(cfg)  # again for callers other than edit.py (the pipeline, tests); cheap
     parts = program_from_config(cfg)
     out_dir = edit_output_dir(cfg, parts["name"])
-    # the picture's renderer warms up in a child while torch and the model load here
+    # the picture's renderer warms up in a child while the model loads and is meshed here
     with BackgroundRenderer(enabled=bool(cfg.get("picture", True))) as renderer:
         return _apply(cfg, parts, out_dir, renderer, t_start)
 
