@@ -365,10 +365,7 @@ def pose_shape(rig: Rig, template: Template, clip: str | None = None, time: floa
             keep = carve_owner(core, [c for c in carved if c[1] == src], fit_pts, owner) == src
     carved_owner = carve_owner(core, carved, fit_pts, owner)
     # a part with too few samples is absent on this rig: its samples stay with the source
-    carved = [c for c in carved if (carved_owner == c[0]).sum() >= CARVE_MIN] + \
-        [(g, src, side, origin, "absent") for g, src, side, origin in carved
-         if (carved_owner == g).sum() < CARVE_MIN]
-    present = [c for c in carved if len(c) == 4]
+    present = [c for c in carved if (carved_owner == c[0]).sum() >= CARVE_MIN]
     owner = carve_owner(core, present, fit_pts, owner)
     gcs = []
     for g, tgc in enumerate(template.gcs):
@@ -376,9 +373,8 @@ def pose_shape(rig: Rig, template: Template, clip: str | None = None, time: floa
         if tgc.carve is None:
             gcs.append(chain_gc(g, own))
             continue
-        c = next(c for c in carved if c[0] == g)
-        src, side, origin = c[1:4]
-        if len(c) == 4:
+        _, src, side, origin = next(c for c in carved if c[0] == g)
+        if any(c[0] == g for c in present):
             rho, _ = rho_matrix([core[src]], own)
             base = own[rho[0] <= np.quantile(rho[0], 0.05)].mean(0)
             poly = carved_polyline(own, base)
