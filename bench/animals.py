@@ -11,6 +11,7 @@ size is in `recipe`). Rows (2048 surface points per shape, squared Chamfer, ever
 data's normalised frame: bounding box centred, longest side 1.6; each the mean over sets of as
 many shapes as the reference):
   generated   EDM samples (Heun, 18 steps) decoded to GCs + codes, meshed at --resolution
+  generated_churn  the same with the stochastic sampler (CHURN: 40 steps, S_churn 40)
   train_set   the ceiling: training meshes (random subsets)
   noise       the floor: latents ~ N(mean, std^2) per dimension of the trained latents
 References: `clips` = training species at their held-out clips (data.heldout_clips_by_species:
@@ -18,8 +19,9 @@ References: `clips` = training species at their held-out clips (data.heldout_cli
 held-out species at every clip. nearest_train_cd_median: the median over generated shapes of the Chamfer distance
 to the nearest training mesh. interp_max_over_mean: along wolf -> horse (8 steps, training
 latents), the largest consecutive-step Chamfer over their mean. purity, coverage: over every
-built shape (train, test and rest). fit_fscore_min: the 12 rest poses fitted with their
-template GCs (train.py stage=fit, the default recipe unless --fit-steps), F-score@0.01.
+built shape (train, test and rest). fit_fscore_min: the 12 rest poses, each fitted on its own
+with its template GCs (train.py stage=fit data.species=[s], the default recipe unless
+--fit-steps; `--fit-workers` side by side), F-score@0.01.
 
 Writes bench/results/animals.json and animals.png (fitted, posed and generated animals).
 Trained runs are kept in the bench's fit cache (bench/_harness.py).
@@ -42,6 +44,10 @@ from bench.generate import clouds, mesh_set  # noqa: E402
 
 RUNS = ROOT / "bench/runs/animals"
 RESULTS = ROOT / "bench/results"
+CHURN = {"steps": 40, "churn": 40, "S_min": 0.05, "S_max": 50, "S_noise": 1.003}  # sample.py
+                  # sampler=... for the stochastic EDM sampler (NVlabs/edm's settings style)
+REST_FRAMES = 2   # the rest poses do not depend on the frames per clip: fitted from one build,
+                  # so a run at another --frames reuses the cached rest-pose fits
 
 
 def data_overrides(args) -> list[str]:
@@ -66,6 +72,48 @@ def cached_stage(cache: FitCache, name: str, cfg, run, refit: bool):
     return f
 
 
+def rest_fits(cache: FitCache, args) -> list:
+    """Each species' rest pose fitted on its own (train.py stage=fit data.split=rest
+    data.species=[s], the default recipe unless --fit-steps), as a user fits one asset; the fits
+    run in `--fit-workers` processes of one thread and are cached like the other stages."""
+    import os
+    import subprocess
+    from concurrent.futures import ThreadPoolExecutor
+
+    from ngc_gen.app.config import compose_config
+
+    species = list(compose_config(overrides=data_overrides(args)).data.species)
+
+    def one(s: str):
+        over = ["stage=fit", *data_overrides(args), f"data.frames={REST_FRAMES}",
+                "data.split=rest", f"data.species=[{s}]",
+                "data.heldout_species=[]", "data.heldout_clips_by_species=null",
+                "prepare.cache_dir=${paths.cache_dir}/prepared/animals_rest",
+                *([f"trainer.max_steps={args.fit_steps}"] if args.fit_steps else [])]
+        cfg = compose_config(overrides=over)
+
+        def fit(run_dir: Path) -> dict:
+            t0 = time.perf_counter()
+            log = run_dir / "train.log"
+            with open(log, "w") as fh:
+                rc = subprocess.call([sys.executable, str(ROOT / "train.py"), *over, "threads=1",
+                                      f"hydra.run.dir={run_dir}"], cwd=ROOT, stdout=fh,
+                                     stderr=subprocess.STDOUT,
+                                     env={**os.environ, "OMP_NUM_THREADS": "1"})
+            if rc:
+                raise SystemExit(f"the rest-pose fit of {s} failed (exit {rc}): see {log}")
+            return {"stage_s": time.perf_counter() - t0}
+
+        f = cache.get({"stage": "fit_rest", "config": config_recipe(cfg),
+                       "data": dataset_identity(cfg)}, fit, refit=args.refit)
+        print(f"rest pose of {s} fitted{' (cached)' if f.reused else ''}: {f.run_dir}",
+              flush=True)
+        return f
+
+    with ThreadPoolExecutor(max(1, args.fit_workers)) as pool:
+        return list(pool.map(one, species))
+
+
 def train(args) -> dict:
     from ngc_gen.app.config import compose_config
     from ngc_gen.app.diffusion import run_diffusion
@@ -74,11 +122,7 @@ def train(args) -> dict:
 
     cache = FitCache("animals")
     base = ["experiment=animals", *data_overrides(args)]
-    fit = cached_stage(cache, "fit_rest", compose_config(overrides=[
-        "stage=fit", *data_overrides(args), "data.split=rest",
-        "prepare.cache_dir=${paths.cache_dir}/prepared/animals_rest",
-        *([f"trainer.max_steps={args.fit_steps}"] if args.fit_steps else [])]), run_fit,
-        args.refit)
+    fits = rest_fits(cache, args)
     sl = cached_stage(cache, "shape_latent", compose_config(overrides=[
         *base, "stage=shape_latent", "shape_latent.preview=0",
         *([f"shape_latent.max_steps={args.shape_latent_steps}"] if args.shape_latent_steps
@@ -88,7 +132,9 @@ def train(args) -> dict:
         *([f"diffusion.max_steps={args.diffusion_steps}"] if args.diffusion_steps else [])]),
         run_diffusion, args.refit)
     load = lambda f: json.loads((f.run_dir / "metrics.json").read_text())  # noqa: E731
-    return {"fit": load(fit), "fit_dir": fit.run_dir, "shape_latent": load(sl),
+    shapes = {n: {**m, "mesh": str(f.run_dir / "meshes" / f"{n}.ply")}
+              for f in fits for n, m in load(f)["shapes"].items()}
+    return {"fit": {"shapes": shapes, "steps": load(fits[0])["steps"]}, "shape_latent": load(sl),
             "shape_latent_dir": sl.run_dir, "diffusion": load(diff), "diffusion_dir": diff.run_dir}
 
 
@@ -105,7 +151,7 @@ def rows_for(sets: dict, ref_meshes, points: int) -> dict:
     return out
 
 
-def picture(fit_dir: Path, rest: list[dict], posed: list[dict], gen_dir: Path, gen_names,
+def picture(fitted: dict, rest: list[dict], posed: list[dict], gen_dir: Path, gen_names,
             path: Path) -> None:
     """Rows: rest poses fitted (the fitted NGC mesh), posed training animals with their GCs,
     generated animals with their decoded GCs."""
@@ -117,7 +163,7 @@ def picture(fit_dir: Path, rest: list[dict], posed: list[dict], gen_dir: Path, g
     def with_gcs(mesh_path, ann_path):
         return (trimesh.load(mesh_path, process=False), gcs_surface(load_annotation(ann_path).gcs))
 
-    rows = [[trimesh.load(fit_dir / "meshes" / f"{r['name']}.ply", process=False) for r in rest],
+    rows = [[trimesh.load(fitted[r["name"]]["mesh"], process=False) for r in rest],
             [with_gcs(r["mesh"], r["annotation"]) for r in posed],
             [with_gcs(gen_dir / f"{n}.ply", gen_dir / f"{n}.yaml") for n in gen_names]]
     titles = [[r["name"] for r in rest], [r["name"] for r in posed], list(gen_names)]
@@ -128,7 +174,7 @@ def picture(fit_dir: Path, rest: list[dict], posed: list[dict], gen_dir: Path, g
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--frames", type=int, default=2, help="frames per clip (config default 5)")
+    ap.add_argument("--frames", type=int, default=5, help="frames per clip (the config's)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--fit-steps", type=int, default=None, help="default: the fit recipe's")
     ap.add_argument("--shape-latent-steps", type=int, default=None,
@@ -140,6 +186,8 @@ def main():
     ap.add_argument("--resolution", type=int, default=128)
     ap.add_argument("--points", type=int, default=2048)
     ap.add_argument("--threads", type=int, default=1)
+    ap.add_argument("--fit-workers", type=int, default=2,
+                    help="processes fitting the rest poses side by side")
     ap.add_argument("--refit", action="store_true")
     args = ap.parse_args()
     bench = Bench("animals")
@@ -175,6 +223,10 @@ def main():
                        resolution=args.resolution, progress=False)
     gen_names = sorted(sampled["shapes"])
     gen_m = [trimesh.load(RUNS / "samples" / f"{n}.ply", process=False) for n in gen_names]
+    churned = generate(gen, RUNS / "samples_churn", n=n_gen, seed=args.seed,
+                       resolution=args.resolution, progress=False, sampler=CHURN)
+    churn_m = [trimesh.load(RUNS / "samples_churn" / f"{n}.ply", process=False)
+               for n in sorted(churned["shapes"])]
     noise_m, _ = mesh_set(gen, gen.noise_latents(n_gen, seed=args.seed + 1, kind="fitted"),
                           [f"noise_{i:03d}" for i in range(n_gen)], RUNS / "noise",
                           args.resolution)
@@ -185,6 +237,8 @@ def main():
         k = len(ref_m)
         subsets = [rng.choice(len(train_m), k, replace=False) for _ in range(args.train_subsets)]
         res[key] = rows_for({"generated": [gen_m[i:i + k] for i in range(0, args.sets * k, k)],
+                             "generated_churn": [churn_m[i:i + k]
+                                                 for i in range(0, args.sets * k, k)],
                              "train_set": [[train_m[i] for i in s] for s in subsets],
                              "noise": [noise_m[i:i + k] for i in range(0, args.sets * k, k)]},
                             ref_m, args.points)
@@ -211,9 +265,10 @@ def main():
         "train_subsets": args.train_subsets, "resolution": args.resolution,
         "points": args.points, "interp": [a, b], "interp_empty_meshes": int(empty),
         "fit_fscore": {n: m["fscore"] for n, m in runs["fit"]["shapes"].items()},
+        "fit": "each species' rest pose on its own",
         "total_s": time.perf_counter() - t_start}
     show = [r for r in records["train"] if r["frame"] == 0][::9][:4]
-    picture(runs["fit_dir"], records["rest"][::3][:4], show, RUNS / "samples", gen_names[:4],
+    picture(runs["fit"]["shapes"], records["rest"][::3][:4], show, RUNS / "samples", gen_names[:4],
             RESULTS / "animals.png")
     from bench.report import table
 
