@@ -117,7 +117,6 @@ def rest_fits(cache: FitCache, args) -> list:
 def train(args) -> dict:
     from ngc_gen.app.config import compose_config
     from ngc_gen.app.diffusion import run_diffusion
-    from ngc_gen.app.fit import run_fit
     from ngc_gen.app.shape_latent import run_shape_latent
 
     cache = FitCache("animals")
