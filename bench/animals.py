@@ -55,8 +55,9 @@ def data_overrides(args) -> list[str]:
             "logger=csv", f"seed={args.seed}"]
 
 
-def cached_stage(cache: FitCache, name: str, cfg, run, refit: bool):
-    """A stage's run from the fit cache, keyed by its whole config and the data's identity."""
+def cached_stage(cache: FitCache, name: str, cfg, run, refit: bool, runs: Path = RUNS):
+    """A stage's run from the fit cache, keyed by its whole config and the data's identity;
+    runs/<name> links to it."""
     from omegaconf import open_dict
 
     def fit(run_dir: Path) -> dict:
@@ -68,7 +69,7 @@ def cached_stage(cache: FitCache, name: str, cfg, run, refit: bool):
 
     f = cache.get({"stage": name, "config": config_recipe(cfg), "data": dataset_identity(cfg)},
                   fit, refit=refit)
-    link_latest(RUNS / name, f.run_dir)
+    link_latest(runs / name, f.run_dir)
     return f
 
 

@@ -11,13 +11,20 @@ with each process's first mesh compiling its kernels, in details).
 creatures: a template exported from the true GCs of the first 8 built creatures (z up, +x front), transferred
 onto the next 24 written as plain meshes; purity against their true GCs.
 refused: which of a chair, a torus and a sphere the quadruped template refuses.
-generator: not measured by this bench (null).
+generator: the training split's animals (those the transfer did not refuse) as two annotated
+folders, their rig GCs and their transferred GCs; a generator (experiment=animals' recipe,
+--shape-latent-steps / --diffusion-steps) trained on each in the same run, 2 x 30 samples
+against the 30 held-out clips: MMD-CD, COV, 1-NNA (as bench/animals.py).
+reconstruct_heldout: the held-out species at rest, transferred and put into the transferred
+generator's shape-latent model by stage=reconstruct (latent, then codes): F-score@0.01.
 
-    python bench/transfer.py [--limit N] [--workers W]
+    python bench/transfer.py [--limit N] [--workers W] [--no-generator]
 """
 from __future__ import annotations
 
 import argparse
+import json
+import shutil
 import sys
 import time
 from pathlib import Path
@@ -29,6 +36,10 @@ from bench._harness import Bench  # noqa: E402
 
 TEMPLATE = ROOT / "datasets/animals/quadruped_transfer.yaml"
 SAMPLES = 20000
+BOUND = 0.8        # data=animals' normalisation (the meshes are already in its frame)
+GEN = ROOT / ".cache/bench/transfer/generator"
+RUNS = ROOT / "bench/runs/transfer"
+AXES = {"up": "+y", "front": "+z"}  # the animals' axes, as the user of this collection knows them
 
 
 def _truth_scores(truth_gcs, gcs, points):
@@ -53,6 +64,23 @@ def _truth_scores(truth_gcs, gcs, points):
     return purity, np.array(errs)
 
 
+def _annotated_copy(folder: Path, name: str, ply: Path, gcs) -> None:
+    """folder/<name>.ply (a link to the mesh) and folder/<name>.yaml (these GCs): what
+    data=folder reads as an annotated mesh."""
+    import os
+
+    from ngc_gen.data.annotations import Annotation
+    from ngc_gen.data.atomic import atomic_write_text
+
+    folder.mkdir(parents=True, exist_ok=True)
+    link = folder / f"{name}.ply"
+    if link.is_symlink() or link.exists():
+        link.unlink()
+    os.symlink(ply.resolve(), link)
+    ann = Annotation(name=name, mesh=str(link), gcs=list(gcs), bound=BOUND)
+    atomic_write_text(folder / f"{name}.yaml", ann.to_yaml(relative_to=folder))
+
+
 def one(task):
     """Worker: transfer onto one mesh file; scores against its annotation's GCs."""
     import numpy as np
@@ -64,7 +92,7 @@ def one(task):
     from ngc_gen.data.errors import DataError
     from ngc_gen.data.mesh.sampling import sample_surface
 
-    name, ply, truth_yaml, template_path, axes = task
+    name, ply, truth_yaml, template_path, axes, write = (*task, None)[:6]
     mesh = trimesh.load(ply, process=False)
     template = load_template(template_path)
     settings = TransferSettings(**axes)
@@ -76,6 +104,8 @@ def one(task):
     seconds = time.perf_counter() - t0
     out = {"mesh": name, "seconds": seconds, "missing": tr.missing, "cost": tr.cost,
            "coverage": tr.coverage}
+    if write:  # the transferred annotation, beside a link to its mesh (a folder to train on)
+        _annotated_copy(Path(write), name, Path(ply), tr.gcs)
     if truth_yaml:
         truth = load_annotation(truth_yaml)
         pts, _ = sample_surface(mesh.vertices, mesh.faces, SAMPLES, np.random.default_rng(1))
@@ -85,6 +115,90 @@ def one(task):
         purity, errs = _truth_scores([by_name[g.name] for g in tr.gcs], tr.gcs, pts)
         out.update(purity=[float(p) for p in purity], endpoint_err=[float(e) for e in errs])
     return out
+
+
+def _train_generator(kind: str, folder: Path, args) -> tuple:
+    """Shape latents, then diffusion on one annotated folder with experiment=animals' recipe
+    (steps from the bench's arguments); cached in the bench's fit cache."""
+    from bench.animals import cached_stage
+    from bench._harness import FitCache
+    from ngc_gen.app.config import compose_config
+    from ngc_gen.app.diffusion import run_diffusion
+    from ngc_gen.app.shape_latent import run_shape_latent
+
+    cache = FitCache("transfer")
+    base = ["experiment=animals", "data=folder", f"data.path={folder}", "seed=0", "logger=csv",
+            "trainer.enable_progress_bar=false",
+            f"prepare.cache_dir=${{paths.cache_dir}}/prepared/transfer_gen_{kind}"]
+    sl = cached_stage(cache, f"shape_latent_{kind}", compose_config(overrides=[
+        *base, "stage=shape_latent", "shape_latent.preview=0",
+        f"shape_latent.max_steps={args.shape_latent_steps}"]), run_shape_latent, False, RUNS)
+    diff = cached_stage(cache, f"diffusion_{kind}", compose_config(overrides=[
+        *base, "stage=diffusion", f"shape_latent_run={sl.run_dir}",
+        f"diffusion.max_steps={args.diffusion_steps}"]), run_diffusion, False, RUNS)
+    print(f"generator on the {kind} GCs: {sl.run_dir} (shape latents), {diff.run_dir} "
+          f"(diffusion){' (cached)' if sl.reused and diff.reused else ''}", flush=True)
+    return sl, diff
+
+
+def generator_rows(records: list[dict], clips_m: list, args) -> dict:
+    """{rig, transferred}: a generator trained on each folder of the training animals (the same
+    recipe, the same run) against the held-out clips, {mmd_cd, cov_cd, nna_cd} over 2 sets."""
+    import trimesh
+
+    from bench.animals import rows_for
+    from ngc_gen.app.sample import generate
+    from ngc_gen.generate import load_generator
+
+    out = {}
+    K = len(clips_m)
+    for kind in ("rig", "transferred"):
+        _, diff = _train_generator(kind, GEN / kind, args)
+        gen = load_generator(diff.run_dir)
+        where = RUNS / f"samples_{kind}"
+        s = generate(gen, where, n=2 * K, seed=0, resolution=128, progress=False)
+        ms = [trimesh.load(where / f"{n}.ply", process=False) for n in sorted(s["shapes"])]
+        out[kind] = rows_for({"g": [ms[:K], ms[K:]]}, clips_m, 2048)["g"]
+        print(f"generator ({kind} GCs) vs {K} held-out clips: {out[kind]}", flush=True)
+    return out
+
+
+def reconstruct_heldout(rest: list[dict], args) -> dict:
+    """The held-out species at rest, transferred (rig withheld) and put into the transferred
+    animals' shape-latent model by stage=reconstruct (latent, then codes): F-score@0.01."""
+    from bench._harness import FitCache, config_recipe
+    from ngc_gen.app.config import compose_config
+    from ngc_gen.app.reconstruct import run_reconstruct
+    from omegaconf import open_dict
+
+    folder = GEN / "heldout"
+    if folder.exists():
+        shutil.rmtree(folder)
+    tasks = [(r["name"], r["mesh"], None, str(TEMPLATE), AXES, str(folder)) for r in rest]
+    done = [one(t) for t in tasks]
+    refused = {r["mesh"]: r["error"] for r in done if "error" in r}
+    if len(refused) == len(done):
+        return {"fscore": {}, "refused": refused}
+    sl, _ = _train_generator("transferred", GEN / "transferred", args)
+    cfg = compose_config(overrides=["stage=reconstruct", f"run={sl.run_dir}", "data=folder",
+                                    f"data.path={folder}", "seed=0", "logger=csv",
+                                    "trainer.enable_progress_bar=false",
+                                    "prepare.cache_dir=${paths.cache_dir}/prepared/transfer_heldout"])
+
+    def fit(run_dir: Path) -> dict:
+        with open_dict(cfg):
+            cfg.run_dir = str(run_dir)
+        run_reconstruct(cfg)
+        return {}
+
+    from bench._harness import dataset_identity
+    f = FitCache("transfer").get({"stage": "reconstruct", "config": config_recipe(cfg),
+                                  "data": dataset_identity(cfg)}, fit)
+    per = json.loads((f.run_dir / "metrics.json").read_text())["shapes"]
+    print(f"held-out species reconstructed into the transferred model: {f.run_dir}", flush=True)
+    return {"fscore": {n: m["fscore"] for n, m in per.items()},
+            "chamfer": {n: m.get("chamfer") for n, m in per.items()}, "refused": refused,
+            "run": str(f.run_dir.relative_to(ROOT))}
 
 
 def _summary(rows, names):
@@ -108,6 +222,11 @@ def main() -> None:
     ap.add_argument("--limit", type=int, default=None, help="posed animals (default: all 108)")
     ap.add_argument("--creatures", type=int, default=24)
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--no-generator", action="store_true",
+                    help="skip the two generators and the held-out species' reconstruction")
+    ap.add_argument("--shape-latent-steps", type=int, default=5000,
+                    help="both generators' shape-latent steps (the recipe is experiment=animals)")
+    ap.add_argument("--diffusion-steps", type=int, default=3000)
     args = ap.parse_args()
     bench = Bench("transfer")
     import numpy as np
@@ -130,8 +249,10 @@ def main() -> None:
                 limit=args.limit, workers=args.workers)
     records = Animals(**conf).build()
     template = load_template(TEMPLATE)
-    axes = {"up": "+y", "front": "+z"}
-    tasks = [(r["name"], r["mesh"], r["annotation"], str(TEMPLATE), axes) for r in records]
+    for kind in ("rig", "transferred"):  # the training folders are rewritten on every run
+        shutil.rmtree(GEN / kind, ignore_errors=True)
+    tasks = [(r["name"], r["mesh"], r["annotation"], str(TEMPLATE), AXES,
+              str(GEN / "transferred") if r["split"] == "train" else None) for r in records]
     rows = list(map_shapes(one, tasks, args.workers, min_items=4))
     animals = _summary(rows, template.names)
     animals["missing_counts"] = {n: sum(n in r.get("missing", []) for r in rows) for n in template.names}
@@ -161,16 +282,31 @@ def main() -> None:
     for make in (chair, torus, sphere):
         m, _, _ = normalize(make())
         m.export(tmp / f"{make.__name__}.ply")
-        r = one((make.__name__, str(tmp / f"{make.__name__}.ply"), None, str(TEMPLATE), {}))
+        r = one((make.__name__, str(tmp / f"{make.__name__}.ply"), None, str(TEMPLATE), {}, None))
         if "error" in r:
             refused.append(make.__name__)
             errors[make.__name__] = r["error"]
+    generator, reconstructed = {k: {"mmd_cd": None, "nna_cd": None} for k in ("rig", "transferred")}, None
+    if not args.no_generator:
+        ok = {r["mesh"] for r in rows if "error" not in r}
+        train = [r for r in records if r["split"] == "train" and r["name"] in ok]
+        for r in train:  # the same training animals with the GCs their rig gives
+            _annotated_copy(GEN / "rig", r["name"], Path(r["mesh"]),
+                            load_annotation(r["annotation"]).gcs)
+        clips_m = [trimesh.load(r["mesh"], process=False) for r in records
+                   if r["split"] == "test_clips"]
+        print(f"generators: {len(train)} training animals (both GC kinds), {len(clips_m)} "
+              f"held-out clips", flush=True)
+        generator = generator_rows(records, clips_m, args)
+        rest_conf = {**conf, "split": "rest", "limit": None}
+        rest = [r for r in Animals(**rest_conf).build() if r["species"] in conf["heldout_species"]]
+        reconstructed = reconstruct_heldout(rest, args)
     result = {
         "animals": {k: animals[k] for k in ("n", "matched", "purity_mean", "purity_worst",
                                             "endpoint_err_median", "s_per_mesh")},
         "creatures": {"n": creatures["n"], "purity_mean": creatures["purity_mean"]},
-        "generator": {"rig": {"mmd_cd": None, "nna_cd": None},
-                      "transferred": {"mmd_cd": None, "nna_cd": None}},
+        "generator": generator,
+        "reconstruct_heldout": reconstructed,
         "refused": refused,
         "details": {"animals": {k: animals[k] for k in ("purity_per_gc", "missing_counts",
                                                          "s_per_mesh_mean")},
@@ -181,7 +317,8 @@ def main() -> None:
                     "per_mesh": rows},
     }
     print(bench.write(result))
-    print({k: result[k] for k in ("animals", "creatures", "refused")})
+    print({k: result[k] for k in ("animals", "creatures", "generator", "reconstruct_heldout",
+                                  "refused")})
 
 
 if __name__ == "__main__":

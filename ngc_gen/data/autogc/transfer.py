@@ -73,18 +73,20 @@ class TransferSettings:
     max_match_cost: float = 4.0
     min_matched: float = 0.6
     refine_steps: int = 60
+    min_tube: float = 0.22
 
     def __post_init__(self):
         checks = {"resolution": self.resolution >= 16, "samples": self.samples >= 100,
                   "skeleton": self.skeleton in BACKENDS, "margin": self.margin >= 0,
                   "missing_cost": self.missing_cost > 0, "max_match_cost": self.max_match_cost > 0,
-                  "min_matched": 0 <= self.min_matched <= 1, "refine_steps": self.refine_steps >= 0}
+                  "min_matched": 0 <= self.min_matched <= 1, "refine_steps": self.refine_steps >= 0,
+                  "min_tube": 0 <= self.min_tube < 1}
         for name, ok in checks.items():
             if not ok:
                 raise DataError(f"invalid value {getattr(self, name)!r}", field=f"annotate.{name}",
                                 fix="resolution >= 16; samples >= 100; skeleton auto|cgal|voxel; "
                                     "margin >= 0; missing_cost, max_match_cost > 0; min_matched "
-                                    "in [0, 1]; refine_steps >= 0")
+                                    "in [0, 1]; refine_steps >= 0; min_tube in [0, 1)")
         for name in ("up", "front"):
             parse_axis(getattr(self, name), f"annotate.{name}")
 
@@ -214,17 +216,39 @@ def _children(template: Template) -> dict[str, list[str]]:
     return out
 
 
-def _leaves_below(template: Template, kids: dict) -> dict[str, list[str]]:
+def _end_children(template: Template, kids: dict) -> dict[str, list[str]]:
+    """Each GC's children that attach in the far half of its `place` (its start -> end): the
+    ones that continue it (a head on its neck's end), not the side branches (ears near a
+    head's base, legs along a torso)."""
     out = {}
+    for g in template.gcs:
+        a, b = np.asarray(g.place["start"]), np.asarray(g.place["end"])
+        d = b - a
+        out[g.name] = [c for c in kids[g.name]
+                       if (np.asarray(template.gc(c).place["start"]) - a) @ d
+                       >= 0.5 * max(float(d @ d), 1e-12)]
+    return out
+
+
+def _tips(template: Template) -> tuple[list[str], dict[str, list[str]], dict[str, list[str]]]:
+    """The template GCs with a free tip, put onto the skeleton's free ends: the GCs nothing
+    continues (no children in their far half: limbs, and a head with ears near its base), the
+    root only when it has no children; each GC's tips at or below it (itself first); the
+    continuing children (``_end_children``)."""
+    kids = _children(template)
+    ends = _end_children(template, kids)
+    root = next(g.name for g in template.gcs if g.parent is None)
+    tips = [g.name for g in template.gcs if not ends[g.name] and (g.name != root or not kids[root])]
+    below: dict[str, list[str]] = {}
 
     def walk(name):
-        if name not in out:
-            out[name] = [name] if not kids[name] else [x for c in kids[name] for x in walk(c)]
-        return out[name]
+        if name not in below:
+            below[name] = ([name] if name in tips else []) + [x for c in kids[name] for x in walk(c)]
+        return below[name]
 
     for g in template.gcs:
         walk(g.name)
-    return out
+    return tips, below, ends
 
 
 def match_cost(template: Template, tree: Tree, body: BodyFrame, leaf_gcs: list[str],
@@ -302,9 +326,8 @@ def correspond(template: Template, tree: Tree, body: BodyFrame, settings: Transf
     of every tree node (N,), the missing GC names and the mean match cost. DataError (one line)
     when the mesh does not match the template."""
     kids = _children(template)
-    below = _leaves_below(template, kids)
+    leaf_gcs, below, ends = _tips(template)
     names = template.names
-    leaf_gcs = [n for n in names if not kids[n]]
     deg = tree.degree
     leaves = np.flatnonzero(tree.main & (deg == 1))
     root_gc = next(g.name for g in template.gcs if g.parent is None)
@@ -349,11 +372,22 @@ def correspond(template: Template, tree: Tree, body: BodyFrame, settings: Transf
         ml = matched_leaves[g.name]
         if ml:
             top_node[g.name] = junction(set(below[g.name]), leaf_path[ml[0]])
+    # a tip GC the skeleton has no free end for, whose side branches meet each other before
+    # they meet the rest (a head without a snout end, both ears found): its path ends where
+    # the farthest of them joins (one ear alone: its path is shared by the chain above it)
+    ends_at = dict(assign)
+    for g in leaf_gcs:
+        side = [top_node[c] for c in kids[g] if c in top_node and top_node[c] != top_node.get(g)]
+        if g not in assign and side:
+            ends_at[g] = int(side[int(np.argmax(dist[side]))])
+            leaf_path[g] = _path(pred, ends_at[g])
+            matched_leaves[g] = [g] + matched_leaves[g]
     done, chained = set(), set()  # chained: GCs that start at a cut of their parent's path
-    for leaf, node in assign.items():  # chains of template GCs above one matched leaf
+    for leaf, node in ends_at.items():  # chains of template GCs above one matched leaf
         chain = [leaf]
         while template.gc(chain[-1]).parent is not None and \
-                matched_leaves[template.gc(chain[-1]).parent] == [leaf] and \
+                (ends[template.gc(chain[-1]).parent] == [chain[-1]] or
+                 matched_leaves[template.gc(chain[-1]).parent] == [leaf]) and \
                 template.gc(chain[-1]).parent != root_gc:
             chain.append(template.gc(chain[-1]).parent)
         p = leaf_path[leaf]
@@ -397,9 +431,9 @@ def correspond(template: Template, tree: Tree, body: BodyFrame, settings: Transf
         if par is None or par not in paths or len(p) < 4 or name in chained:
             continue
         R = tree.radius[p]
-        k = int(np.argmax(R <= 1.25 * float(np.median(R[len(R) // 2:]))))
-        labels[p[: k // 2]] = names.index(par)  # (the rest of the root, a hip, is the limb's)
-        paths[name] = p[k // 2:] if len(p) - k // 2 >= 2 else p
+        k = int(np.argmax(R <= 1.25 * float(np.median(R[len(R) // 2:])))) // 2
+        labels[p[:k]] = names.index(par)  # (the rest of the root, a hip, is the limb's)
+        paths[name] = p[k:] if len(p) - k >= 2 else p
     src = np.flatnonzero(labels >= 0)
     _, _, source = dijkstra(tree.graph, indices=src, min_only=True, return_predecessors=True)
     fill = labels.copy()
@@ -586,6 +620,18 @@ def transfer_template(mesh: trimesh.Trimesh, template: Template,
         rho, _ = rho_matrix([ordered[g]], own)
         ordered[g] = grow_to_cover([ordered[g]], own[rho[0] <= OWN_REACH])[0]
     ordered = grow_to_cover(ordered, surface)
+    root = next(n for n in names if template.gc(n).parent is None)
+    if root in paths:  # the template's parts are tubes: a plate (a chair's seat) is no torso
+        keys = ordered[names.index(root)].to_dict()["keys"]
+        r_gc = float(np.median([np.sqrt(np.prod(k["radii"])) for k in keys]))
+        tube = float(tree.radius[paths[root]].max()) / max(r_gc, 1e-12)
+        if tube < st.min_tube:
+            raise DataError(f"does not match template {template.name} ({template.source}): its "
+                            f"{root} is no tube (inside it at most {tube:.2f} of the {root} GC's "
+                            f"radius thick, need {st.min_tube}: a plate or a frame, a chair's seat)",
+                            path=where, field="annotate.template",
+                            fix="annotate this mesh with a template of its kind (or by hand), or "
+                                "lower annotate.min_tube")
     pp, _, _ = gc_membership(surface, ordered)
     coverage = float((np.bincount(pp, minlength=len(surface)) > 0).mean())
     return Transfer(gcs=ordered, matched=matched, missing=missing, cost=cost,
@@ -601,27 +647,43 @@ def _place_of(gc: GeneralizedCylinder, body: BodyFrame) -> dict:
             "radius": r / body.half[0]}
 
 
+def _attachment(gcs: list[GeneralizedCylinder]) -> np.ndarray:
+    """(G, G, 2): how far each end (start, end) of GC i lies out of GC j, as its relative
+    radius measure in j (rho: <= 1 inside)."""
+    ends = np.concatenate([_curve_points(g, 2) for g in gcs])          # (2G, 3): start, end
+    rho = rho_matrix(gcs, ends)[0]                                      # (G_j, 2G_i)
+    return rho.reshape(len(gcs), len(gcs), 2).transpose(1, 0, 2)
+
+
 def _inferred_tree(gcs: list[GeneralizedCylinder], body: BodyFrame) -> list[TemplateGC]:
-    """Template GCs for annotated GCs without a template: the root the largest, each other GC's
-    parent the GC (of larger volume) nearest its start or end (flipped to start there), its
-    symmetric partner the GC whose mirror image across the body's mid-plane lies closest."""
+    """Template GCs for annotated GCs without a template. The tree is the one whose GCs touch
+    most closely: the minimum spanning tree of how far the nearer end of one GC lies out of the
+    other (relative radii, so an ear's base sits in the head, not in the other ear's thin
+    tube; no "parents are larger" rule, so a thin neck sits between the torso and a larger
+    head), rooted at the largest GC; each child starts at the end in its parent (export flips
+    its place to start there). Its symmetric partner: the GC whose mirror image across the
+    body's mid-plane lies closest."""
+    from scipy.sparse.csgraph import breadth_first_order, minimum_spanning_tree
+
     dicts = [g.to_dict() for g in gcs]
     vol = [float(np.ptp(_curve_points(g), axis=0).sum()) * np.mean(
         [np.prod(k["radii"]) for k in d["keys"]]) for g, d in zip(gcs, dicts)]
     root = int(np.argmax(vol))
     curves = [_curve_points(g) for g in gcs]
+    G = len(gcs)
+    A = _attachment(gcs).min(2)
+    W = np.minimum(A, A.T) + 1e-6          # zero would read as "no edge"
+    np.fill_diagonal(W, 0.0)
+    _, pred = breadth_first_order(minimum_spanning_tree(W), root, directed=False)
     out = []
     for i, (g, d) in enumerate(zip(gcs, dicts)):
         parent, extend = None, [True, True]
-        if i != root:
-            bigger = [j for j in range(len(gcs)) if j != i and vol[j] >= vol[i]] or [root]
-            dist = [min(np.linalg.norm(curves[j] - curves[i][0], axis=1).min(),
-                        np.linalg.norm(curves[j] - curves[i][-1], axis=1).min()) for j in bigger]
-            parent = gcs[bigger[int(np.argmin(dist))]].name
+        if i != root and G > 1:
+            parent = gcs[int(pred[i])].name
             extend = [False, True]
         mirror = body.to_body(curves[i]) * np.array([1.0, -1.0, 1.0])
-        errs = [np.abs(body.to_body(c) - mirror).mean() if j != i else np.inf
-                for j, c in enumerate(curves)]
+        errs = [min(np.abs(body.to_body(c) - mirror).mean(), np.abs(body.to_body(c)[::-1] - mirror).mean())
+                if j != i else np.inf for j, c in enumerate(curves)]
         j = int(np.argmin(errs))
         partner = gcs[j].name if errs[j] < 0.1 and np.abs(mirror[:, 1]).mean() > 0.05 else None
         out.append(TemplateGC(g.name, (), (), len(d["curve"]["points"]) - 1,
@@ -647,10 +709,17 @@ def export_template(shapes: list[tuple[list[GeneralizedCylinder], np.ndarray, Or
             raise DataError(f"annotated meshes disagree on their GCs ({[g.name for g in gcs]} vs "
                             f"{names})", field="annotate.export_template",
                             fix="export from meshes that share one template")
+    inferred = _inferred_tree(gcs0, BodyFrame.of(pts0, or0)) if base is None else None
     places = []
     for gcs, pts, orientation in shapes:
         body = BodyFrame.of(pts, orientation)
-        places.append([_place_of(g, body) for g in gcs])
+        pl = [_place_of(g, body) for g in gcs]
+        if inferred is not None:  # each child's place starts at its end in its parent
+            A = _attachment(gcs)
+            for i, t in enumerate(inferred):
+                if t.parent is not None and A[i, names.index(t.parent), 1] < A[i, names.index(t.parent), 0]:
+                    pl[i] = {**pl[i], "start": pl[i]["end"], "end": pl[i]["start"]}
+        places.append(pl)
     mean = [{"start": tuple(np.mean([p[i]["start"] for p in places], 0)),
              "end": tuple(np.mean([p[i]["end"] for p in places], 0)),
              "radius": float(np.mean([p[i]["radius"] for p in places]))} for i in range(len(names))]
@@ -662,7 +731,6 @@ def export_template(shapes: list[tuple[list[GeneralizedCylinder], np.ndarray, Or
         tgcs = [dataclasses.replace(g, place=p) for g, p in zip(base.gcs, mean)]
         frame = base.frame or {"up": tuple(or0.up), "front": tuple(or0.front)}
     else:  # the GCs' up vectors are in the first mesh's frame
-        tgcs = [dataclasses.replace(g, place=p) for g, p in
-                zip(_inferred_tree(gcs0, BodyFrame.of(pts0, or0)), mean)]
+        tgcs = [dataclasses.replace(g, place=p) for g, p in zip(inferred, mean)]
         frame = {"up": tuple(or0.up), "front": tuple(or0.front)}
     return Template(name, tuple(tgcs), frame=frame)
