@@ -257,9 +257,12 @@ def main() -> None:
     animals = _summary(rows, template.names)
     animals["missing_counts"] = {n: sum(n in r.get("missing", []) for r in rows) for n in template.names}
     # creatures: a template from the true GCs of the first 8, transferred onto the next ones
-    cdir = ROOT / ".cache/datasets/creatures_n64_s0"
+    from ngc_gen.data.procedural.creatures import build_creatures, creature_names
+
+    cdir = ROOT / ".cache/datasets/creatures_n64_s0"  # data=creatures' default set, built if missing
     z_up = Orientation(np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0]), ("given", "given"))
-    have = sorted(p.stem for p in cdir.glob("creature_*.yaml") if p.with_suffix(".ply").is_file())
+    have = creature_names(64)[:8 + args.creatures]
+    build_creatures(cdir, 64, seed=0, only=have, workers=args.workers)
     shapes = []
     for stem in have[:8]:
         ann = load_annotation(cdir / f"{stem}.yaml")

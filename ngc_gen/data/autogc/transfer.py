@@ -320,6 +320,16 @@ def _before_side_branches(path: np.ndarray, arc: np.ndarray, cut: list[int], deg
     return out
 
 
+def _along_place(path: list[int], nodes: np.ndarray, body: BodyFrame, place: dict) -> list[int]:
+    """A path between junctions (a torso) run the way the template's part runs, start to end:
+    the longest path between two junctions has no direction of its own."""
+    ends = body.to_body(nodes[[path[0], path[-1]]])
+    s, e = np.asarray(place["start"]), np.asarray(place["end"])
+    kept = np.linalg.norm(ends[0] - s) + np.linalg.norm(ends[1] - e)
+    flipped = np.linalg.norm(ends[0] - e) + np.linalg.norm(ends[1] - s)
+    return path if kept <= flipped else path[::-1]
+
+
 def correspond(template: Template, tree: Tree, body: BodyFrame, settings: TransferSettings,
                where: str | None = None) -> tuple[dict[str, np.ndarray], np.ndarray, list[str], float]:
     """Paths (node indices, root side first) of the matched template GCs, the template GC index
@@ -419,7 +429,7 @@ def correspond(template: Template, tree: Tree, body: BodyFrame, settings: Transf
             for b in keys:
                 if b != a and da[b] > best[0]:
                     best = (float(da[b]), _path(np.where(pa < 0, -1, pa), b)[::-1])
-        paths[g.name] = best[1]
+        paths[g.name] = _along_place(best[1], tree.nodes, body, g.place)
     labels = np.full(len(tree.nodes), -1)
     for name, p in paths.items():
         labels[p] = names.index(name)
@@ -561,10 +571,19 @@ def transfer_template(mesh: trimesh.Trimesh, template: Template,
     curves = [tree.nodes[tree.branch_of == b] for b in branch_ids]
     volumes = [float(np.linalg.norm(np.diff(c, axis=0), axis=1).sum()) * tree.branch_r[b] ** 2
                for c, b in zip(curves, branch_ids)]
-    orientation = detect_orientation(curves, volumes, None, parse_axis(st.up, "annotate.up"),
-                                     parse_axis(st.front, "annotate.front"), surface)
+    up, front = parse_axis(st.up, "annotate.up"), parse_axis(st.front, "annotate.front")
+    orientation = detect_orientation(curves, volumes, None, up, front, surface)
     body = BodyFrame.of(surface, orientation)
-    paths, labels, missing, cost = correspond(template, tree, body, st, where)
+    try:
+        paths, labels, missing, cost = correspond(template, tree, body, st, where)
+    except DataError:
+        if up is None:
+            raise
+        # the collection's up, given, does not hold for this mesh (an animal lying on its
+        # side): once more with its own up detected, the given front kept
+        orientation = detect_orientation(curves, volumes, None, None, front, surface)
+        body = BodyFrame.of(surface, orientation)
+        paths, labels, missing, cost = correspond(template, tree, body, st, where)
     owner = labels[cKDTree(tree.nodes).query(surface, k=1)[1]]
     M = template_rotation(template, orientation)
     names = template.names
