@@ -535,11 +535,12 @@ def _straight(tgc: TemplateGC, start: np.ndarray, direction: np.ndarray, length:
 
 
 def _safe_up(up: np.ndarray, direction: np.ndarray) -> np.ndarray:
-    """`up` unless it is nearly along the part (the frame would be undefined): then the world
-    axis least along it."""
+    """`up` unless it is along the part (within 2.5 degrees: the frame would be undefined): then
+    the world axis least along it. Rarely: every mesh of a folder must keep the template's up
+    for one shape-latent layout."""
     d = direction / max(np.linalg.norm(direction), 1e-12)
     u = up / max(np.linalg.norm(up), 1e-12)
-    if abs(u @ d) < 0.9:
+    if abs(u @ d) < 0.999:
         return u
     return np.eye(3)[int(np.argmin(np.abs(d)))]
 
@@ -574,6 +575,9 @@ def transfer_template(mesh: trimesh.Trimesh, template: Template,
     up, front = parse_axis(st.up, "annotate.up"), parse_axis(st.front, "annotate.front")
     orientation = detect_orientation(curves, volumes, None, up, front, surface)
     body = BodyFrame.of(surface, orientation)
+    # the template's up vectors turned into the collection's frame: with the axes given, the
+    # same for every mesh of the folder (one shape-latent layout), also for a mesh retried below
+    M = template_rotation(template, orientation)
     try:
         paths, labels, missing, cost = correspond(template, tree, body, st, where)
     except DataError:
@@ -585,7 +589,6 @@ def transfer_template(mesh: trimesh.Trimesh, template: Template,
         body = BodyFrame.of(surface, orientation)
         paths, labels, missing, cost = correspond(template, tree, body, st, where)
     owner = labels[cKDTree(tree.nodes).query(surface, k=1)[1]]
-    M = template_rotation(template, orientation)
     names = template.names
     floor = 1e-3 * float(np.ptp(surface, axis=0).max())
     gcs: dict[str, GeneralizedCylinder] = {}

@@ -130,3 +130,19 @@ def test_settings_defaults_are_the_config_defaults():
     conf = yaml.safe_load((ROOT / "conf/annotate/default.yaml").read_text())
     for f in dataclasses.fields(TransferSettings):
         assert conf[f.name] == getattr(TransferSettings(), f.name), f.name
+
+
+def test_a_mesh_lying_on_its_side_keeps_the_folders_layout(template, transfers):
+    """The collection's up given (+y) but one animal lies on its side (a death clip): it is
+    matched with its own up, and its GCs keep the up vectors every other mesh of the folder has
+    (a shape-latent model needs one layout)."""
+    side = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])  # +y up -> +x
+    given = dataclasses.replace(FAST, up="+y", front="+z")
+    m, p = _normalised(*quadruped(rotation=side))
+    tr = transfer_template(m, template, given, "lying")
+    upright = transfer_template(transfers["yup"][0], template, given, "upright")
+    assert tr.orientation.source[0] == "detected" and upright.orientation.source[0] == "given"
+    assert [g.to_dict()["up"] for g in tr.gcs] == [g.to_dict()["up"] for g in upright.gcs]
+    by = {g.name: g for g in tr.gcs}
+    for point, gc in (("foot_fl", "leg_fl"), ("head_tip", "head"), ("tail_tip", "tail")):
+        assert bool(by[gc].contains(p[point][None])[0]), (point, gc)
