@@ -17,6 +17,7 @@ folders, their rig GCs and their transferred GCs; a generator (experiment=animal
 against the 30 held-out clips: MMD-CD, COV, 1-NNA (as bench/animals.py).
 reconstruct_heldout: the held-out species at rest, transferred and put into the transferred
 generator's shape-latent model by stage=reconstruct (latent, then codes): F-score@0.01.
+Writes bench/results/transfer.png: one transferred animal per species, GCs in template colours.
 
     python bench/transfer.py [--limit N] [--workers W] [--no-generator]
 """
@@ -201,6 +202,33 @@ def reconstruct_heldout(rest: list[dict], args) -> dict:
             "run": str(f.run_dir.relative_to(ROOT))}
 
 
+def picture(records: list[dict], path: Path) -> None:
+    """One transferred animal per species (walking), each GC in its template colour:
+    the README's picture of a collection that shares one template."""
+    import trimesh
+
+    from ngc_gen.data.autogc.template import load_template
+    from ngc_gen.data.autogc.transfer import TransferSettings, transfer_template
+    from ngc_gen.data.errors import DataError
+    from ngc_gen.viz.gc_colors import render_gc_collection
+    from ngc_gen.viz.render import render_or_warn
+
+    template = load_template(TEMPLATE)
+    cells, seen = [], set()
+    for r in sorted(records, key=lambda r: r["clip"] != "Walk"):
+        if r["species"] in seen or len(cells) == 8:
+            continue
+        mesh = trimesh.load(r["mesh"], process=False)
+        try:
+            tr = transfer_template(mesh, template, TransferSettings(**AXES), r["name"])
+        except DataError:
+            continue
+        seen.add(r["species"])
+        cells.append((r["name"], mesh, tr.gcs, tr.orientation.up))
+    render_or_warn(render_gc_collection, path, [c[:3] for c in cells], template.names,
+                   up=[c[3] for c in cells])
+
+
 def _summary(rows, names):
     import numpy as np
 
@@ -319,6 +347,7 @@ def main() -> None:
                     "refused_errors": errors,
                     "per_mesh": rows},
     }
+    picture([r for r in records if r["split"] != "rest"], ROOT / "bench/results/transfer.png")
     print(bench.write(result))
     print({k: result[k] for k in ("animals", "creatures", "generator", "reconstruct_heldout",
                                   "refused")})
