@@ -11,6 +11,16 @@ import os
 from typing import Callable, Iterator
 
 
+def _share_by_file() -> None:
+    """Tensors crossing processes are shared through files, not file descriptors: by default
+    every shared storage keeps a descriptor open while it lives, and 300 animals' GCs and
+    samples passed one way and back ran past a 20000-descriptor limit (torch's documented
+    remedy for 'Too many open files')."""
+    import torch.multiprocessing
+
+    torch.multiprocessing.set_sharing_strategy("file_system")
+
+
 def _one_thread() -> None:
     """The initializer of each worker process."""
     import numba
@@ -18,6 +28,7 @@ def _one_thread() -> None:
 
     torch.set_num_threads(1)  # in a worker process we spawned
     numba.set_num_threads(1)
+    _share_by_file()
 
 
 def default_workers() -> int:
@@ -43,6 +54,8 @@ def map_shapes(fn: Callable, items: list, workers: int | None = None,
         return
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
+
+    _share_by_file()
 
     with ProcessPoolExecutor(min(workers, len(items)),
                              mp_context=multiprocessing.get_context("spawn"),
