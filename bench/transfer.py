@@ -13,7 +13,7 @@ onto the next 24 written as plain meshes; purity against their true GCs.
 refused: which of a chair, a torus and a sphere the quadruped template refuses.
 generator: the training split's animals (those the transfer did not refuse) as two annotated
 folders, their rig GCs and their transferred GCs; a generator (experiment=animals' recipe,
---shape-latent-steps / --diffusion-steps) trained on each in the same run, 2 x 30 samples
+--shape-latent-steps / --diffusion-steps) trained on each in the same run, --sets x 30 samples
 against the 30 held-out clips: MMD-CD, COV, 1-NNA (as bench/animals.py).
 reconstruct_heldout: the held-out species at rest, transferred and put into the transferred
 generator's shape-latent model by stage=reconstruct (latent, then codes): F-score@0.01.
@@ -144,7 +144,8 @@ def _train_generator(kind: str, folder: Path, args) -> tuple:
 
 def generator_rows(records: list[dict], clips_m: list, args) -> dict:
     """{rig, transferred}: a generator trained on each folder of the training animals (the same
-    recipe, the same run) against the held-out clips, {mmd_cd, cov_cd, nna_cd} over 2 sets."""
+    recipe, the same run) against the held-out clips, {mmd_cd, cov_cd, nna_cd}, the mean over
+    --sets sets."""
     import trimesh
 
     from bench.animals import rows_for
@@ -157,9 +158,10 @@ def generator_rows(records: list[dict], clips_m: list, args) -> dict:
         _, diff = _train_generator(kind, GEN / kind, args)
         gen = load_generator(diff.run_dir)
         where = RUNS / f"samples_{kind}"
-        s = generate(gen, where, n=2 * K, seed=0, resolution=128, progress=False)
+        s = generate(gen, where, n=args.sets * K, seed=0, resolution=128, progress=False)
         ms = [trimesh.load(where / f"{n}.ply", process=False) for n in sorted(s["shapes"])]
-        out[kind] = rows_for({"g": [ms[:K], ms[K:]]}, clips_m, 2048)["g"]
+        out[kind] = rows_for({"g": [ms[i:i + K] for i in range(0, args.sets * K, K)]},
+                             clips_m, 2048)["g"]
         print(f"generator ({kind} GCs) vs {K} held-out clips: {out[kind]}", flush=True)
     return out
 
@@ -255,6 +257,8 @@ def main() -> None:
     ap.add_argument("--shape-latent-steps", type=int, default=5000,
                     help="both generators' shape-latent steps (the recipe is experiment=animals)")
     ap.add_argument("--diffusion-steps", type=int, default=3000)
+    ap.add_argument("--sets", type=int, default=4,
+                    help="sets of as many samples as held-out clips, per generator (averaged)")
     args = ap.parse_args()
     bench = Bench("transfer")
     import numpy as np
@@ -344,6 +348,9 @@ def main() -> None:
                     "creatures": {k: creatures[k] for k in ("matched", "purity_worst", "purity_per_gc",
                                                              "endpoint_err_median", "s_per_mesh")},
                     "template": str(TEMPLATE.relative_to(ROOT)),
+                    "generator_recipe": {"shape_latent_steps": args.shape_latent_steps,
+                                         "diffusion_steps": args.diffusion_steps,
+                                         "sets": args.sets, "reference": "held-out clips"},
                     "refused_errors": errors,
                     "per_mesh": rows},
     }

@@ -23,7 +23,8 @@ Pinocchio's two steps (a discrete embedding, then a continuous refinement) on ou
 5. Refinement (torch, all GCs at once): control points and per-key radii so each GC's own
    samples lie at its radius from its curve (the union's boundary near the surface, the
    surface inside), children start inside their parents, curves stay smooth and symmetric
-   pairs mirror each other across the body's mid-plane; then radii and caps are refitted to
+   pairs keep one thickness profile (their positions mirror only weakly: a posed animal's legs
+   are not mirror images); then radii and caps are refitted to
    the refined curves and coverage is repaired (``coverage.grow_to_cover``) as for a rig.
 """
 from __future__ import annotations
@@ -53,6 +54,10 @@ from ngc_gen.geometry import GeneralizedCylinder, bernstein_basis
 SIGMA_TIP = 0.3    # tip position error (body units) that costs 1
 W_DIRECTION = 1.0  # weight of 1 - cos(direction toward the tip)
 W_THICKNESS = 0.5  # weight of log(thickness ratio)^2
+W_SYMMETRY = 0.01  # refinement: weight of a symmetric pair's mirror mismatch in position (a
+                   # posed animal's legs are not mirrored: at 1 a walking horse's front feet
+                   # were pulled to their mirrored mean, 0.25 of the leg's length off each)
+W_SYMMETRIC_RADII = 1.0  # and in thickness (log radii per key), which posing keeps
 
 
 @dataclass(frozen=True)
@@ -504,7 +509,9 @@ def refine(ctrls: list[np.ndarray], own: list[np.ndarray], radius0: list[np.ndar
             if partners[g] > g:
                 x = X[g]
                 mirrored = x - 2.0 * ((x - point) @ normal)[:, None] * normal[None, :]
-                loss = loss + ((mirrored - X[partners[g]]) ** 2).sum(1).mean() / scale ** 2
+                loss = loss + W_SYMMETRY * ((mirrored - X[partners[g]]) ** 2).sum(1).mean() / scale ** 2
+                if len(logr[g]) == len(logr[partners[g]]):  # the same thickness profile
+                    loss = loss + W_SYMMETRIC_RADII * ((logr[g] - logr[partners[g]]) ** 2).mean()
         for x, x0 in zip(X, X0):
             if len(x) > 2:
                 loss = loss + 0.1 * ((x[2:] - 2 * x[1:-1] + x[:-2]) ** 2).sum() / scale ** 2
