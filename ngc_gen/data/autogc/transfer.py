@@ -257,8 +257,11 @@ def _tips(template: Template) -> tuple[list[str], dict[str, list[str]], dict[str
 
 
 def match_cost(template: Template, tree: Tree, body: BodyFrame, leaf_gcs: list[str],
-               leaves: np.ndarray) -> np.ndarray:
-    """(T, L) cost of template leaf GC t on tree leaf l (module docstring, step 3)."""
+               leaves: np.ndarray, reach: bool = False) -> np.ndarray:
+    """(T, L) cost of template leaf GC t on tree leaf l (module docstring, step 3). reach (the
+    second pass, for the limbs the first left out): the tip's position term asks only that it
+    lie at the limb's length from where the limb attaches (a posed limb swings about its
+    attachment: a grazing head, a galloping leg), on the limb's own side of the body."""
     tip = body.to_body(tree.nodes[leaves])                          # (L, 3)
     d_mesh = tree.branch_dir[tree.branch_of[leaves]] @ body.R.T / body.half
     d_mesh /= np.maximum(np.linalg.norm(d_mesh, axis=1, keepdims=True), 1e-12)
@@ -275,9 +278,28 @@ def match_cost(template: Template, tree: Tree, body: BodyFrame, leaf_gcs: list[s
         sigma = np.full(3, SIGMA_TIP)
         if template.gc(name).symmetric is None:  # on the mid-plane: its side hardly tells
             sigma[1] *= 2.0
-        C[i] = ((((tip - end) / sigma) ** 2).sum(1) + W_DIRECTION * (1.0 - d_mesh @ d_t)
+        if reach:
+            chain = [name, *_ancestors(template, name)][:-1]  # up to the root's child
+            top = chain[-1]                                    # (a head's neck)
+            length = sum(np.linalg.norm(np.subtract(template.gc(n).place["end"],
+                                                    template.gc(n).place["start"])) for n in chain)
+            at = np.linalg.norm(tip - np.asarray(template.gc(top).place["start"]), axis=1)
+            side = ((tip[:, 1] - end[1]) / SIGMA_TIP) ** 2 if template.gc(name).symmetric \
+                else 0.0
+            pos = ((at - length) / SIGMA_TIP) ** 2 + side
+        else:
+            pos = (((tip - end) / sigma) ** 2).sum(1)
+        C[i] = (pos + W_DIRECTION * (1.0 - d_mesh @ d_t)
                 + W_THICKNESS * np.log(np.maximum(r_mesh, 1e-6) / (pl["radius"] / r_root)) ** 2)
     return C
+
+
+def _ancestors(template: Template, name: str) -> list[str]:
+    out, p = [], template.gc(name).parent
+    while p is not None:
+        out.append(p)
+        p = template.gc(p).parent
+    return out
 
 
 def _path(pred: np.ndarray, node: int) -> list[int]:
@@ -366,6 +388,16 @@ def correspond(template: Template, tree: Tree, body: BodyFrame, settings: Transf
                         path=where, field="annotate.template",
                         fix="annotate this mesh with a template of its kind (or by hand), or "
                             "raise annotate.max_match_cost")
+    # second pass: a limb posed far from the template's place (a head lowered to graze, legs
+    # bunched in a gallop) takes a free end the first pass left, when the end is within the
+    # limb's reach (match_cost with reach)
+    left_gcs = [g for g in leaf_gcs if g not in assign]
+    free = np.asarray([n for n in leaves if int(n) not in assign.values()], dtype=int)
+    if left_gcs and len(free):
+        C2 = match_cost(template, tree, body, left_gcs, free, reach=True)
+        for r, c in zip(*linear_sum_assignment(C2)):
+            if C2[r, c] < settings.missing_cost:
+                assign[left_gcs[r]] = int(free[c])
     rp = template.gc(root_gc).place
     root_pos = body.to_world((np.asarray(rp["start"]) + np.asarray(rp["end"])) / 2.0)
     main_idx = np.flatnonzero(tree.main)
