@@ -10,7 +10,10 @@ Pinocchio's two steps (a discrete embedding, then a continuous refinement) on ou
    assignment (Hungarian) with geometric costs: where the tip lies (side included, so a left
    leg cannot take a right foot; half as strict across for a part on the mid-plane), the direction toward it from its branch's root, and its
    thickness relative to the body's thickest part against the template's; any template leaf
-   may stay unmatched at ``missing_cost``. Tree-consistent by construction: a leaf's path toward the template root's
+   may stay unmatched at ``missing_cost``. A second pass gives the limbs left out (a grazing
+   head, galloping legs) the free ends left over that lie within their reach: at the limb
+   chain's length from where it attaches, on its own side. Still missing: matched once more
+   on a finer tree (spurs ``FINER`` x as long kept: a short tail). Tree-consistent by construction: a leaf's path toward the template root's
    place is its own up to where it meets another matched leaf's path (its junction); a chain
    of template GCs above one leaf (neck, head) shares that path by the template's lengths; a
    GC above several matched leaves (a torso) is the longest tree path between its children's
@@ -58,6 +61,7 @@ W_SYMMETRY = 0.01  # refinement: weight of a symmetric pair's mirror mismatch in
                    # posed animal's legs are not mirrored: at 1 a walking horse's front feet
                    # were pulled to their mirrored mean, 0.25 of the leg's length off each)
 W_SYMMETRIC_RADII = 1.0  # and in thickness (log radii per key), which posing keeps
+FINER = 0.4        # a mesh with parts missing is matched again on spurs this x as long kept
 
 
 @dataclass(frozen=True)
@@ -167,10 +171,11 @@ class Tree:
         return np.diff(self.graph.indptr)
 
 
-def skeleton_tree(surface: np.ndarray, proxy, backend: str, min_length: float,
+def skeleton_tree(surface: np.ndarray, sk, floor: float, min_length: float,
                   max_branches: int) -> Tree:
-    sk = proxy_skeleton(proxy, backend=backend)
-    radius = np.maximum(local_thickness(sk.nodes, surface), proxy.h)
+    """The branch tree of a proxy skeleton `sk`, spurs shorter than min_length x their
+    thickness pruned (local thickness at least `floor`, the proxy's voxel)."""
+    radius = np.maximum(local_thickness(sk.nodes, surface), floor)
     branches = branch_graph(sk.nodes, sk.edges, radius, min_length, max_branches)
     key_id: dict = {}
     pts, rad, owner, edges = [], [], [], []
@@ -605,7 +610,8 @@ def transfer_template(mesh: trimesh.Trimesh, template: Template,
     pts, _ = sample_surface(V, F, st.samples, rng)
     surface = np.concatenate([V, pts])
     proxy = closed_proxy(V, F, resolution=st.resolution, seed=st.seed)
-    tree = skeleton_tree(surface, proxy, st.skeleton, st.min_branch_length, st.max_gcs)
+    sk = proxy_skeleton(proxy, backend=st.skeleton)
+    tree = skeleton_tree(surface, sk, proxy.h, st.min_branch_length, st.max_gcs)
     # orientation from the body's branches (curves of each branch of the main piece)
     branch_ids = np.unique(tree.branch_of[tree.main])
     curves = [tree.nodes[tree.branch_of == b] for b in branch_ids]
@@ -627,6 +633,14 @@ def transfer_template(mesh: trimesh.Trimesh, template: Template,
         orientation = detect_orientation(curves, volumes, None, None, front, surface)
         body = BodyFrame.of(surface, orientation)
         paths, labels, missing, cost = correspond(template, tree, body, st, where)
+    if missing:  # a stubby part (a short tail) pruned with the spurs: once more with finer ones
+        fine = skeleton_tree(surface, sk, proxy.h, FINER * st.min_branch_length, st.max_gcs)
+        try:
+            again = correspond(template, fine, body, st, where)
+        except DataError:
+            again = None
+        if again is not None and len(again[2]) < len(missing):
+            tree, (paths, labels, missing, cost) = fine, again
     owner = labels[cKDTree(tree.nodes).query(surface, k=1)[1]]
     names = template.names
     floor = 1e-3 * float(np.ptp(surface, axis=0).max())
