@@ -13,8 +13,8 @@ Pinocchio's two steps (a discrete embedding, then a continuous refinement) on ou
    may stay unmatched at ``missing_cost``. A second pass gives the limbs left out (a grazing
    head, galloping legs) the free ends left over that lie within their reach: at the limb
    chain's length from where it attaches, on its own side. Still missing: matched once more
-   on a finer tree (spurs ``FINER`` x as long kept: a short tail). Tree-consistent by construction: a leaf's path toward the template root's
-   place is its own up to where it meets another matched leaf's path (its junction); a chain
+   on a finer tree (spurs ``FINER`` x as long kept: a short tail). Tree-consistent by
+   construction: a leaf's path toward the template root's place is its own up to where it meets another matched leaf's path (its junction); a chain
    of template GCs above one leaf (neck, head) shares that path by the template's lengths; a
    GC above several matched leaves (a torso) is the longest tree path between its children's
    junctions. Every other skeleton node (ears, antlers) goes to the GC nearest along the tree.
@@ -171,11 +171,9 @@ class Tree:
         return np.diff(self.graph.indptr)
 
 
-def skeleton_tree(surface: np.ndarray, sk, floor: float, min_length: float,
-                  max_branches: int) -> Tree:
-    """The branch tree of a proxy skeleton `sk`, spurs shorter than min_length x their
-    thickness pruned (local thickness at least `floor`, the proxy's voxel)."""
-    radius = np.maximum(local_thickness(sk.nodes, surface), floor)
+def skeleton_tree(sk, radius: np.ndarray, min_length: float, max_branches: int) -> Tree:
+    """The branch tree of a proxy skeleton `sk` (local thickness `radius` per node), spurs
+    shorter than min_length x their thickness pruned."""
     branches = branch_graph(sk.nodes, sk.edges, radius, min_length, max_branches)
     key_id: dict = {}
     pts, rad, owner, edges = [], [], [], []
@@ -546,7 +544,8 @@ def refine(ctrls: list[np.ndarray], own: list[np.ndarray], radius0: list[np.ndar
             if partners[g] > g:
                 x = X[g]
                 mirrored = x - 2.0 * ((x - point) @ normal)[:, None] * normal[None, :]
-                loss = loss + W_SYMMETRY * ((mirrored - X[partners[g]]) ** 2).sum(1).mean() / scale ** 2
+                mismatch = ((mirrored - X[partners[g]]) ** 2).sum(1).mean() / scale ** 2
+                loss = loss + W_SYMMETRY * mismatch
                 if len(logr[g]) == len(logr[partners[g]]):  # the same thickness profile
                     loss = loss + W_SYMMETRIC_RADII * ((logr[g] - logr[partners[g]]) ** 2).mean()
         for x, x0 in zip(X, X0):
@@ -611,7 +610,8 @@ def transfer_template(mesh: trimesh.Trimesh, template: Template,
     surface = np.concatenate([V, pts])
     proxy = closed_proxy(V, F, resolution=st.resolution, seed=st.seed)
     sk = proxy_skeleton(proxy, backend=st.skeleton)
-    tree = skeleton_tree(surface, sk, proxy.h, st.min_branch_length, st.max_gcs)
+    thick = np.maximum(local_thickness(sk.nodes, surface), proxy.h)  # (also for the retry)
+    tree = skeleton_tree(sk, thick, st.min_branch_length, st.max_gcs)
     # orientation from the body's branches (curves of each branch of the main piece)
     branch_ids = np.unique(tree.branch_of[tree.main])
     curves = [tree.nodes[tree.branch_of == b] for b in branch_ids]
@@ -634,7 +634,7 @@ def transfer_template(mesh: trimesh.Trimesh, template: Template,
         body = BodyFrame.of(surface, orientation)
         paths, labels, missing, cost = correspond(template, tree, body, st, where)
     if missing:  # a stubby part (a short tail) pruned with the spurs: once more with finer ones
-        fine = skeleton_tree(surface, sk, proxy.h, FINER * st.min_branch_length, st.max_gcs)
+        fine = skeleton_tree(sk, thick, FINER * st.min_branch_length, st.max_gcs)
         try:
             again = correspond(template, fine, body, st, where)
         except DataError:
