@@ -2,7 +2,14 @@
 
 Latents are standardised per dimension with the training set's mean and std (buffers, so they
 travel in the checkpoint); the EDM works in that space with sigma_data = 1 (the std of the
-standardised latents), the same value in loss and preconditioning. An EMA copy of the network
+standardised latents), the same value in loss and preconditioning. `standardise=pca` goes one step
+further: the per-dimension standardised latents are rotated onto their principal axes, the axes
+that hold `pca_variance` of the variance are kept and each scaled to unit variance (whitened), and
+the EDM works in that smaller space (`space_dim`). A few hundred latents of a few hundred entries
+span at most N - 1 directions and are strongly correlated (a pose moves every GC of a limb), so in
+per-dimension units most directions carry no data and the denoiser must learn to cancel its skip
+connection there; whitened, every direction it sees holds unit-variance data, as EDM's
+preconditioning assumes (docs/generation.md, bench/README.md#animals). An EMA copy of the network
 (half-life in optimizer steps with NVlabs/edm's ramp-up, or a fixed decay) is updated after every
 optimizer step, saved in the checkpoint, and used by `sample`, which returns latents in the
 original space.
@@ -24,7 +31,7 @@ from .checkpoint import load_module
 from .parts import keywords, optimizer_factory
 
 CHECKPOINT_KIND = "ngc_gen.diffusion"
-STANDARDISE = ("per_dim", "scalar", "none")
+STANDARDISE = ("per_dim", "scalar", "none", "pca")
 
 
 class LatentDiffusion(L.LightningModule):
@@ -41,33 +48,54 @@ class LatentDiffusion(L.LightningModule):
     def __init__(self, dim: int, denoiser=None, lr: float = 1e-3, P_mean: float = -1.2,
                  P_std: float = 1.2, sigma_data: float = 1.0, ema_halflife_steps: float = 500.0,
                  ema_rampup: float | None = 0.05, ema_decay: float | None = None,
-                 standardise: str = "per_dim", std_eps: float = 1e-6, optimizer=None,
+                 standardise: str = "per_dim", std_eps: float = 1e-6,
+                 pca_variance: float = 0.999, space_dim: int | None = None, optimizer=None,
                  meta: dict | None = None, checkpoint_kind: str = CHECKPOINT_KIND):
         super().__init__()
         if standardise not in STANDARDISE:
             raise ValueError(f"unknown standardise {standardise!r}; choose one of {STANDARDISE}")
+        if not 0.0 < pca_variance <= 1.0:
+            raise ValueError(f"pca_variance must be in (0, 1], got {pca_variance}")
+        space_dim = int(space_dim or dim) if standardise == "pca" else dim
         self.save_hyperparameters(ignore=["denoiser", "optimizer"])
         net_kw = keywords(denoiser, ResidualMLPDenoiser)
-        self.hparams.update(denoiser=net_kw)
+        self.hparams.update(denoiser=net_kw, space_dim=space_dim)
         self.make_optimizer = optimizer_factory(optimizer)
-        self.net = EDMPrecond(ResidualMLPDenoiser(dim, **net_kw), sigma_data)
-        self.ema = copy.deepcopy(self.net).requires_grad_(False)
         self.loss_fn = EDMLoss(P_mean, P_std, sigma_data)
         self.register_buffer("latent_mean", torch.zeros(dim))
         self.register_buffer("latent_std", torch.ones(dim))
         self.register_buffer("latent_count", torch.zeros((), dtype=torch.long))  # 0: not fitted
+        self._build(space_dim)
         self._ema_step = -1
+
+    def _build(self, space_dim: int) -> None:
+        """The denoiser (and its EMA copy) over `space_dim` entries; with standardise=pca also
+        the principal axes (dim, space_dim) and their stds (space_dim,)."""
+        self.hparams.space_dim = int(space_dim)
+        self.net = EDMPrecond(ResidualMLPDenoiser(space_dim, **self.hparams.denoiser),
+                              self.hparams.sigma_data)
+        self.ema = copy.deepcopy(self.net).requires_grad_(False)
+        if self.hparams.standardise == "pca":
+            self.register_buffer("pca_axes", torch.eye(self.hparams.dim)[:, :space_dim])
+            self.register_buffer("pca_std", torch.ones(space_dim))
+
+    @property
+    def space_dim(self) -> int:
+        """Entries of the space the EDM works in: dim, or the kept principal axes (pca)."""
+        return int(self.hparams.space_dim)
 
     # -- standardisation ------------------------------------------------------------------
     @torch.no_grad()
     def fit_standardisation(self, latents: torch.Tensor) -> None:
-        """Set the mean/std buffers from training latents (N, dim), N >= 2."""
+        """Set the mean/std buffers from training latents (N, dim), N >= 2; with
+        standardise=pca also the principal axes holding `pca_variance` of the variance (at most
+        N - 1), which sizes the denoiser: call it before training (the stage does)."""
         z = torch.as_tensor(latents).to(torch.float64).reshape(len(latents), -1)
         if z.shape[1] != self.hparams.dim or len(z) < 2:
             raise ValueError(f"need training latents of shape (N >= 2, {self.hparams.dim}); "
                              f"got {tuple(latents.shape)}")
         mode = self.hparams.standardise
-        if mode == "per_dim":
+        if mode in ("per_dim", "pca"):
             mean, std = z.mean(0), z.std(0)
         elif mode == "scalar":
             mean, std = z.mean().expand(z.shape[1]), z.std().expand(z.shape[1])
@@ -76,13 +104,30 @@ class LatentDiffusion(L.LightningModule):
         self.latent_mean.copy_(mean)
         self.latent_std.copy_(std.clamp_min(self.hparams.std_eps))
         self.latent_count.fill_(len(z))
+        if mode == "pca":
+            u = (z - mean) / self.latent_std.to(z)
+            _, s, vt = torch.linalg.svd(u, full_matrices=False)
+            var = s ** 2 / (len(z) - 1)                       # variance along each axis
+            share = var.cumsum(0) / var.sum().clamp_min(1e-300)
+            keep = int((share < self.hparams.pca_variance - 1e-12).sum()) + 1
+            keep = max(1, min(keep, len(z) - 1, int((var > 1e-12 * var[0]).sum())))
+            if keep != self.space_dim:
+                self._build(keep)
+            self.pca_axes.copy_(vt[:keep].T)
+            self.pca_std.copy_(var[:keep].sqrt())
 
     def standardise(self, latents: torch.Tensor) -> torch.Tensor:
-        """(B, dim) original -> (B, dim) standardised, in latents' dtype."""
-        return (latents - self.latent_mean.to(latents)) / self.latent_std.to(latents)
+        """(B, dim) original -> (B, space_dim) standardised, in latents' dtype (pca: the
+        whitened coordinates on the kept axes; what the other axes hold is dropped)."""
+        u = (latents - self.latent_mean.to(latents)) / self.latent_std.to(latents)
+        if self.hparams.standardise == "pca":
+            return (u @ self.pca_axes.to(u)) / self.pca_std.to(u)
+        return u
 
     def destandardise(self, x: torch.Tensor) -> torch.Tensor:
-        """(B, dim) standardised -> (B, dim) original, in x's dtype."""
+        """(B, space_dim) standardised -> (B, dim) original, in x's dtype."""
+        if self.hparams.standardise == "pca":
+            x = (x * self.pca_std.to(x)) @ self.pca_axes.to(x).T
         return x * self.latent_std.to(x) + self.latent_mean.to(x)
 
     def _require_standardisation(self) -> None:
@@ -115,6 +160,9 @@ class LatentDiffusion(L.LightningModule):
     def on_train_start(self) -> None:
         if int(self.latent_count) == 0:
             ds = getattr(self.trainer.train_dataloader, "dataset", None)
+            if self.hparams.standardise == "pca":   # the axes size the net the optimiser holds
+                raise RuntimeError("standardise=pca sizes the denoiser from the latents: call "
+                                   "fit_standardisation(train_latents) before trainer.fit")
             if isinstance(ds, TensorDataset):
                 self.fit_standardisation(ds.tensors[0])
         self._require_standardisation()
@@ -174,7 +222,7 @@ class LatentDiffusion(L.LightningModule):
         was_training = net.training
         net.eval()
         try:
-            noise = randn_like(torch.empty(n, self.hparams.dim, dtype=torch.float64,
+            noise = randn_like(torch.empty(n, self.space_dim, dtype=torch.float64,
                                            device=self.device))
             denoiser = net if guide is None else guide(self, net)
             x = edm_sampler(denoiser, noise, randn_like, num_steps=steps, sigma_min=sigma_min,

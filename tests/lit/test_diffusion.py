@@ -164,3 +164,62 @@ def test_loading_a_wrong_file_is_a_clear_error(tmp_path):
         LatentDiffusion.from_checkpoint(bad)
     with pytest.raises(DataError, match="does not exist"):
         LatentDiffusion.from_checkpoint(tmp_path / "missing.ckpt")
+
+
+@pytest.fixture(scope="module")
+def low_rank():
+    """64 latents of 20 entries on a 3-D subspace (scales 5, 1, 0.2) plus a 1e-4 tail, with
+    per-entry scales and offsets: per-dimension standardisation leaves 17 directions with no
+    data, the principal axes find the 3 that hold it."""
+    g = torch.Generator().manual_seed(0)
+    basis = torch.linalg.qr(torch.randn(20, 3, generator=g))[0]
+    coords = torch.randn(64, 3, generator=g) * torch.tensor([5.0, 1.0, 0.2])
+    lat = coords @ basis.T + 1e-4 * torch.randn(64, 20, generator=g)
+    return lat * torch.logspace(-1, 1, 20) + torch.linspace(-3, 3, 20)
+
+
+def test_pca_standardisation_keeps_the_axes_that_hold_the_variance(low_rank, tmp_path):
+    m = LatentDiffusion(20, denoiser=dict(width=16, depth=1), standardise="pca",
+                        pca_variance=0.999)
+    assert m.space_dim == 20                  # sized by the data once it is seen
+    m.fit_standardisation(low_rank)
+    assert m.space_dim == 3 and m.net.model.inp.in_features == 3
+    assert m.ema.model.out.out_features == 3
+    s = m.standardise(low_rank)
+    assert s.shape == (64, 3)
+    torch.testing.assert_close(s.T @ s / 63, torch.eye(3), atol=1e-4, rtol=0)   # whitened
+    # the kept axes rebuild every latent (what is dropped is the 1e-4 tail)
+    err = (m.destandardise(s) - low_rank) / low_rank.std(0)
+    assert float(err.abs().max()) < 1e-2
+    x = m.sample(8, seed=0)
+    assert x.shape == (8, 20)
+    # the checkpoint carries the axes and the space size: the same samples after loading
+    tr = trainer(2)
+    loader = DataLoader(TensorDataset(low_rank), batch_size=32)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        tr.fit(m, loader)
+    tr.save_checkpoint(tmp_path / "pca.ckpt")
+    loaded = LatentDiffusion.from_checkpoint(tmp_path / "pca.ckpt")
+    assert loaded.space_dim == 3
+    torch.testing.assert_close(loaded.pca_axes, m.pca_axes)
+    assert torch.equal(loaded.sample(16, seed=2), m.sample(16, seed=2))
+
+
+def test_pca_variance_one_keeps_every_direction_with_data(low_rank):
+    m = LatentDiffusion(20, denoiser=dict(width=16, depth=1), standardise="pca",
+                        pca_variance=1.0)
+    m.fit_standardisation(low_rank)
+    assert m.space_dim == 20   # the 1e-4 tail is data too (min(N - 1, dims with variance))
+    torch.testing.assert_close(m.destandardise(m.standardise(low_rank)), low_rank,
+                               atol=1e-4, rtol=1e-5)
+    with pytest.raises(ValueError, match="pca_variance"):
+        LatentDiffusion(20, standardise="pca", pca_variance=0.0)
+
+
+def test_pca_needs_statistics_before_training(low_rank):
+    m = LatentDiffusion(20, denoiser=dict(width=8, depth=1), standardise="pca")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        with pytest.raises(RuntimeError, match="before trainer.fit"):
+            trainer(2).fit(m, DataLoader(TensorDataset(low_rank), batch_size=32))
