@@ -23,20 +23,27 @@ def tubes(segments, radii, h=0.025) -> trimesh.Trimesh:
     return trimesh.Trimesh(v + lo, f, process=True)
 
 
-def quadruped(length=0.8, leg=0.75, neck=0.45, tail=0.4, rotation=None):
+def quadruped(length=0.8, leg=0.75, neck=0.45, tail=0.4, rotation=None, grazing=False,
+              tail_radius=0.035, tail_dir=(0.7, 0.7)):
     """(mesh, points): a stick quadruped and named points on it (front-left foot, head tip,
     tail tip, torso middle), y up, facing +z (or turned by `rotation` (3, 3): world' = R world);
-    tail=0: no tail."""
+    tail=0: no tail; grazing: the neck lowered forward and the head down to the ground (far
+    from where a template's head sits); tail_dir: the tail's (down, back) per unit of `tail`
+    ((0, 1): straight back)."""
     z0, z1, y = -length / 2, length / 2, 0.1
     feet = {"fl": (0.14, y - leg, z1 - 0.05), "fr": (-0.14, y - leg, z1 - 0.05),
             "bl": (0.14, y - leg, z0 + 0.05), "br": (-0.14, y - leg, z0 + 0.05)}
     hips = {k: (f[0], y, f[2]) for k, f in feet.items()}
-    neck_top = (0.0, y + neck * 0.8, z1 + neck * 0.5)
-    head_tip = (0.0, neck_top[1] - 0.05, neck_top[2] + 0.25)
-    tail_tip = (0.0, y - tail * 0.7, z0 - tail * 0.7)
+    if grazing:
+        neck_top = (0.0, y - neck * 1.15, z1 + neck * 0.15)
+        head_tip = (0.0, neck_top[1] - 0.22, neck_top[2] + 0.1)
+    else:
+        neck_top = (0.0, y + neck * 0.8, z1 + neck * 0.5)
+        head_tip = (0.0, neck_top[1] - 0.05, neck_top[2] + 0.25)
+    tail_tip = (0.0, y - tail * tail_dir[0], z0 - tail * tail_dir[1])
     segs = [((0, y, z0), (0, y, z1))] + [(hips[k], feet[k]) for k in feet] + [
         ((0, y, z1), neck_top), (neck_top, head_tip), ((0, y, z0), tail_tip)]
-    radii = [0.16, 0.06, 0.06, 0.06, 0.06, 0.07, 0.09, 0.035]
+    radii = [0.16, 0.06, 0.06, 0.06, 0.06, 0.07, 0.09, tail_radius]
     if not tail:
         segs, radii = segs[:-1], radii[:-1]
     mesh = tubes(segs, radii)

@@ -1,6 +1,7 @@
 """Template transfer: the quadruped template's GCs on meshes without a rig (same names, order,
-degrees and keys), parts where they belong, a missing part reported, unmatchable meshes refused,
-an edit program written with template names run on every mesh, templates exported."""
+degrees and keys), parts where they belong, a posed head found within its reach (the second
+pass), a stubby tail found on the finer tree, a missing part reported, unmatchable meshes
+refused, an edit program written with template names run on every mesh, templates exported."""
 from __future__ import annotations
 
 import dataclasses
@@ -64,6 +65,35 @@ def test_every_mesh_gets_the_templates_gcs_and_its_parts_land_in_them(template, 
     assert transfers["yup"][2].orientation.describe() == "up +y (detected), front +z (detected)"
     assert transfers["zup"][2].orientation.describe() == "up +z (detected), front +x (detected)"
 
+
+def test_a_grazing_head_far_from_the_templates_place_is_found_within_its_reach(template):
+    """The head lowered to the ground lies far from where the template's head sits, too far for
+    the first matching pass; the second gives it the free end left over at the neck and head's
+    length from where the neck attaches, so the head is matched and holds the snout, and no
+    leg took it (axes given, as for a collection: this is about matching, not orientation)."""
+    mesh, pts = _normalised(*quadruped(grazing=True))
+    tr = transfer_template(mesh, template, dataclasses.replace(FAST, up="+y", front="+z"),
+                           "grazing")
+    assert tr.missing == [] and "head" in tr.matched
+    by = {g.name: g for g in tr.gcs}
+    snout = pts["head_tip"][None]
+    assert bool(by["head"].contains(snout)[0])
+    assert not any(bool(by[leg].contains(snout)[0]) for leg in ("leg_fl", "leg_fr"))
+    assert bool(by["leg_fl"].contains(pts["foot_fl"][None])[0])
+
+
+def test_a_stubby_tail_pruned_with_the_spurs_is_found_on_the_finer_tree(template):
+    """A short thick tail straight back sticks out of the torso's end by less than a spur must
+    (min_branch_length x its thickness): the skeleton tree loses it and the tail is missing
+    after both passes. Matched once more on the finer tree (spurs FINER x as long kept), the
+    tail is found: nothing missing, and the tail GC holds the tail's tip, not a small stand-in
+    at its attachment."""
+    mesh, pts = _normalised(*quadruped(tail=0.19, tail_radius=0.05, tail_dir=(0.0, 1.0)))
+    tr = transfer_template(mesh, template, FAST, "stubby tail")
+    assert tr.missing == [] and "tail" in tr.matched
+    by = {g.name: g for g in tr.gcs}
+    assert bool(by["tail"].contains(pts["tail_tip"][None])[0])
+    assert not bool(by["torso"].contains(pts["tail_tip"][None])[0])
 
 def test_a_mesh_without_a_tail_gets_a_small_tail_at_its_attachment(template):
     mesh, pts = _normalised(*quadruped(tail=0))
