@@ -87,12 +87,15 @@ def run_diffusion(cfg: DictConfig) -> dict:
     samples = module.sample(min(256, 4 * len(latents)), seed=SAMPLE_SEED)
     metrics = {"steps": int(trainer.global_step), "start_step": start_step, "train_s": train_s,
                "n_latents": int(len(latents)), "dim": int(latents.shape[1]),
+               "space_dim": module.space_dim,
                "edm_loss_untrained": before, "edm_loss_ema": after,
                **nearest_neighbour_stats(samples, latents, module.latent_std),
                "checkpoint": str(run_dir / "checkpoints" / "last.ckpt"),
                "shape_latent_checkpoint": str(ckpt)}
     atomic_write_text(run_dir / "metrics.json", json.dumps(metrics, indent=2))
-    print(f"\ndiffusion: {len(latents)} latents x {latents.shape[1]} dims, {metrics['steps']} "
+    space = (f" ({module.space_dim} principal axes)" if module.space_dim != latents.shape[1]
+             else "")
+    print(f"\ndiffusion: {len(latents)} latents x {latents.shape[1]} dims{space}, {metrics['steps']} "
           f"steps in {train_s:.0f} s; EDM loss {before:.3f} (untrained) -> {after:.3f} (EMA)")
     print(f"  nearest training latent (std units): samples {metrics['sample_to_train_median']:.2f}"
           f" median, training latents to each other {metrics['train_to_train_median']:.2f}")

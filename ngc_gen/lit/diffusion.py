@@ -3,16 +3,14 @@
 Latents are standardised per dimension with the training set's mean and std (buffers, so they
 travel in the checkpoint); the EDM works in that space with sigma_data = 1 (the std of the
 standardised latents), the same value in loss and preconditioning. `standardise=pca` goes one step
-further: the per-dimension standardised latents are rotated onto their principal axes, the axes
-that hold `pca_variance` of the variance are kept and each scaled to unit variance (whitened), and
-the EDM works in that smaller space (`space_dim`). A few hundred latents of a few hundred entries
-span at most N - 1 directions and are strongly correlated (a pose moves every GC of a limb), so in
-per-dimension units most directions carry no data and the denoiser must learn to cancel its skip
-connection there; whitened, every direction it sees holds unit-variance data, as EDM's
-preconditioning assumes (docs/generation.md, bench/README.md#animals). An EMA copy of the network
-(half-life in optimizer steps with NVlabs/edm's ramp-up, or a fixed decay) is updated after every
-optimizer step, saved in the checkpoint, and used by `sample`, which returns latents in the
-original space.
+further: the per-dimension standardised latents are rotated onto their principal axes and only
+the axes that hold `pca_variance` of the variance are kept (still in per-dimension units, not
+whitened); the EDM works in that smaller space (`space_dim`) and what the dropped axes hold is
+decoded at the training mean. A few hundred latents of a few hundred entries span at most N - 1
+directions and are strongly correlated (a pose moves every GC of a limb), so most directions of
+the per-dimension space carry little or no data; the denoiser then fits the directions that do.
+docs/generation.md has the measurements (what the dropped axes cost, and why whitening the kept
+axes made samples worse).
 
 Training data: batches of raw latents (B, dim), or (latents,) tuples as from a TensorDataset.
 """
@@ -49,7 +47,7 @@ class LatentDiffusion(L.LightningModule):
                  P_std: float = 1.2, sigma_data: float = 1.0, ema_halflife_steps: float = 500.0,
                  ema_rampup: float | None = 0.05, ema_decay: float | None = None,
                  standardise: str = "per_dim", std_eps: float = 1e-6,
-                 pca_variance: float = 0.999, space_dim: int | None = None, optimizer=None,
+                 pca_variance: float = 0.95, space_dim: int | None = None, optimizer=None,
                  meta: dict | None = None, checkpoint_kind: str = CHECKPOINT_KIND):
         super().__init__()
         if standardise not in STANDARDISE:
@@ -70,14 +68,13 @@ class LatentDiffusion(L.LightningModule):
 
     def _build(self, space_dim: int) -> None:
         """The denoiser (and its EMA copy) over `space_dim` entries; with standardise=pca also
-        the principal axes (dim, space_dim) and their stds (space_dim,)."""
+        the principal axes (dim, space_dim)."""
         self.hparams.space_dim = int(space_dim)
         self.net = EDMPrecond(ResidualMLPDenoiser(space_dim, **self.hparams.denoiser),
                               self.hparams.sigma_data)
         self.ema = copy.deepcopy(self.net).requires_grad_(False)
         if self.hparams.standardise == "pca":
             self.register_buffer("pca_axes", torch.eye(self.hparams.dim)[:, :space_dim])
-            self.register_buffer("pca_std", torch.ones(space_dim))
 
     @property
     def space_dim(self) -> int:
@@ -114,20 +111,19 @@ class LatentDiffusion(L.LightningModule):
             if keep != self.space_dim:
                 self._build(keep)
             self.pca_axes.copy_(vt[:keep].T)
-            self.pca_std.copy_(var[:keep].sqrt())
 
     def standardise(self, latents: torch.Tensor) -> torch.Tensor:
         """(B, dim) original -> (B, space_dim) standardised, in latents' dtype (pca: the
-        whitened coordinates on the kept axes; what the other axes hold is dropped)."""
+        coordinates on the kept axes; what the other axes hold is dropped)."""
         u = (latents - self.latent_mean.to(latents)) / self.latent_std.to(latents)
         if self.hparams.standardise == "pca":
-            return (u @ self.pca_axes.to(u)) / self.pca_std.to(u)
+            return u @ self.pca_axes.to(u)
         return u
 
     def destandardise(self, x: torch.Tensor) -> torch.Tensor:
         """(B, space_dim) standardised -> (B, dim) original, in x's dtype."""
         if self.hparams.standardise == "pca":
-            x = (x * self.pca_std.to(x)) @ self.pca_axes.to(x).T
+            x = x @ self.pca_axes.to(x).T
         return x * self.latent_std.to(x) + self.latent_mean.to(x)
 
     def _require_standardisation(self) -> None:
