@@ -14,6 +14,9 @@ many shapes as the reference):
   generated_churn  the same with the stochastic sampler (CHURN: 40 steps, S_churn 40)
   train_set   the ceiling: training meshes (random subsets)
   noise       the floor: latents ~ N(mean, std^2) per dimension of the trained latents
+  train_decoded  the training latents themselves decoded and meshed like the samples (random
+              subsets): what a generator that reproduced its latents exactly would score, so
+              generated - train_decoded is the diffusion's share of the gap to the ceiling
 References: `clips` = training species at their held-out clips (data.heldout_clips_by_species:
 3 per species, rotated so every clip stays in training for other species), `species` =
 held-out species at every clip. nearest_train_cd_median: the median over generated shapes of the Chamfer distance
@@ -231,6 +234,10 @@ def main():
                           [f"noise_{i:03d}" for i in range(n_gen)], RUNS / "noise",
                           args.resolution)
     rng = np.random.default_rng(args.seed)
+    pick = np.random.default_rng(args.seed + 2).choice(   # apart from rng: same ceiling subsets
+        len(gen.train_latents), n_gen, replace=n_gen > len(gen.train_latents))
+    decoded_m, _ = mesh_set(gen, gen.train_latents[pick], [f"train_{i:03d}" for i in pick],
+                            RUNS / "train_decoded", args.resolution)
     res = {"n_train": len(train_m), "n_heldout_clips": len(clips_m),
            "n_heldout_species": len(species_m)}
     for key, ref_m in (("clips", clips_m), ("species", species_m)):
@@ -240,7 +247,9 @@ def main():
                              "generated_churn": [churn_m[i:i + k]
                                                  for i in range(0, args.sets * k, k)],
                              "train_set": [[train_m[i] for i in s] for s in subsets],
-                             "noise": [noise_m[i:i + k] for i in range(0, args.sets * k, k)]},
+                             "noise": [noise_m[i:i + k] for i in range(0, args.sets * k, k)],
+                             "train_decoded": [decoded_m[i:i + k]
+                                               for i in range(0, args.sets * k, k)]},
                             ref_m, args.points)
     g_pts, _ = clouds(gen_m, args.points, 0)
     t_pts, _ = clouds(train_m, args.points, 0)
@@ -261,7 +270,8 @@ def main():
     res["recipe"] = {
         "frames": args.frames, "fit_steps": runs["fit"]["steps"],
         "shape_latent_steps": runs["shape_latent"]["steps"],
-        "diffusion_steps": runs["diffusion"]["steps"], "sets": args.sets,
+        "diffusion_steps": runs["diffusion"]["steps"],
+        "diffusion_space_dim": runs["diffusion"].get("space_dim"), "sets": args.sets,
         "train_subsets": args.train_subsets, "resolution": args.resolution,
         "points": args.points, "interp": [a, b], "interp_empty_meshes": int(empty),
         "fit_fscore": {n: m["fscore"] for n, m in runs["fit"]["shapes"].items()},

@@ -349,6 +349,7 @@ def generate(res: dict) -> str:
     rows = [("generated", "generated (EDM, 18 Heun steps)"),
             ("train_recon", "training latents, decoded (decoder ceiling)"),
             ("train_set", "training meshes (ceiling)"),
+            ("train_decoded", "training latents decoded (the shape-latent model's ceiling)"),
             ("noise", "noise latents N(mean, std), no diffusion (floor)")]
     lines = ["| shapes vs held-out | MMD-CD (x1e-3) | COV-CD (%) | 1-NNA-CD (%) | sets |",
              "|---|---|---|---|---|"]
@@ -555,6 +556,7 @@ def animals(r: dict) -> str:
     rows = [("generated", "generated (EDM, 18 Heun steps)"),
             ("generated_churn", "generated (EDM, stochastic: 40 steps, S_churn 40)"),
             ("train_set", "training meshes (ceiling)"),
+            ("train_decoded", "training latents decoded (the shape-latent model's ceiling)"),
             ("noise", "noise latents N(mean, std), no diffusion (floor)")]
     rows = [(k, label) for k, label in rows if k in r["clips"]]
     lines = []
@@ -568,7 +570,8 @@ def animals(r: dict) -> str:
     interp = r["interp_max_over_mean"]
     lines += [f"{r['n_train']} training animals ({rc['frames']} frames per clip); fit of the rest "
               f"poses {rc['fit_steps']} steps, shape latents {rc['shape_latent_steps']}, diffusion "
-              f"{rc['diffusion_steps']}. Memorisation: median Chamfer from a generated animal to its "
+              f"{rc['diffusion_steps']}" + (f" on {rc['diffusion_space_dim']} principal axes of the "
+              f"latents" if rc.get("diffusion_space_dim") else "") + ". Memorisation: median Chamfer from a generated animal to its "
               f"nearest training animal {1e3 * r['nearest_train_cd_median']:.3f} x1e-3. "
               f"{rc['interp'][0]} -> {rc['interp'][1]}: largest consecutive-step Chamfer "
               + (f"{interp:.2f} x their mean" if interp is not None else "undefined (an empty mesh)")
