@@ -57,7 +57,7 @@ class LatentDiffusion(L.LightningModule):
         space_dim = int(space_dim or dim) if standardise == "pca" else dim
         self.save_hyperparameters(ignore=["denoiser", "optimizer"])
         net_kw = keywords(denoiser, ResidualMLPDenoiser)
-        self.hparams.update(denoiser=net_kw, space_dim=space_dim)
+        self.hparams.update(denoiser=net_kw)   # space_dim: set by _build
         self.make_optimizer = optimizer_factory(optimizer)
         self.loss_fn = EDMLoss(P_mean, P_std, sigma_data)
         self.register_buffer("latent_mean", torch.zeros(dim))
