@@ -54,7 +54,8 @@ def run_fit(cfg: DictConfig) -> dict:
     L.seed_everything(cfg.seed, workers=True, verbose=False)
     kind = model_kind(cfg)
     dm = PreparedDataModule(prepared, mode=kind, batch_size=cfg.batch_size, seed=cfg.seed,
-                            code_balance=cfg.code_balance)
+                            code_balance=cfg.code_balance,
+                            junction_weight=cfg.junction_weight)
     module = build_module(cfg, dm.n_codes, shapes_meta(prepared, kind))
     trainer, train_s, start_step = train(cfg, run_dir, module, datamodule=dm)
     if trainer.global_rank != 0:

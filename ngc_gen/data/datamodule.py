@@ -35,6 +35,27 @@ def training_rows(shapes: list[PreparedShape], mode: str):
             torch.from_numpy(np.concatenate(sdf).astype(np.float32)), offset)
 
 
+def shared_rows(shapes: list[PreparedShape]) -> torch.Tensor:
+    """(R,) bool in `training_rows(shapes, "ngc")` order: the row's sample is paired with two
+    or more GCs (where GCs overlap, or within a pair margin of another GC: a junction)."""
+    out = []
+    for s in shapes:
+        k = np.bincount(s.pair_point, minlength=len(s.points))
+        out.append(k[s.pair_point] >= 2)
+    return torch.from_numpy(np.concatenate(out))
+
+
+def row_weights(ids: torch.Tensor, balance: float, shared: torch.Tensor | None = None,
+                junction_weight: float = 0.0) -> torch.Tensor | None:
+    """Sampling weight per row: `code_balance_weights`, times 1 + junction_weight on `shared`
+    rows (samples where GCs meet drawn more often); None when every row is equally likely."""
+    w = code_balance_weights(ids, balance)
+    if junction_weight == 0 or shared is None:
+        return w
+    boost = 1.0 + float(junction_weight) * shared.double()
+    return boost if w is None else w * boost
+
+
 def code_balance_weights(ids: torch.Tensor, balance: float) -> torch.Tensor | None:
     """Row weights n_c^-balance, n_c = the rows of the row's code (GC or shape): 0 leaves every
     row equally likely (None), 1 gives every code the same share of a batch, so a thin part
@@ -73,12 +94,13 @@ class ShuffledBatches(Dataset):
 
 class PreparedDataModule(L.LightningDataModule):
     def __init__(self, shapes: list[PreparedShape], mode: str = "ngc", batch_size: int = 8192,
-                 seed: int = 0, code_balance: float = 0.0):
+                 seed: int = 0, code_balance: float = 0.0, junction_weight: float = 0.0):
         super().__init__()
         self.shapes, self.mode = shapes, mode
         ids, coords, sdf, self.n_codes = training_rows(shapes, mode)
+        shared = shared_rows(shapes) if mode == "ngc" and junction_weight else None
         self.train_set = ShuffledBatches(ids, coords, sdf, batch_size, seed,
-                                         code_balance_weights(ids, code_balance))
+                                         row_weights(ids, code_balance, shared, junction_weight))
 
     def set_epoch(self, epoch: int) -> None:
         self.train_set.set_epoch(epoch)

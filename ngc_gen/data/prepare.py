@@ -47,6 +47,10 @@ class PrepareSettings:
     (volume_region="gcs", what NGC trains on) or in the box [-1, 1]^3 (volume_region="box",
     DeepSDF's own sampling: a world-space SDF must learn the empty space too).
     coverage_samples exact surface points measure coverage; below min_coverage preparation stops.
+    pair_margin: a sample trains a GC's network up to relative radius 1 + pair_margin, a band
+    past the GC's boundary that the union never reads from that GC; so at the boundary, where
+    the union hands over to another GC, the network is not at the edge of what it learned
+    (docs/fitting.md, "Seams").
     """
 
     n_samples: int = 100_000
@@ -56,6 +60,7 @@ class PrepareSettings:
     min_coverage: float = 0.999
     seed: int = 0
     volume_region: str = "gcs"
+    pair_margin: float = 0.0
 
     def __post_init__(self):
         if isinstance(self.offset_std, (list, tuple)):
@@ -68,12 +73,13 @@ class PrepareSettings:
             "coverage_samples": self.coverage_samples >= 1,
             "min_coverage": 0.0 <= self.min_coverage <= 1.0,
             "volume_region": self.volume_region in ("gcs", "box"),
+            "pair_margin": 0.0 <= self.pair_margin <= 1.0,
         }
         for name, ok in checks.items():
             if not ok:
                 raise DataError(f"invalid value {getattr(self, name)!r}", field=f"prepare.{name}",
-                                fix="n_samples, coverage_samples >= 1; volume_region gcs or box; surface_fraction, min_coverage "
-                                    "in [0, 1]; offset_std >= 0")
+                                fix="n_samples, coverage_samples >= 1; volume_region gcs or box; surface_fraction, min_coverage, "
+                                    "pair_margin in [0, 1]; offset_std >= 0")
 
 
 @dataclass
@@ -129,7 +135,10 @@ def cache_key(mesh_bytes: bytes, annotation: Annotation, settings: PrepareSettin
     h.update(f"ngc-gen-prepare-v{CACHE_VERSION}".encode())
     h.update(hashlib.sha256(mesh_bytes).digest())
     h.update(json.dumps(content, sort_keys=True).encode())
-    h.update(json.dumps(dataclasses.asdict(settings), sort_keys=True).encode())
+    fields = dataclasses.asdict(settings)
+    if not fields["pair_margin"]:   # added later: samples without a margin keep their keys
+        fields.pop("pair_margin")
+    h.update(json.dumps(fields, sort_keys=True).encode())
     return h.hexdigest()
 
 
@@ -249,12 +258,15 @@ def compute_prepared(ann: Annotation, settings: PrepareSettings, key: str = "") 
         surf += normals * (rng.normal(0.0, 1.0, size=(n_surface, 1)) * stds[:, None])
     else:
         surf += normals * rng.normal(0.0, settings.offset_std, size=(n_surface, 1))
+    margin = settings.pair_margin
     if settings.volume_region == "box":
         vol = rng.uniform(-1.0, 1.0, (settings.n_samples - n_surface, 3))
-        vp, vg, vr = gc_membership(vol, gcs)
+        vp, vg, vr = gc_membership(vol, gcs, margin=margin)
     else:
         vol, (vp, vg, vr) = sample_volume(gcs, settings.n_samples - n_surface, rng)
-    sp, sg, sr = gc_membership(surf, gcs)
+        if margin:   # the same points, also paired with the GCs whose margin holds them
+            vp, vg, vr = gc_membership(vol, gcs, margin=margin)
+    sp, sg, sr = gc_membership(surf, gcs, margin=margin)
     points = np.concatenate([surf, vol])
     sdf = signed_distance(points, V, F)
     return PreparedShape(

@@ -245,3 +245,31 @@ def test_shapes_prepared_in_worker_processes_equal_those_prepared_here(sphere_fi
     assert prepare_uncached(anns, SMALL, tmp_path / "par", workers=2) == {}
     with pytest.raises(DataError, match="cover"):
         prepare_shape(bad, SMALL, tmp_path / "par")
+
+
+def test_pair_margin_trains_a_gc_past_its_boundary(sphere_file, write_yaml, gc_dict, cache):
+    """With pair_margin m a sample pairs with every GC within relative radius 1 + m (the band
+    the union hands over in), with its true relative coordinates; the samples stay the same."""
+    path = write_yaml({"name": "two", "mesh": sphere_file.name,
+                       "gcs": [gc_dict("left", -0.6, 0.1), gc_dict("right", -0.1, 0.6)]})
+    plain = prepare_shape(path, SMALL, cache)
+    wide = prepare_shape(path, dataclasses.replace(SMALL, pair_margin=0.2), cache)
+    np.testing.assert_array_equal(wide.points, plain.points)
+    np.testing.assert_array_equal(wide.sdf, plain.sdf)
+    assert wide.key != plain.key
+    rho = np.sqrt(GeneralizedCylinder.relative_measure(wide.pair_rel.astype(np.float64)))
+    assert rho.max() <= 1.2 + 1e-6
+    band = rho > 1.0
+    assert band.sum() > 200                   # new pairs, all in the band past a boundary
+    assert len(wide.pair_point) == len(plain.pair_point) + band.sum()
+    gcs = wide.gcs()
+    for g, gc in enumerate(gcs):
+        sel = wide.pair_gc == g
+        np.testing.assert_allclose(gc.to_world(wide.pair_rel[sel].astype(np.float64)),
+                                   wide.points[wide.pair_point[sel]], atol=1e-4)
+        # every sample within the margin of the GC is paired with it, none further out
+        rel = np.asarray(gc.to_relative(wide.points.astype(np.float64)))
+        near = np.sqrt(GeneralizedCylinder.relative_measure(rel)) <= 1.2
+        np.testing.assert_array_equal(np.sort(wide.pair_point[sel]), np.flatnonzero(near))
+    with pytest.raises(DataError, match="pair_margin"):
+        PrepareSettings(pair_margin=-0.1)

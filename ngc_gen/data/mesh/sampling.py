@@ -40,16 +40,22 @@ def sample_surface(vertices: np.ndarray, faces: np.ndarray, n: int, rng: np.rand
 
 
 def gc_membership(points: np.ndarray, gcs: Sequence[GeneralizedCylinder],
-                  skip: np.ndarray | None = None) -> Pairs:
+                  skip: np.ndarray | None = None, margin: float = 0.0) -> Pairs:
     """Every (point, GC) pair with the point inside the GC, and its relative coordinates.
 
     points (N, 3) -> pair_point (P,) int64, pair_gc (P,) int64, pair_rel (P, 3) float64 [u, a, b],
     sorted by point then GC. Only points inside a GC's bounding box are sent to ``to_relative``.
     skip (N,) int, optional: GC index per point whose pair the caller already has (left out).
+    margin: a point pairs with a GC up to relative radius 1 + margin (0: inside it), so a GC's
+    network can be trained a little past its boundary (prepare.pair_margin).
     """
     pp, pg, pr = [], [], []
+    limit = (1.0 + float(margin)) ** 2
     for g, gc in enumerate(gcs):
         lo, hi = gc.bounds()
+        if margin > 0:   # rho <= 1 + m lies within m x the GC's largest extent of its box
+            grow = float(margin) * float((hi - lo).max())
+            lo, hi = lo - grow, hi + grow
         mask = ((points >= lo) & (points <= hi)).all(axis=1)
         if skip is not None:
             mask &= skip != g
@@ -57,7 +63,7 @@ def gc_membership(points: np.ndarray, gcs: Sequence[GeneralizedCylinder],
         if len(cand) == 0:
             continue
         rel = np.asarray(gc.to_relative(points[cand]))
-        inside = np.asarray(GeneralizedCylinder.inside_relative(rel))
+        inside = np.asarray(GeneralizedCylinder.relative_measure(rel)) <= limit
         pp.append(cand[inside])
         pg.append(np.full(int(inside.sum()), g, dtype=np.int64))
         pr.append(rel[inside])
