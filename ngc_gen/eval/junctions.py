@@ -212,6 +212,40 @@ def _ratio(num: float | None, den: float | None) -> float | None:
     return float(num / den)
 
 
+def surface_errors(pred_mesh: trimesh.Trimesh, gt_mesh: trimesh.Trimesh, n_samples: int,
+                   seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(points (n, 3) on the fitted surface, their distance to the true solid's boundary (n,),
+    the angle in degrees between their normals (n,)): the per-sample errors both figures
+    average (module docstring; rounding-level errors are 0)."""
+    points, normals = sample_surface(pred_mesh, n_samples, seed)
+    truth = boundary_faces(gt_mesh)
+    dist, face = _to_surface(points, truth)
+    cos = np.abs(np.einsum("nd,nd->n", normals, np.asarray(truth.face_normals)[face]))
+    angle = np.degrees(np.arccos(np.clip(cos, 0.0, 1.0)))
+    # rounding is no error: a fit equal to the truth has ratio 1, not a ratio of rounding noise
+    dist[dist < ROUNDING * float(np.linalg.norm(np.ptp(truth.vertices, axis=0)))] = 0.0
+    angle[cos > 1.0 - ROUNDING] = 0.0
+    return points, dist, angle
+
+
+def worst_junction(pred_mesh: trimesh.Trimesh, gt_mesh: trimesh.Trimesh,
+                   gcs: Sequence[GeneralizedCylinder], radius: float, n_samples: int = 30_000,
+                   band: float = 0.1, seed: int = 0) -> tuple[np.ndarray, float] | None:
+    """(centre (3,), mean distance error there): the junction sample whose ball of `radius`
+    on the fitted surface has the largest mean distance to the truth, where a seam would be
+    most visible (close-ups: bench/fit.py); None without junction samples."""
+    points, dist, _ = surface_errors(pred_mesh, gt_mesh, n_samples, seed)
+    j = np.flatnonzero(junction_mask(points, gcs, band))
+    if len(j) == 0:
+        return None
+    tree = cKDTree(points)
+    near = cKDTree(points[j]).sparse_distance_matrix(tree, float(radius), output_type="coo_matrix")
+    ones = coo_matrix((np.ones(near.nnz), (near.row, near.col)), shape=near.shape)
+    local = (ones @ dist) / np.maximum(ones @ np.ones(len(points)), 1.0)
+    best = int(np.argmax(local))
+    return points[j[best]], float(local[best])
+
+
 def junction_metrics(pred_mesh: trimesh.Trimesh, gt_mesh: trimesh.Trimesh,
                      gcs: Sequence[GeneralizedCylinder], n_samples: int = 30_000,
                      band: float = 0.1, join: float = 0.01, sliver: float = 0.008,
@@ -231,14 +265,7 @@ def junction_metrics(pred_mesh: trimesh.Trimesh, gt_mesh: trimesh.Trimesh,
     if is_empty(pred_mesh):
         return {**dict.fromkeys(FIGURES), "extra_pieces": 0, "pieces": 0,
                 "gt_pieces": solid_pieces(gt_mesh, join, seed)[1], "sliver_breaks": 0}
-    points, normals = sample_surface(pred_mesh, n_samples, seed)
-    truth = boundary_faces(gt_mesh)
-    dist, face = _to_surface(points, truth)
-    cos = np.abs(np.einsum("nd,nd->n", normals, np.asarray(truth.face_normals)[face]))
-    angle = np.degrees(np.arccos(np.clip(cos, 0.0, 1.0)))
-    # rounding is no error: a fit equal to the truth has ratio 1, not a ratio of rounding noise
-    dist[dist < ROUNDING * float(np.linalg.norm(np.ptp(truth.vertices, axis=0)))] = 0.0
-    angle[cos > 1.0 - ROUNDING] = 0.0
+    points, dist, angle = surface_errors(pred_mesh, gt_mesh, n_samples, seed)
     j = junction_mask(points, gcs, band)
 
     def mean(x, m):

@@ -8,7 +8,7 @@ import trimesh
 from skimage.measure import marching_cubes
 
 from ngc_gen.eval.junctions import (boundary_faces, junction_mask, junction_metrics,
-                                    solid_pieces)
+                                    solid_pieces, worst_junction)
 from ngc_gen.geometry import GeneralizedCylinder
 
 A = (np.array([-0.6, 0.0, 0.0]), np.array([0.0, 0.0, 0.0]), 0.2)
@@ -76,6 +76,19 @@ def test_a_bump_at_the_junction_raises_the_ratio_and_one_elsewhere_lowers_it(sce
     assert seam["junction_ratio_dist"] > 2.0 and seam["junction_ratio_normal"] > 2.0
     assert away["junction_ratio_dist"] < 0.8 and away["junction_ratio_normal"] < 0.8
     assert seam["extra_pieces"] == away["extra_pieces"] == 0
+
+
+def test_the_worst_junction_is_found_at_the_bump(scene):
+    """The close-up of a seam looks where it is: the junction sample whose neighbourhood is
+    furthest from the truth sits on a bump at the junction; a bump elsewhere is not picked."""
+    truth, gcs = scene
+    j = junction_mask(truth.vertices, gcs, 0.1)
+    at_junction = truth.vertices[j][np.argmax(truth.vertices[j][:, 1])]
+    centre, err = worst_junction(displaced(truth, at_junction, sigma=0.04), truth, gcs, 0.05)
+    assert np.linalg.norm(centre - at_junction) < 0.06 and err > 0.01
+    centre, err = worst_junction(displaced(truth, AWAY, sigma=0.04), truth, gcs, 0.05)
+    assert np.linalg.norm(centre - AWAY) > 0.2 and err < 0.005
+    assert worst_junction(truth, truth, gcs[:1], 0.05) is None
 
 
 def test_the_truth_itself_scores_one_and_no_extra_piece(scene):
