@@ -227,9 +227,16 @@ def file_identity(paths) -> dict:
     return out
 
 
+#: settings added after fits were cached, at the value that does what the code did before
+#: they existed: left out of a recipe while they hold it, so adding a setting does not
+#: invalidate every cached fit (a fit with any other value gets its own key)
+NEUTRAL = {("junction_weight",): 0.0, ("prepare", "pair_margin"): 0.0}
+
+
 def config_recipe(cfg) -> dict:
     """A composed Hydra config as a recipe: resolved, with `run_dir` (where the fit goes, which
-    the cache chooses) replaced by a placeholder."""
+    the cache chooses) replaced by a placeholder and `NEUTRAL` settings at their neutral value
+    left out."""
     import copy
 
     from omegaconf import OmegaConf, open_dict
@@ -237,7 +244,15 @@ def config_recipe(cfg) -> dict:
     c = copy.deepcopy(cfg)
     with open_dict(c):
         c.run_dir = "<run_dir>"
-    return OmegaConf.to_container(c, resolve=True)
+    out = OmegaConf.to_container(c, resolve=True)
+    for path, value in NEUTRAL.items():
+        *parents, leaf = path
+        node = out
+        for k in parents:
+            node = node.get(k) if isinstance(node, dict) else None
+        if isinstance(node, dict) and leaf in node and node[leaf] == value:
+            del node[leaf]
+    return out
 
 
 @dataclass

@@ -163,3 +163,17 @@ def test_link_latest_points_a_fixed_name_at_the_latest_fit(tmp_path, capsys):
     real = tmp_path / "runs/generate/shape_latent"
     real.mkdir()
     assert not h.link_latest(real, a) and real.is_dir() and not real.is_symlink()
+
+
+def test_a_setting_at_its_neutral_value_leaves_the_recipe_key_as_it_was():
+    """Adding a setting (junction_weight, prepare.pair_margin) at the value that does what the
+    code did before must not invalidate every cached fit; any other value changes the key."""
+    from ngc_gen.app.config import compose_config
+
+    cfg = compose_config(overrides=["stage=fit", "data=ant"])
+    recipe = h.config_recipe(cfg)
+    assert "junction_weight" not in recipe and "pair_margin" not in recipe["prepare"]
+    assert recipe["prepare"]["n_samples"] == cfg.prepare.n_samples   # the rest stays
+    for over in ("junction_weight=2", "prepare.pair_margin=0.1"):
+        other = h.config_recipe(compose_config(overrides=["stage=fit", "data=ant", over]))
+        assert h.recipe_key(other) != h.recipe_key(recipe), over
