@@ -14,13 +14,16 @@ Also checks on the fitted NGC that the extractor's GC prefilter is exact (identi
 and without it) and records both evaluation counts. Runs go to bench/runs/fit/<method> and
 start fresh: the training is what this bench measures, so it is never taken from a cache.
 
-`junctions`: one entry per shape and run, {name, gcs, recipe, method, junction_ratio_dist,
-junction_ratio_normal, extra_pieces, nc, fscore} (ngc_gen.eval.junctions; docs/metrics.md):
-the fit's error where GCs meet / elsewhere, loose pieces, and the shape's NC and F@0.01. gcs:
-the GCs the fit used (`annotated`: the fitbench's own); recipe: `before` (today's NGC recipe),
-`deepsdf` (the single network, scored at the same shape's GCs), or the tag of a screening run
-with `--set`; method: the run (ngc, deepsdf, deepsdf_long_at_ngc_time). ngc_1gc has one GC
-and so no junction: it is not listed.
+`--junctions`: the seams benchmark (bench/_seams.py): the ant, the airplane, 8 creatures
+and 6 animals, each fitted on its own with automatic and with its own GCs, before and after the
+seam remedies and DeepSDF at about equal time. fit.json `junctions`: one entry per mesh, GCs
+and recipe, {name, gcs, recipe, method, junction_ratio_dist, junction_ratio_normal,
+extra_pieces, nc, fscore, train_s, steps} (ngc_gen.eval.junctions; docs/metrics.md): the fit's
+error where GCs meet / elsewhere, loose pieces, and the mesh's NC and F@0.01; gcs: auto /
+annotated / rig; recipe: before / after / deepsdf. Fits are cached; `--only NAME_GCS ...`
+fits a part, rerunning fills in the rest (entries of other meshes are kept).
+fit_junctions.png: the worst junctions close up. The other modes keep `junctions` as it is
+(their joint fits' junction figures are in `per_shape`).
 
 Screening (ablations): `--tag NAME` writes runs and results to bench/runs/fit/NAME/ instead,
 `--set` adds overrides to the NGC methods, `--limit N` keeps N of the 6 creatures.
@@ -304,19 +307,6 @@ def junction_rows(per_shape: dict, recipe: str, method: str, gcs: str = GCS) -> 
             for name, m in per_shape.items() if "junction_ratio_dist" in m]
 
 
-def all_junction_rows(res: dict, tag: str | None) -> list[dict]:
-    """fit.json's `junctions`: the NGC and DeepSDF runs' rows, then DeepSDF's own recipe at
-    NGC's training time where --deepsdf-long scored it."""
-    rows = []
-    for method in ("ngc", "deepsdf"):
-        per = res.get("per_shape", {}).get(method, {})
-        overrides = res.get("methods", {}).get(method, {}).get("overrides") or []
-        custom = [o for o in overrides if ".limit=" not in o]   # --set, not --limit
-        recipe = "deepsdf" if method == "deepsdf" else tag or "custom" if custom else "before"
-        rows += junction_rows(per, recipe, method)
-    return rows + res.get("deepsdf_long", {}).get("at_ngc_time", {}).get("junctions", [])
-
-
 def method_summary(metrics: dict) -> dict:
     """A fit run's metrics.json -> the bench's numbers of one method."""
     mean, per = metrics["mean"], metrics["shapes"].values()
@@ -345,7 +335,17 @@ def main():
     ap.add_argument("--score-only", action="store_true", help="--deepsdf-long: score, no training")
     ap.add_argument("--rescore", action="store_true",
                     help="score the existing runs again under the current metrics (no training)")
+    ap.add_argument("--junctions", action="store_true",
+                    help="the seams benchmark: meshes fitted one by one (bench/_seams.py)")
+    ap.add_argument("--recipes", nargs="+", default=["before", "after", "deepsdf"],
+                    help="--junctions: which recipes")
+    ap.add_argument("--only", nargs="*", default=None,
+                    help="--junctions: only these meshes (ant, or ant_auto / cow_rig)")
+    ap.add_argument("--fit-workers", type=int, default=2, help="--junctions: fits side by side")
+    ap.add_argument("--refit", action="store_true", help="--junctions: fit again, not cached")
     args = ap.parse_args()
+    if args.junctions:
+        return junctions_main(args)
     if args.threads:
         import torch
 
@@ -400,7 +400,8 @@ def main():
         res["ceiling"] = ceiling(args.resolution)
     from bench.report import table
 
-    res["junctions"] = all_junction_rows(res, args.tag)
+    if old.exists() and args.tag is None:   # the seams benchmark's entries (--junctions)
+        res["junctions"] = earlier().get("junctions", [])
     bench.write(res)
     picture(res, out / "fit.png", run_root)
     print(table("fit", earlier()))
@@ -410,6 +411,25 @@ def main():
               f"{p['identical_grid']}, mesh {p['identical_mesh']}; network evals "
               f"{p['prefiltered']['n_network_evals']} vs dense {p['dense']['n_network_evals']} "
               f"({p['eval_ratio']:.1f}x fewer)")
+
+
+def junctions_main(args) -> None:
+    """--junctions: fit what is missing, merge the entries into fit.json, draw the close-ups."""
+    from bench import _seams as junctions
+    from bench.report import fit_junctions
+
+    bench = Bench("fit")
+    for r in args.recipes:
+        if r not in junctions.RECIPES:
+            raise SystemExit(f"--recipes: {r!r} is not one of {list(junctions.RECIPES)}")
+    steps = args.steps if args.steps != 1500 else None   # 1500: the joint fits' default
+    rows, runs = junctions.run(args.recipes, args.only, args.fit_workers, steps, args.refit)
+    res = json.loads(bench.path.read_text()) if bench.path.exists() else {}
+    res.pop("machine", None)
+    res["junctions"] = junctions.merge_rows(res.get("junctions", []), rows)
+    bench.write(res)
+    junctions.picture(rows, runs, bench.path.parent / "fit_junctions.png")
+    print("\n".join(fit_junctions(res["junctions"])))
 
 
 if __name__ == "__main__":

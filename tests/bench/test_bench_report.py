@@ -121,3 +121,23 @@ def test_every_bench_has_a_make_target_and_make_bench_runs_it():
         assert re.search(rf"^{target}:", make, re.M), f"Makefile has no {target} target"
         assert re.search(rf"bench/{name}\.py", make), f"{target} does not run bench/{name}.py"
         assert name.replace("_", "-") in listed, f"`make bench` does not run {target}"
+
+
+def test_a_partial_seams_run_keeps_the_other_meshes_entries():
+    from bench._seams import crop, merge_rows
+
+    def r(name, gcs, recipe, nc):
+        return {"name": name, "gcs": gcs, "recipe": recipe, "nc": nc}
+
+    old = [r("ant", "auto", "before", 0.9), r("cow", "rig", "before", 0.97),
+           r("ant", "auto", "after", 0.91)]
+    new = [r("ant", "auto", "after", 0.95)]
+    got = merge_rows(old, new)
+    assert [(x["name"], x["recipe"], x["nc"]) for x in got] == [
+        ("ant", "after", 0.95), ("ant", "before", 0.9), ("cow", "before", 0.97)]
+    import numpy as np
+    import trimesh
+    box = trimesh.creation.box(extents=(2, 2, 2))
+    part = crop(box, np.array([1.0, 1.0, 1.0]), 0.5)          # the corner's faces only
+    assert 0 < len(part.faces) < len(box.faces)
+    assert np.linalg.norm(part.triangles_center - 1.0, axis=1).max() < 2.0

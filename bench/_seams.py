@@ -1,0 +1,241 @@
+"""Seams benchmark (run by bench/fit.py --junctions): real and procedural meshes, each fitted on its own as a user fits one
+asset (train.py stage=fit, the default recipe, one thread), scored where GCs meet against
+elsewhere (ngc_gen.eval.junctions), before and after the seam remedies and against DeepSDF.
+
+    python bench/fit.py --junctions [--recipes before after deepsdf] [--only ant_auto cow_rig]
+                        [--fit-workers 2] [--steps N]
+
+Meshes (rest poses; `MESHES`): pyvista's ant and airplane, 8 training creatures, 6 animals;
+each with automatic GCs (`auto`: only the triangles go in) and with its own GCs where it has
+them (`annotated`: the ant's and airplane's hand annotation, the creatures' parts; `rig`: the
+animals' GCs from their rig). A mesh is staged as a folder of one mesh (and its GC YAML for
+annotated / rig) and fitted with `data=folder`.
+
+Recipes (`RECIPES`): `before` (the seam remedies off: no pair margin, no junction weight),
+`after` (today's defaults), `deepsdf` (the single-network reference, model=deepsdf_small on
+DeepSDF's box sampling, scored at the same GCs) with its steps scaled so its training takes
+about the time of NGC's: NGC's over DeepSDF's training seconds per step at the same batch,
+from bench/results/fit.json's `methods` (written by bench/fit.py at equal steps).
+
+Every fit goes through the bench's fit cache (bench/_harness.py `FitCache("junctions")`):
+rerun the command to fill in what is missing; fits run `--fit-workers` side by side.
+Rows go to bench/results/fit.json `junctions` = [{name, gcs, recipe, method,
+junction_ratio_dist, junction_ratio_normal, extra_pieces, nc, fscore, train_s}], and
+bench/results/fit_junctions.png shows the worst junctions close up (truth, before, after,
+DeepSDF).
+"""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+from bench._harness import FitCache, config_recipe, file_identity  # noqa: E402
+
+STAGED = ROOT / ".cache/bench/junction_meshes"
+CREATURES = 8
+ANIMALS = ("alpaca", "bull", "deer", "fox", "horse", "wolf")
+RECIPES = {   # name -> overrides of train.py stage=fit
+    "before": ["prepare.pair_margin=0.0", "junction_weight=0.0"],
+    "after": [],
+    "deepsdf": ["model=deepsdf_small", "prepare.volume_region=box"],
+}
+CLOSEUP = 0.08   # radius of a close-up around the worst junction (normalised units: box 1.6)
+
+
+def sources() -> list[tuple[str, str, object]]:
+    """(name, gcs, annotation) of every bench mesh with its own GCs, the automatic entries
+    (same mesh, gcs `auto`) added by `staged`."""
+    from hydra.utils import instantiate
+
+    from ngc_gen.app.config import compose_config
+
+    out = []
+    for data in ("ant", "airplane"):
+        ann = instantiate(compose_config(overrides=[f"data={data}"]).data).shapes()[0]
+        out.append((data, "annotated", ann))
+    creatures = compose_config(overrides=["data=creatures", f"data.limit={CREATURES}"]).data
+    out += [(a.name, "annotated", a) for a in instantiate(creatures).shapes()]
+    animals = compose_config(overrides=[
+        "data=animals", "data.frames=2", "data.split=rest", f"data.species=[{','.join(ANIMALS)}]",
+        "data.heldout_species=[]", "data.heldout_clips_by_species=null"]).data
+    out += [(a.name.removesuffix("_rest"), "rig", a) for a in instantiate(animals).shapes()]
+    return out
+
+
+def staged() -> list[tuple[str, str, Path]]:
+    """(name, gcs, folder) per bench entry: a folder holding the mesh as <stem>.ply and, for
+    annotated / rig GCs, <stem>.yaml beside it (the annotation with its mesh made local)."""
+    import trimesh
+    import yaml
+
+    from ngc_gen.data.mesh.io import load_mesh
+
+    out = []
+    for name, gcs, ann in sources():
+        for kind in (gcs, "auto"):
+            folder = STAGED / f"{name}_{kind}"
+            mesh = folder / f"{name}.ply"
+            if not mesh.exists():
+                folder.mkdir(parents=True, exist_ok=True)
+                m = load_mesh(ann.mesh_path)
+                tmp = folder / f".{name}.tmp.ply"
+                trimesh.Trimesh(m.vertices, m.faces, process=False).export(tmp)
+                os.replace(tmp, mesh)
+            if kind != "auto":
+                d = ann.to_dict()
+                d["mesh"], d["name"] = mesh.name, name   # the auto entry's shape name
+                text = yaml.safe_dump(d, sort_keys=False)
+                target = folder / f"{name}.yaml"
+                if not target.exists() or target.read_text() != text:
+                    target.write_text(text)
+            out.append((name, kind, folder))
+    return out
+
+
+def time_ratio() -> float:
+    """DeepSDF's steps per NGC step for equal training time: NGC's over DeepSDF's training
+    seconds at equal steps and batch (bench/results/fit.json `methods`); 1 without it."""
+    path = ROOT / "bench/results/fit.json"
+    try:
+        m = json.loads(path.read_text())["methods"]
+        return float(m["ngc"]["train_s"]) / float(m["deepsdf"]["train_s"])
+    except (FileNotFoundError, KeyError, ValueError, ZeroDivisionError):
+        return 1.0
+
+
+def fit_overrides(name: str, folder: Path, recipe: str, steps: int | None) -> list[str]:
+    from ngc_gen.app.config import compose_config
+
+    base = compose_config(overrides=["stage=fit"])
+    n = steps or int(base.trainer.max_steps)
+    if recipe == "deepsdf":
+        n = max(1, round(n * time_ratio()))
+    return ["stage=fit", "data=folder", f"data.path={folder}", f"trainer.max_steps={n}",
+            "trainer.enable_progress_bar=false", "logger=csv", *RECIPES[recipe],
+            f"prepare.cache_dir={ROOT}/.cache/prepared/junctions/{recipe}/{folder.name}"]
+
+
+def fit_one(cache: FitCache, name: str, gcs: str, folder: Path, recipe: str,
+            steps: int | None, refit: bool = False):
+    """One mesh, one recipe: a cached train.py run in its own process (one thread)."""
+    from ngc_gen.app.config import compose_config
+
+    over = fit_overrides(name, folder, recipe, steps)
+    cfg = compose_config(overrides=over)
+
+    def fit(run_dir: Path) -> dict:
+        t0 = time.perf_counter()
+        log = run_dir / "train.log"
+        with open(log, "w") as fh:
+            rc = subprocess.call([sys.executable, str(ROOT / "train.py"), *over, "threads=1",
+                                  f"hydra.run.dir={run_dir}"], cwd=ROOT, stdout=fh,
+                                 stderr=subprocess.STDOUT,
+                                 env={**os.environ, "OMP_NUM_THREADS": "1"})
+        if rc:
+            raise SystemExit(f"the fit of {name} ({gcs} GCs, {recipe}) failed (exit {rc}): "
+                             f"see {log}")
+        return {"wall_s": time.perf_counter() - t0, "label": f"{name}/{gcs}/{recipe}"}
+
+    f = cache.get({"stage": "junction_fit", "config": config_recipe(cfg),
+                   "data": file_identity([folder])}, fit, refit=refit)
+    print(f"{name} ({gcs} GCs, {recipe}) {'cached' if f.reused else 'fitted'}: {f.run_dir}",
+          flush=True)
+    return f
+
+
+def row(name: str, gcs: str, recipe: str, run_dir: Path) -> dict:
+    """fit.json `junctions` entry of one fit run (its metrics.json)."""
+    m = json.loads((run_dir / "metrics.json").read_text())
+    s = m["shapes"][name]
+    return {"name": name, "gcs": gcs, "recipe": recipe,
+            "method": "deepsdf" if recipe == "deepsdf" else "ngc",
+            "junction_ratio_dist": s["junction_ratio_dist"],
+            "junction_ratio_normal": s["junction_ratio_normal"],
+            "extra_pieces": s["extra_pieces"], "nc": s["normal_consistency"],
+            "fscore": s["fscore"], "train_s": m["train_s"], "steps": m["steps"]}
+
+
+def run(recipes: list[str], only: list[str] | None, workers: int, steps: int | None,
+        refit: bool = False) -> tuple[list[dict], dict]:
+    """Fit what is missing; -> (rows, {(name, gcs, recipe): run_dir})."""
+    cache = FitCache("junctions")
+    jobs = [(n, g, folder, r) for n, g, folder in staged() for r in recipes
+            if not only or f"{n}_{g}" in only or n in only]
+    # before and after of a mesh side by side, so a stopped run leaves comparable pairs
+    with ThreadPoolExecutor(max(1, workers)) as pool:
+        fits = list(pool.map(lambda j: fit_one(cache, *j, steps, refit), jobs))
+    runs = {(n, g, r): f.run_dir for (n, g, _, r), f in zip(jobs, fits)}
+    return [row(n, g, r, d) for (n, g, r), d in runs.items()], runs
+
+
+def truth_and_gcs(run_dir: Path, name: str):
+    """(the normalised true mesh, its GCs) a fit run was scored against: its prepared shape."""
+    import trimesh
+    from omegaconf import OmegaConf
+
+    from ngc_gen.data.prepare import cache_path, load_prepared
+
+    cfg = OmegaConf.load(run_dir / "config.yaml")
+    prep = load_prepared(cache_path(cfg.prepare.cache_dir, name))
+    return trimesh.Trimesh(prep.mesh_vertices, prep.mesh_faces, process=False), prep.gcs()
+
+
+def merge_rows(old: list[dict], new: list[dict]) -> list[dict]:
+    """fit.json `junctions` after a partial run: the new entries, and the old ones of every
+    (mesh, GCs, recipe) the run did not fit, in a fixed order."""
+    mine = {(r["name"], r["gcs"], r["recipe"]) for r in new}
+    kept = [r for r in old if (r["name"], r["gcs"], r["recipe"]) not in mine]
+    return sorted(kept + new, key=lambda r: (r["name"], r["gcs"], r["recipe"]))
+
+
+def crop(mesh, centre: np.ndarray, radius: float):
+    """The faces of `mesh` with a corner within `radius` of `centre` (a close-up)."""
+    import trimesh
+
+    v = np.asarray(mesh.vertices)
+    near = np.linalg.norm(v - centre, axis=1) <= radius
+    keep = near[np.asarray(mesh.faces)].any(1)
+    return trimesh.Trimesh(v, np.asarray(mesh.faces)[keep], process=False)
+
+
+def picture(rows: list[dict], runs: dict, path: Path, n: int = 4) -> Path | None:
+    """The `n` worst junctions of the `before` recipe, close up: truth, before, after, DeepSDF
+    cropped around the same point, seen along the truth's normal there."""
+    import trimesh
+
+    from ngc_gen.eval.junctions import worst_junction
+    from ngc_gen.viz import render_grid
+
+    before = sorted((r for r in rows if r["recipe"] == "before"
+                     and r["junction_ratio_dist"] is not None),
+                    key=lambda r: -max(r["junction_ratio_dist"], r["junction_ratio_normal"]))
+    cells, labels = [], []
+    for r in before[:n]:
+        run_dir = runs[(r["name"], r["gcs"], "before")]
+        truth, gcs = truth_and_gcs(run_dir, r["name"])
+        fitted = trimesh.load(run_dir / "meshes" / f"{r['name']}.ply", process=False)
+        found = worst_junction(fitted, truth, gcs, CLOSEUP / 2)
+        if found is None:
+            continue
+        centre, _ = found
+        row_ = [crop(truth, centre, CLOSEUP), crop(fitted, centre, CLOSEUP)]
+        for other in ("after", "deepsdf"):
+            d = runs.get((r["name"], r["gcs"], other))
+            row_.append(crop(trimesh.load(d / "meshes" / f"{r['name']}.ply", process=False),
+                             centre, CLOSEUP) if d is not None else None)
+        cells.append(row_)
+        labels.append(f"{r['name']} ({r['gcs']})")
+    if not cells:
+        return None
+    return render_grid(cells, path, labels=labels, frame="row", cell=(260, 220),
+                       col_titles=["truth", "before", "after", "DeepSDF"])
