@@ -205,7 +205,9 @@ def crop(mesh, centre: np.ndarray, radius: float):
     v = np.asarray(mesh.vertices)
     near = np.linalg.norm(v - centre, axis=1) <= radius
     keep = near[np.asarray(mesh.faces)].any(1)
-    return trimesh.Trimesh(v, np.asarray(mesh.faces)[keep], process=False)
+    faces = np.asarray(mesh.faces)[keep]
+    used, inverse = np.unique(faces, return_inverse=True)   # only the vertices it shows
+    return trimesh.Trimesh(v[used], inverse.reshape(-1, 3), process=False)
 
 
 def picture(rows: list[dict], runs: dict, path: Path, n: int = 4) -> Path | None:
@@ -219,7 +221,7 @@ def picture(rows: list[dict], runs: dict, path: Path, n: int = 4) -> Path | None
     before = sorted((r for r in rows if r["recipe"] == "before"
                      and r["junction_ratio_dist"] is not None),
                     key=lambda r: -max(r["junction_ratio_dist"], r["junction_ratio_normal"]))
-    cells, labels = [], []
+    cells, labels, views = [], [], []
     for r in before[:n]:
         run_dir = runs[(r["name"], r["gcs"], "before")]
         truth, gcs = truth_and_gcs(run_dir, r["name"])
@@ -235,7 +237,9 @@ def picture(rows: list[dict], runs: dict, path: Path, n: int = 4) -> Path | None
                              centre, CLOSEUP) if d is not None else None)
         cells.append(row_)
         labels.append(f"{r['name']} ({r['gcs']})")
+        _, _, tri = trimesh.proximity.closest_point(truth, centre[None])
+        views.append(np.asarray(truth.face_normals[tri[0]]))
     if not cells:
         return None
-    return render_grid(cells, path, labels=labels, frame="row", cell=(260, 220),
+    return render_grid(cells, path, labels=labels, frame="row", cell=(260, 220), view=views,
                        col_titles=["truth", "before", "after", "DeepSDF"])
