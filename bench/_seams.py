@@ -20,7 +20,9 @@ from bench/results/fit.json's `methods` (written by bench/fit.py at equal steps)
 Every fit goes through the bench's fit cache (bench/_harness.py `FitCache("junctions")`):
 rerun the command to fill in what is missing; fits run `--fit-workers` side by side.
 Rows go to bench/results/fit.json `junctions` = [{name, gcs, recipe, method,
-junction_ratio_dist, junction_ratio_normal, extra_pieces, nc, fscore, train_s}], and
+junction_ratio_dist, junction_ratio_normal, extra_pieces, nc, fscore, train_s, steps}; the
+`before` entry also carries `ceiling`: the same figures of the mesh's exact SDF meshed at the
+fit's resolution, what the grid allows there], and
 bench/results/fit_junctions.png shows the worst junctions close up (truth, before, after,
 DeepSDF).
 """
@@ -153,6 +155,35 @@ def fit_one(cache: FitCache, name: str, gcs: str, folder: Path, recipe: str,
     return f
 
 
+def ceiling(run_dir: Path, name: str, resolution: int) -> dict:
+    """What the grid allows on this mesh and GCs: its exact signed distance meshed at the fit's
+    resolution and scored like a fit (marching cubes rounds the creases where parts meet, and
+    thin sheets break), cached beside the run as ceiling.json."""
+    path = run_dir / "ceiling.json"
+    if path.exists():
+        return json.loads(path.read_text())
+    import torch
+
+    from ngc_gen.data.mesh.sdf import signed_distance
+    from ngc_gen.eval import junction_metrics, reconstruction_metrics
+    from ngc_gen.extract.world import extract_world_mesh
+
+    truth, gcs = truth_and_gcs(run_dir, name)
+    V, F = np.asarray(truth.vertices), np.asarray(truth.faces)
+
+    def exact(x):
+        return torch.from_numpy(signed_distance(x.double().numpy(), V, F)).float()
+
+    mesh = extract_world_mesh(exact, resolution, 1.0, coarse_step=4, lipschitz=1.0).mesh
+    m = {**reconstruction_metrics(mesh, truth), **junction_metrics(mesh, truth, gcs)}
+    out = {"junction_ratio_dist": m["junction_ratio_dist"],
+           "junction_ratio_normal": m["junction_ratio_normal"],
+           "extra_pieces": m["extra_pieces"], "nc": m["normal_consistency"],
+           "fscore": m["fscore"], "resolution": resolution}
+    path.write_text(json.dumps(out))
+    return out
+
+
 def row(name: str, gcs: str, recipe: str, run_dir: Path) -> dict:
     """fit.json `junctions` entry of one fit run (its metrics.json)."""
     m = json.loads((run_dir / "metrics.json").read_text())
@@ -175,7 +206,14 @@ def run(recipes: list[str], only: list[str] | None, workers: int, steps: int | N
     with ThreadPoolExecutor(max(1, workers)) as pool:
         fits = list(pool.map(lambda j: fit_one(cache, *j, steps, refit), jobs))
     runs = {(n, g, r): f.run_dir for (n, g, _, r), f in zip(jobs, fits)}
-    return [row(n, g, r, d) for (n, g, r), d in runs.items()], runs
+    rows = [row(n, g, r, d) for (n, g, r), d in runs.items()]
+    from omegaconf import OmegaConf
+
+    for r, d in zip(rows, runs.values()):
+        if r["recipe"] == "before":   # the mesh's ceiling, once per mesh and GCs
+            resolution = int(OmegaConf.load(d / "config.yaml").extract.resolution)
+            r["ceiling"] = ceiling(d, r["name"], resolution)
+    return rows, runs
 
 
 def truth_and_gcs(run_dir: Path, name: str):

@@ -212,8 +212,10 @@ def fit_junctions(rows: list[dict], ceiling: dict | None = None) -> list[str]:
     def r(x):
         return "-" if x is None or x != x else f"{x:.2f}"
 
-    def ceil(name):
-        c = (ceiling or {}).get(name, {})
+    own = {(j["name"], j["gcs"]): j["ceiling"] for j in rows if j.get("ceiling")}
+
+    def ceil(j):   # the mesh's own ceiling (bench/_seams.py), else the fitbench's by name
+        c = own.get((j["name"], j["gcs"])) or (ceiling or {}).get(j["name"], {})
         if "junction_ratio_dist" not in c:
             return "-"
         return f"{r(c['junction_ratio_dist'])} / {r(c['junction_ratio_normal'])}"
@@ -222,16 +224,24 @@ def fit_junctions(rows: list[dict], ceiling: dict | None = None) -> list[str]:
                       "extra pieces", "NC", "F@0.01", "ceiling: distance / normal"],
                      [[j["name"], j["gcs"], j["recipe"], r(j["junction_ratio_dist"]),
                        r(j["junction_ratio_normal"]), j["extra_pieces"], f"{j['nc']:.3f}",
-                       f"{j['fscore']:.3f}", ceil(j["name"])] for j in rows])
+                       f"{j['fscore']:.3f}", ceil(j)] for j in rows])
     for recipe in dict.fromkeys(j["recipe"] for j in rows):
         mine = [j for j in rows if j["recipe"] == recipe]
         ratios = [max(j["junction_ratio_dist"], j["junction_ratio_normal"]) for j in mine
                   if j["junction_ratio_dist"] is not None]   # None: no junction
         met = sum(x <= JUNCTION_TARGET for x in ratios)
+        capped = [j for j in mine if own.get((j["name"], j["gcs"]))
+                  and j["junction_ratio_dist"] is not None
+                  and own[(j["name"], j["gcs"])]["junction_ratio_dist"] is not None]
+        within = sum(j["junction_ratio_dist"] <= own[(j["name"], j["gcs"])]["junction_ratio_dist"]
+                     and j["junction_ratio_normal"]
+                     <= own[(j["name"], j["gcs"])]["junction_ratio_normal"] for j in capped)
         out.append("")
         out.append(f"{recipe}: junction / elsewhere <= {JUNCTION_TARGET} (distance and normal) "
                    f"on {met} of {len(ratios)} meshes"
                    + (f", worst {max(ratios):.2f}" if ratios else "")
+                   + (f"; at or below its mesh's ceiling on {within} of {len(capped)}"
+                      if capped else "")
                    + f"; {sum(j['extra_pieces'] for j in mine)} extra pieces; NC >= 0.95 on "
                    f"{sum(j['nc'] >= 0.95 for j in mine)}, F >= 0.95 on "
                    f"{sum(j['fscore'] >= 0.95 for j in mine)} of {len(mine)}.")
