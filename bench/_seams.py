@@ -11,8 +11,8 @@ them (`annotated`: the ant's and airplane's hand annotation, the creatures' part
 animals' GCs from their rig). A mesh is staged as a folder of one mesh (and its GC YAML for
 annotated / rig) and fitted with `data=folder`.
 
-Recipes (`RECIPES`): `before` (the seam remedies off: no pair margin, no junction weight),
-`after` (today's defaults), `deepsdf` (the single-network reference, model=deepsdf_small on
+Recipes (`RECIPES`): `before` (the seam remedies off: no pair margin, no junction weight:
+today's defaults), `after` (the remedy under test; docs/fitting.md "Seams"), `deepsdf` (the single-network reference, model=deepsdf_small on
 DeepSDF's box sampling, scored at the same GCs) with its steps scaled so its training takes
 about the time of NGC's: NGC's over DeepSDF's training seconds per step at the same batch,
 from bench/results/fit.json's `methods` (written by bench/fit.py at equal steps).
@@ -48,7 +48,7 @@ CREATURES = 8
 ANIMALS = ("alpaca", "bull", "deer", "fox", "horse", "wolf")
 RECIPES = {   # name -> overrides of train.py stage=fit
     "before": ["prepare.pair_margin=0.0", "junction_weight=0.0"],
-    "after": [],
+    "after": ["prepare.pair_margin=0.1"],   # not the default: see docs/fitting.md "Seams"
     "deepsdf": ["model=deepsdf_small", "prepare.volume_region=box"],
 }
 CLOSEUP = 0.08   # radius of a close-up around the worst junction (normalised units: box 1.6)
