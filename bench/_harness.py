@@ -340,6 +340,25 @@ def dataset_identity(cfg) -> dict:
     return out
 
 
+def train_subprocess(overrides: list[str], run_dir: Path, what: str) -> float:
+    """`train.py <overrides>` in its own process on one thread (fits side by side on a
+    worker pool), its output in run_dir/train.log; -> wall seconds. SystemExit naming `what`
+    and the log if it fails."""
+    import subprocess
+    import sys
+    import time
+
+    t0 = time.perf_counter()
+    log = Path(run_dir) / "train.log"
+    with open(log, "w") as fh:
+        rc = subprocess.call([sys.executable, str(ROOT / "train.py"), *overrides, "threads=1",
+                              f"hydra.run.dir={run_dir}"], cwd=ROOT, stdout=fh,
+                             stderr=subprocess.STDOUT, env={**os.environ, "OMP_NUM_THREADS": "1"})
+    if rc:
+        raise SystemExit(f"{what} failed (exit {rc}): see {log}")
+    return time.perf_counter() - t0
+
+
 def cached_run_fit(bench: str, cfg, refit: bool = False, extra: dict | None = None,
                    label: str | None = None) -> Fit:
     """`ngc_gen.app.fit.run_fit(cfg)` through the bench's FitCache: the recipe is the whole

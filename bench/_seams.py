@@ -30,10 +30,7 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
-import subprocess
 import sys
-import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
@@ -41,7 +38,8 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
-from bench._harness import FitCache, config_recipe, file_identity  # noqa: E402
+from bench._harness import (FitCache, config_recipe, file_identity,  # noqa: E402
+                            train_subprocess)
 
 STAGED = ROOT / ".cache/bench/junction_meshes"
 CREATURES = 8
@@ -136,17 +134,8 @@ def fit_one(cache: FitCache, name: str, gcs: str, folder: Path, recipe: str,
     cfg = compose_config(overrides=over)
 
     def fit(run_dir: Path) -> dict:
-        t0 = time.perf_counter()
-        log = run_dir / "train.log"
-        with open(log, "w") as fh:
-            rc = subprocess.call([sys.executable, str(ROOT / "train.py"), *over, "threads=1",
-                                  f"hydra.run.dir={run_dir}"], cwd=ROOT, stdout=fh,
-                                 stderr=subprocess.STDOUT,
-                                 env={**os.environ, "OMP_NUM_THREADS": "1"})
-        if rc:
-            raise SystemExit(f"the fit of {name} ({gcs} GCs, {recipe}) failed (exit {rc}): "
-                             f"see {log}")
-        return {"wall_s": time.perf_counter() - t0, "label": f"{name}/{gcs}/{recipe}"}
+        wall = train_subprocess(over, run_dir, f"the fit of {name} ({gcs} GCs, {recipe})")
+        return {"wall_s": wall, "label": f"{name}/{gcs}/{recipe}"}
 
     f = cache.get({"stage": "junction_fit", "config": config_recipe(cfg),
                    "data": file_identity([folder])}, fit, refit=refit)

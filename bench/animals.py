@@ -42,7 +42,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 from bench._harness import (Bench, FitCache, config_recipe, dataset_identity,  # noqa: E402
-                            link_latest)
+                            link_latest, train_subprocess)
 from bench.generate import clouds, mesh_set  # noqa: E402
 
 RUNS = ROOT / "bench/runs/animals"
@@ -80,8 +80,6 @@ def rest_fits(cache: FitCache, args) -> list:
     """Each species' rest pose fitted on its own (train.py stage=fit data.split=rest
     data.species=[s], the default recipe unless --fit-steps), as a user fits one asset; the fits
     run in `--fit-workers` processes of one thread and are cached like the other stages."""
-    import os
-    import subprocess
     from concurrent.futures import ThreadPoolExecutor
 
     from ngc_gen.app.config import compose_config
@@ -97,16 +95,7 @@ def rest_fits(cache: FitCache, args) -> list:
         cfg = compose_config(overrides=over)
 
         def fit(run_dir: Path) -> dict:
-            t0 = time.perf_counter()
-            log = run_dir / "train.log"
-            with open(log, "w") as fh:
-                rc = subprocess.call([sys.executable, str(ROOT / "train.py"), *over, "threads=1",
-                                      f"hydra.run.dir={run_dir}"], cwd=ROOT, stdout=fh,
-                                     stderr=subprocess.STDOUT,
-                                     env={**os.environ, "OMP_NUM_THREADS": "1"})
-            if rc:
-                raise SystemExit(f"the rest-pose fit of {s} failed (exit {rc}): see {log}")
-            return {"stage_s": time.perf_counter() - t0}
+            return {"stage_s": train_subprocess(over, run_dir, f"the rest-pose fit of {s}")}
 
         f = cache.get({"stage": "fit_rest", "config": config_recipe(cfg),
                        "data": dataset_identity(cfg)}, fit, refit=args.refit)
@@ -257,8 +246,8 @@ def main():
     a = next(r["name"] for r in records["train"] if r["species"] == "wolf")
     b = next(r["name"] for r in records["train"] if r["species"] == "horse" and
              r["clip"] == next(x for x in records["train"] if x["name"] == a)["clip"])
-    inter = interpolate(gen, RUNS / "interp", a=a, b=b, steps=8, resolution=args.resolution,
-                        progress=False)
+    interpolate(gen, RUNS / "interp", a=a, b=b, steps=8, resolution=args.resolution,
+                progress=False)
     inter_m = [trimesh.load(p, process=False) for p in sorted((RUNS / "interp").glob("*.ply"))]
     i_pts, empty = clouds(inter_m, args.points, 0)
     steps = np.array([pairwise_chamfer(i_pts[i:i + 1], i_pts[i + 1:i + 2])[0, 0]
