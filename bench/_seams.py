@@ -222,17 +222,24 @@ def merge_rows(old: list[dict], new: list[dict]) -> list[dict]:
     (mesh, GCs, recipe) the run did not fit, in a fixed order."""
     mine = {(r["name"], r["gcs"], r["recipe"]) for r in new}
     kept = [r for r in old if (r["name"], r["gcs"], r["recipe"]) not in mine]
-    return sorted(kept + new, key=lambda r: (r["name"], r["gcs"], r["recipe"]))
+    order = {r: i for i, r in enumerate(RECIPES)}   # before, after, deepsdf
+    return sorted(kept + new, key=lambda r: (r["name"], r["gcs"], order.get(r["recipe"], 99)))
 
 
 def crop(mesh, centre: np.ndarray, radius: float):
-    """The faces of `mesh` with a corner within `radius` of `centre` (a close-up)."""
+    """The faces of `mesh` with a corner within `radius` of `centre` (a close-up); a coarse
+    mesh (a low-poly truth) is first split into edges under radius / 8, so its close-up
+    ends about where a fine one does."""
     import trimesh
 
-    v = np.asarray(mesh.vertices)
+    v, f = np.asarray(mesh.vertices), np.asarray(mesh.faces)
+    tri = v[f]
+    reach = np.linalg.norm(tri - tri.mean(1, keepdims=True), axis=2).max(1)
+    f = f[np.linalg.norm(tri.mean(1) - centre, axis=1) <= radius + reach]
+    if len(f) and np.linalg.norm(v[f] - v[np.roll(f, 1, axis=1)], axis=2).max() > radius / 8:
+        v, f = trimesh.remesh.subdivide_to_size(v, f, max_edge=radius / 8)
     near = np.linalg.norm(v - centre, axis=1) <= radius
-    keep = near[np.asarray(mesh.faces)].any(1)
-    faces = np.asarray(mesh.faces)[keep]
+    faces = f[near[f].any(1)]
     used, inverse = np.unique(faces, return_inverse=True)   # only the vertices it shows
     return trimesh.Trimesh(v[used], inverse.reshape(-1, 3), process=False)
 
@@ -240,6 +247,7 @@ def crop(mesh, centre: np.ndarray, radius: float):
 def picture(rows: list[dict], runs: dict, path: Path, n: int = 4) -> Path | None:
     """The `n` worst junctions of the `before` recipe, close up: truth, before, after, DeepSDF
     cropped around the same point, seen along the truth's normal there."""
+    import igl
     import trimesh
 
     from ngc_gen.eval.junctions import worst_junction
@@ -264,8 +272,10 @@ def picture(rows: list[dict], runs: dict, path: Path, n: int = 4) -> Path | None
                              centre, CLOSEUP) if d is not None else None)
         cells.append(row_)
         labels.append(f"{r['name']} ({r['gcs']})")
-        _, _, tri = trimesh.proximity.closest_point(truth, centre[None])
-        views.append(np.asarray(truth.face_normals[tri[0]]))
+        _, tri, _ = igl.point_mesh_squared_distance(   # libigl: trimesh's would need rtree
+            centre[None], np.asarray(truth.vertices, dtype=np.float64),
+            np.asarray(truth.faces, dtype=np.int64))
+        views.append(np.asarray(truth.face_normals[int(tri[0])]))
     if not cells:
         return None
     return render_grid(cells, path, labels=labels, frame="row", cell=(260, 220), view=views,

@@ -134,10 +134,10 @@ def test_a_partial_seams_run_keeps_the_other_meshes_entries():
     new = [r("ant", "auto", "after", 0.95)]
     got = merge_rows(old, new)
     assert [(x["name"], x["recipe"], x["nc"]) for x in got] == [
-        ("ant", "after", 0.95), ("ant", "before", 0.9), ("cow", "before", 0.97)]
+        ("ant", "before", 0.9), ("ant", "after", 0.95), ("cow", "before", 0.97)]
     import numpy as np
     import trimesh
     box = trimesh.creation.box(extents=(2, 2, 2))
     part = crop(box, np.array([1.0, 1.0, 1.0]), 0.5)          # the corner's faces only
-    assert 0 < len(part.faces) < len(box.faces)
-    assert np.linalg.norm(part.vertices - 1.0, axis=1).max() < 2.9    # no far vertex kept
+    assert len(part.faces) > 0
+    assert np.linalg.norm(part.vertices - 1.0, axis=1).max() < 0.6    # the big faces split
