@@ -1,6 +1,7 @@
-"""Seams benchmark (run by bench/fit.py --junctions): real and procedural meshes, each fitted on its own as a user fits one
-asset (train.py stage=fit, the default recipe, one thread), scored where GCs meet against
-elsewhere (ngc_gen.eval.junctions), before and after the seam remedies and against DeepSDF.
+"""Seams benchmark (run by bench/fit.py --junctions): real and procedural meshes, each fitted
+on its own as a user fits one asset (train.py stage=fit, the default recipe, one thread),
+scored where GCs meet against elsewhere (ngc_gen.eval.junctions), before and after the seam
+remedies and against DeepSDF.
 
     python bench/fit.py --junctions [--recipes before after deepsdf] [--only ant_auto cow_rig]
                         [--fit-workers 2] [--steps N]
