@@ -218,6 +218,17 @@ def truth_and_gcs(run_dir: Path, name: str):
     return trimesh.Trimesh(prep.mesh_vertices, prep.mesh_faces, process=False), prep.gcs()
 
 
+def labelled_runs() -> dict:
+    """{(name, gcs, recipe): run_dir} of every seams fit in the cache, the newest of each
+    (close-ups of entries that earlier runs fitted)."""
+    out = {}
+    for f in FitCache("junctions").entries():   # oldest first: newer ones overwrite
+        label = str(f.info.get("label") or "")
+        if label.count("/") == 2 and (f.run_dir / "metrics.json").is_file():
+            out[tuple(label.split("/"))] = f.run_dir
+    return out
+
+
 def merge_rows(old: list[dict], new: list[dict]) -> list[dict]:
     """fit.json `junctions` after a partial run: the new entries, and the old ones of every
     (mesh, GCs, recipe) the run did not fit, in a fixed order."""
@@ -259,7 +270,9 @@ def picture(rows: list[dict], runs: dict, path: Path, n: int = 4) -> Path | None
                     key=lambda r: -max(r["junction_ratio_dist"], r["junction_ratio_normal"]))
     cells, labels, views = [], [], []
     for r in before[:n]:
-        run_dir = runs[(r["name"], r["gcs"], "before")]
+        run_dir = runs.get((r["name"], r["gcs"], "before"))
+        if run_dir is None:   # fitted elsewhere: no run here to look at
+            continue
         truth, gcs = truth_and_gcs(run_dir, r["name"])
         fitted = trimesh.load(run_dir / "meshes" / f"{r['name']}.ply", process=False)
         found = worst_junction(fitted, truth, gcs, CLOSEUP / 2)

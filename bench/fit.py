@@ -428,7 +428,8 @@ def junctions_main(args) -> None:
     res.pop("machine", None)
     res["junctions"] = junctions.merge_rows(res.get("junctions", []), rows)
     bench.write(res)
-    junctions.picture(rows, runs, bench.path.parent / "fit_junctions.png")
+    junctions.picture(res["junctions"], {**junctions.labelled_runs(), **runs},
+                      bench.path.parent / "fit_junctions.png")
     print("\n".join(fit_junctions(res["junctions"])))
 
 
