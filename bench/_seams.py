@@ -98,7 +98,9 @@ def staged() -> list[tuple[str, str, Path]]:
                 text = yaml.safe_dump(d, sort_keys=False)
                 target = folder / f"{name}.yaml"
                 if not target.exists() or target.read_text() != text:
-                    target.write_text(text)
+                    tmp = folder / f".{name}.tmp.yaml"
+                    tmp.write_text(text)
+                    os.replace(tmp, target)
             out.append((name, kind, folder))
     return out
 
