@@ -116,11 +116,8 @@ def time_ratio() -> float:
         return 1.0
 
 
-def fit_overrides(name: str, folder: Path, recipe: str, steps: int | None) -> list[str]:
-    from ngc_gen.app.config import compose_config
-
-    base = compose_config(overrides=["stage=fit"])
-    n = steps or int(base.trainer.max_steps)
+def fit_overrides(name: str, folder: Path, recipe: str, steps: int) -> list[str]:
+    n = steps
     if recipe == "deepsdf":
         n = max(1, round(n * time_ratio()))
     return ["stage=fit", "data=folder", f"data.path={folder}", f"trainer.max_steps={n}",
@@ -129,7 +126,7 @@ def fit_overrides(name: str, folder: Path, recipe: str, steps: int | None) -> li
 
 
 def fit_one(cache: FitCache, name: str, gcs: str, folder: Path, recipe: str,
-            steps: int | None, refit: bool = False):
+            steps: int, refit: bool = False):
     """One mesh, one recipe: a cached train.py run in its own process (one thread)."""
     from ngc_gen.app.config import compose_config
 
@@ -147,6 +144,20 @@ def fit_one(cache: FitCache, name: str, gcs: str, folder: Path, recipe: str,
     return f
 
 
+def exact_sdf_mesh(vertices: np.ndarray, faces: np.ndarray, resolution: int):
+    """The mesh's own exact signed distance meshed at `resolution` over [-1, 1]^3 (coarse to
+    fine: it is 1-Lipschitz): what a grid of that size allows a fit to reach."""
+    import torch
+
+    from ngc_gen.data.mesh.sdf import signed_distance
+    from ngc_gen.extract.world import extract_world_mesh
+
+    def exact(x):
+        return torch.from_numpy(signed_distance(x.double().numpy(), vertices, faces)).float()
+
+    return extract_world_mesh(exact, resolution, 1.0, coarse_step=4, lipschitz=1.0).mesh
+
+
 def ceiling(run_dir: Path, name: str, resolution: int) -> dict:
     """What the grid allows on this mesh and GCs: its exact signed distance meshed at the fit's
     resolution and scored like a fit (marching cubes rounds the creases where parts meet, and
@@ -154,19 +165,10 @@ def ceiling(run_dir: Path, name: str, resolution: int) -> dict:
     path = run_dir / "ceiling.json"
     if path.exists():
         return json.loads(path.read_text())
-    import torch
-
-    from ngc_gen.data.mesh.sdf import signed_distance
     from ngc_gen.eval import junction_metrics, reconstruction_metrics
-    from ngc_gen.extract.world import extract_world_mesh
 
     truth, gcs = truth_and_gcs(run_dir, name)
-    V, F = np.asarray(truth.vertices), np.asarray(truth.faces)
-
-    def exact(x):
-        return torch.from_numpy(signed_distance(x.double().numpy(), V, F)).float()
-
-    mesh = extract_world_mesh(exact, resolution, 1.0, coarse_step=4, lipschitz=1.0).mesh
+    mesh = exact_sdf_mesh(np.asarray(truth.vertices), np.asarray(truth.faces), resolution)
     m = {**reconstruction_metrics(mesh, truth), **junction_metrics(mesh, truth, gcs)}
     out = {"junction_ratio_dist": m["junction_ratio_dist"],
            "junction_ratio_normal": m["junction_ratio_normal"],
@@ -191,6 +193,9 @@ def row(name: str, gcs: str, recipe: str, run_dir: Path) -> dict:
 def run(recipes: list[str], only: list[str] | None, workers: int, steps: int | None,
         refit: bool = False) -> tuple[list[dict], dict]:
     """Fit what is missing; -> (rows, {(name, gcs, recipe): run_dir})."""
+    from ngc_gen.app.config import compose_config
+
+    steps = steps or int(compose_config(overrides=["stage=fit"]).trainer.max_steps)
     cache = FitCache("junctions")
     jobs = [(n, g, folder, r) for n, g, folder in staged() for r in recipes
             if not only or f"{n}_{g}" in only or n in only]

@@ -104,6 +104,8 @@ def score_checkpoint(cfg, checkpoint: Path, out_dir: Path, **mesh_kwargs) -> dic
                            junctions=junction_settings(cfg), **mesh_kwargs)
 
 
+JOINT_STEPS = 1500   # the joint fits' steps unless --steps
+
 LONG_MARKS = (42, 100, 200, 300, 400, 600, 900, 1200, 1800, 3600, 7200, 14400)
 COARSE = {"coarse_step": 4, "lipschitz": 1.0}  # DeepSDF 8 x 512 meshes: coarse-to-fine
 
@@ -179,23 +181,18 @@ def ceiling(resolution: int) -> dict:
     """What the metrics allow at this grid: every shape's exact signed distance (the training
     labels' own) meshed by the same marching cubes and scored like a fit. No fit can beat it
     by much: thin parts under a grid cell break up, and creases are rounded."""
-    import torch
     import trimesh
 
+    from bench._seams import exact_sdf_mesh
     from ngc_gen.app.config import compose_config
     from ngc_gen.app.fit import junction_settings
     from ngc_gen.app.prepare import prepare_dataset
-    from ngc_gen.data.mesh.sdf import signed_distance
     from ngc_gen.eval import junction_metrics, reconstruction_metrics
-    from ngc_gen.extract.world import extract_world_mesh
 
     cfg = compose_config(overrides=["stage=fit", "data=fitbench", "run_dir=/tmp/ngc-ceiling"])
     per = {}
     for s in prepare_dataset(cfg, verbose=False):
-        def exact(x, s=s):
-            return torch.from_numpy(signed_distance(x.double().numpy(), s.mesh_vertices,
-                                                    s.mesh_faces)).float()
-        mesh = extract_world_mesh(exact, resolution, 1.0, coarse_step=4, lipschitz=1.0).mesh
+        mesh = exact_sdf_mesh(s.mesh_vertices, s.mesh_faces, resolution)
         truth = trimesh.Trimesh(s.mesh_vertices, s.mesh_faces, process=False)
         m = reconstruction_metrics(mesh, truth, seed=cfg.metrics_seed)
         m.update(junction_metrics(mesh, truth, s.gcs(), seed=cfg.metrics_seed,
@@ -321,7 +318,8 @@ def method_summary(metrics: dict) -> dict:
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--steps", type=int, default=1500)
+    ap.add_argument("--steps", type=int, default=None,
+                    help=f"training steps (joint fits: {JOINT_STEPS}; --junctions: the fit recipe's)")
     ap.add_argument("--batch-size", type=int, default=8192)
     ap.add_argument("--resolution", type=int, default=256)
     ap.add_argument("--check-resolution", type=int, default=64)
@@ -346,6 +344,7 @@ def main():
     args = ap.parse_args()
     if args.junctions:
         return junctions_main(args)
+    args.steps = args.steps or JOINT_STEPS
     if args.threads:
         import torch
 
@@ -422,8 +421,7 @@ def junctions_main(args) -> None:
     for r in args.recipes:
         if r not in junctions.RECIPES:
             raise SystemExit(f"--recipes: {r!r} is not one of {list(junctions.RECIPES)}")
-    steps = args.steps if args.steps != 1500 else None   # 1500: the joint fits' default
-    rows, runs = junctions.run(args.recipes, args.only, args.fit_workers, steps, args.refit)
+    rows, runs = junctions.run(args.recipes, args.only, args.fit_workers, args.steps, args.refit)
     res = json.loads(bench.path.read_text()) if bench.path.exists() else {}
     res.pop("machine", None)
     res["junctions"] = junctions.merge_rows(res.get("junctions", []), rows)

@@ -240,8 +240,8 @@ def worst_junction(pred_mesh: trimesh.Trimesh, gt_mesh: trimesh.Trimesh,
         return None
     tree = cKDTree(points)
     near = cKDTree(points[j]).sparse_distance_matrix(tree, float(radius), output_type="coo_matrix")
-    ones = coo_matrix((np.ones(near.nnz), (near.row, near.col)), shape=near.shape)
-    local = (ones @ dist) / np.maximum(ones @ np.ones(len(points)), 1.0)
+    total = np.bincount(near.row, weights=dist[near.col], minlength=len(j))
+    local = total / np.maximum(np.bincount(near.row, minlength=len(j)), 1)
     best = int(np.argmax(local))
     return points[j[best]], float(local[best])
 
