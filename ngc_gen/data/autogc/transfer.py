@@ -8,7 +8,9 @@ Pinocchio's two steps (a discrete embedding, then a continuous refinement) on ou
    one graph of nodes; its largest piece is the body.
 3. Correspondence: the template's leaf GCs (no children) onto the tree's leaves by one optimal
    assignment (Hungarian) with geometric costs: where the tip lies (side included, so a left
-   leg cannot take a right foot; half as strict across for a part on the mid-plane), the direction toward it from its branch's root, and its
+   leg cannot take a right foot; half as strict across for a part on the mid-plane), where
+   its branch leaves the body (front to back, capped), the direction toward it from its
+   branch's root, and its
    thickness relative to the body's thickest part against the template's; any template leaf
    may stay unmatched at ``missing_cost``. A second pass gives the limbs left out (a grazing
    head, galloping legs) the free ends left over that lie within their reach: at the limb
@@ -22,7 +24,8 @@ Pinocchio's two steps (a discrete embedding, then a continuous refinement) on ou
 4. GCs: each surface sample belongs to its nearest skeleton node's GC; a GC is the template's
    degree of Bezier through its path (free ends extended to the surface), radii and caps from
    its own samples (``rig_gcs.template_gc``, as for a rig), the template's `up` turned into the
-   mesh's frame. A template part the mesh lacks is a small GC at its attachment.
+   mesh's frame. A template part the mesh lacks reaches from its attachment to the surface
+   nearest where its tip would be (a pruned stub), else it is a small GC at its attachment.
 5. Refinement (torch, all GCs at once): control points and per-key radii so each GC's own
    samples lie at its radius from its curve (the union's boundary near the surface, the
    surface inside), children start inside their parents, curves stay smooth and symmetric
@@ -56,11 +59,18 @@ from ngc_gen.geometry import GeneralizedCylinder, bernstein_basis
 
 SIGMA_TIP = 0.3    # tip position error (body units) that costs 1
 W_DIRECTION = 1.0  # weight of 1 - cos(direction toward the tip)
+SIGMA_ATTACH = 0.3  # error (body units, front to back) of where a limb's branch leaves the body
+W_ATTACH = 1.0     # weight of that attachment term
+MAX_ATTACH = 3.0   # at most this much: a galloping animal's skeleton may join its legs mid-body
 W_THICKNESS = 0.5  # weight of log(thickness ratio)^2
 W_SYMMETRY = 0.01  # refinement: weight of a symmetric pair's mirror mismatch in position (a
                    # posed animal's legs are not mirrored: at 1 a walking horse's front feet
                    # were pulled to their mirrored mean, 0.25 of the leg's length off each)
 W_SYMMETRIC_RADII = 1.0  # and in thickness (log radii per key), which posing keeps
+MISSING_REACH = 1.5  # a missing part reaches the surface nearest its place's end within this x
+MISSING_SIGMA = np.array([1.0, 1.0, 2.0])  # how far from its place's end (front, left, up) a
+                     # stub may be: up least (a deer's tail sticks up, a horse's hangs)
+MISSING_PAST = 0.1   # its length (and that much past it); else it is a quarter of its length
 FINER = 0.4        # a mesh with parts missing is matched again on spurs this x as long kept
 
 
@@ -156,7 +166,8 @@ def template_rotation(template: Template, orientation: Orientation) -> np.ndarra
 class Tree:
     """nodes (N, 3), radius (N,), graph: (N, N) sparse edge lengths, main (N,) bool: the body's
     piece, branch_of (N,): the branch each node came from, branch_dir (B, 3): unit direction of
-    each branch toward its free end (zero for inner branches), branch_r (B,) mean radius."""
+    each branch toward its free end (zero for inner branches), branch_r (B,) mean radius,
+    branch_root (B, 3): where an end branch leaves the rest (its junction end)."""
 
     nodes: np.ndarray
     radius: np.ndarray
@@ -165,6 +176,7 @@ class Tree:
     branch_of: np.ndarray
     branch_dir: np.ndarray
     branch_r: np.ndarray
+    branch_root: np.ndarray
 
     @property
     def degree(self) -> np.ndarray:
@@ -177,7 +189,7 @@ def skeleton_tree(sk, radius: np.ndarray, min_length: float, max_branches: int) 
     branches = branch_graph(sk.nodes, sk.edges, radius, min_length, max_branches)
     key_id: dict = {}
     pts, rad, owner, edges = [], [], [], []
-    dirs, mean_r = [], []
+    dirs, mean_r, roots = [], [], []
     n = 0
     for b, br in enumerate(branches):
         ids = []
@@ -200,6 +212,7 @@ def skeleton_tree(sk, radius: np.ndarray, min_length: float, max_branches: int) 
             d = br.points[-1] - br.points[0] if br.junction[0] else br.points[0] - br.points[-1]
             d = d / max(np.linalg.norm(d), 1e-12)
         dirs.append(d)
+        roots.append(br.points[0] if br.junction[0] else br.points[-1])
         mean_r.append(float(np.mean(br.radius)))
     P = np.asarray(pts, dtype=np.float64)
     E = np.asarray([e for e in edges if e[0] != e[1]], dtype=np.int64).reshape(-1, 2)
@@ -212,7 +225,7 @@ def skeleton_tree(sk, radius: np.ndarray, min_length: float, max_branches: int) 
     weight = np.bincount(comp, weights=seg + np.asarray(rad) ** 3)
     main = comp == int(np.argmax(weight))
     return Tree(P, np.asarray(rad), G, main, np.asarray(owner), np.asarray(dirs),
-                np.asarray(mean_r))
+                np.asarray(mean_r), np.asarray(roots, dtype=np.float64).reshape(-1, 3))
 
 
 # ---- correspondence ------------------------------------------------------------------------
@@ -260,11 +273,12 @@ def _tips(template: Template) -> tuple[list[str], dict[str, list[str]], dict[str
 
 
 def match_cost(template: Template, tree: Tree, body: BodyFrame, leaf_gcs: list[str],
-               leaves: np.ndarray, reach: bool = False) -> np.ndarray:
+               leaves: np.ndarray, reach: bool = False, attach: bool = True) -> np.ndarray:
     """(T, L) cost of template leaf GC t on tree leaf l (module docstring, step 3). reach (the
     second pass, for the limbs the first left out): the tip's position term asks only that it
     lie at the limb's length from where the limb attaches (a posed limb swings about its
-    attachment: a grazing head, a galloping leg), on the limb's own side of the body."""
+    attachment: a grazing head, a galloping leg), on the limb's own side of the body. attach:
+    with the term for where the limb's branch leaves the body."""
     tip = body.to_body(tree.nodes[leaves])                          # (L, 3)
     d_mesh = tree.branch_dir[tree.branch_of[leaves]] @ body.R.T / body.half
     d_mesh /= np.maximum(np.linalg.norm(d_mesh, axis=1, keepdims=True), 1e-12)
@@ -272,6 +286,7 @@ def match_cost(template: Template, tree: Tree, body: BodyFrame, leaf_gcs: list[s
     # GC's radius the enclosing one: only their ratios to the body compare)
     r_mesh = tree.branch_r[tree.branch_of[leaves]] / float(tree.radius[tree.main].max())
     r_root = max(g.place["radius"] for g in template.gcs)
+    at_front = body.to_body(tree.branch_root[tree.branch_of[leaves]])[:, 0]  # (L,)
     C = np.zeros((len(leaf_gcs), len(leaves)))
     for i, name in enumerate(leaf_gcs):
         pl = template.gc(name).place
@@ -281,8 +296,14 @@ def match_cost(template: Template, tree: Tree, body: BodyFrame, leaf_gcs: list[s
         sigma = np.full(3, SIGMA_TIP)
         if template.gc(name).symmetric is None:  # on the mid-plane: its side hardly tells
             sigma[1] *= 2.0
+        chain = [name, *_ancestors(template, name)][:-1]      # up to the root's child
+        # where its branch leaves the body, front to back, against where any GC of its chain
+        # starts (a branch may hold a whole leg, or only a head past its ears): it stays when
+        # the limb swings (a galloping front foot behind its shoulder)
+        starts = np.array([template.gc(n).place["start"][0] for n in chain])
+        att = np.minimum((np.abs(at_front[:, None] - starts[None]).min(1) / SIGMA_ATTACH) ** 2,
+                         MAX_ATTACH) if attach else 0.0
         if reach:
-            chain = [name, *_ancestors(template, name)][:-1]  # up to the root's child
             top = chain[-1]                                    # (a head's neck)
             length = sum(np.linalg.norm(np.subtract(template.gc(n).place["end"],
                                                     template.gc(n).place["start"])) for n in chain)
@@ -292,7 +313,7 @@ def match_cost(template: Template, tree: Tree, body: BodyFrame, leaf_gcs: list[s
             pos = ((at - length) / SIGMA_TIP) ** 2 + side
         else:
             pos = (((tip - end) / sigma) ** 2).sum(1)
-        C[i] = (pos + W_DIRECTION * (1.0 - d_mesh @ d_t)
+        C[i] = (pos + W_ATTACH * att + W_DIRECTION * (1.0 - d_mesh @ d_t)
                 + W_THICKNESS * np.log(np.maximum(r_mesh, 1e-6) / (pl["radius"] / r_root)) ** 2)
     return C
 
@@ -376,12 +397,18 @@ def correspond(template: Template, tree: Tree, body: BodyFrame, settings: Transf
                         f"{template.name}'s ({template.source}) {len(leaf_gcs)} limbs on",
                         path=where, field="mesh",
                         fix="give this mesh its own annotation, or use a template of its kind")
-    C = match_cost(template, tree, body, leaf_gcs, leaves)
     T = len(leaf_gcs)
-    aug = np.hstack([C, np.where(np.eye(T, dtype=bool), settings.missing_cost, 1e9)])
-    rows, cols = linear_sum_assignment(aug)
-    assign = {leaf_gcs[r]: int(leaves[c]) for r, c in zip(rows, cols) if c < len(leaves)}
-    costs = [aug[r, c] for r, c in zip(rows, cols) if c < len(leaves)]
+
+    def assignment(C):
+        aug = np.hstack([C, np.where(np.eye(T, dtype=bool), settings.missing_cost, 1e9)])
+        rows, cols = linear_sum_assignment(aug)
+        return ({leaf_gcs[r]: int(leaves[c]) for r, c in zip(rows, cols) if c < len(leaves)},
+                [aug[r, c] for r, c in zip(rows, cols) if c < len(leaves)])
+
+    # whether the mesh matches is judged on the pose terms alone; the assignment also weighs
+    # where each branch leaves the body, unless that leaves more limbs out (a gallop's skeleton)
+    assign, costs = assignment(match_cost(template, tree, body, leaf_gcs, leaves, attach=False))
+    attached = assignment(match_cost(template, tree, body, leaf_gcs, leaves))[0]
     cost = float(np.mean(costs)) if costs else float("inf")
     need = int(np.ceil(settings.min_matched * T))
     if len(assign) < max(need, 2) or cost > settings.max_match_cost:
@@ -391,6 +418,8 @@ def correspond(template: Template, tree: Tree, body: BodyFrame, settings: Transf
                         path=where, field="annotate.template",
                         fix="annotate this mesh with a template of its kind (or by hand), or "
                             "raise annotate.max_match_cost")
+    if len(attached) >= len(assign):
+        assign = attached
     # second pass: a limb posed far from the template's place (a head lowered to graze, legs
     # bunched in a gallop) takes a free end the first pass left, when the end is within the
     # limb's reach (match_cost with reach)
@@ -673,7 +702,8 @@ def transfer_template(mesh: trimesh.Trimesh, template: Template,
         up = _safe_up(M @ np.asarray(tgc.up), poly[-1] - poly[0])
         gcs[n] = template_gc(dataclasses.replace(tgc, up=tuple(up)), poly, own, st.margin, floor,
                              where)
-    for n in missing:  # a small GC where the part would attach
+    surface_body = body.to_body(surface) if missing else None
+    for n in missing:  # a GC from where the part would attach to the surface where it would end
         tgc = template.gc(n)
         pl = tgc.place
         start = body.to_world(np.asarray(pl["start"]))
@@ -685,8 +715,22 @@ def transfer_template(mesh: trimesh.Trimesh, template: Template,
         if p is not None:
             C = _curve_points(gcs[p])
             start = C[np.argmin(np.linalg.norm(C - start, axis=1))]
+        # the part's stub (a short tail the skeleton pruned) is the surface nearest its place's
+        # end: the GC reaches it, within the part's length (else the template's direction)
+        off = (surface_body - np.asarray(pl["end"])) / MISSING_SIGMA
+        tip = surface[np.argmin(np.linalg.norm(off, axis=1))]
+        reach = float(np.linalg.norm(tip - start))
+        stub = floor < reach <= MISSING_REACH * length
+        if stub:
+            vec, length = tip - start, reach * (1.0 + MISSING_PAST)
+        else:
+            length = 0.25 * length
         r = max(pl["radius"] * body.half[0] * 0.5, floor)
-        gcs[n] = _straight(tgc, start, vec / length, 0.25 * length, r, M @ np.asarray(tgc.up))
+        gcs[n] = _straight(tgc, start, vec / np.linalg.norm(vec), length, r,
+                           M @ np.asarray(tgc.up))
+        if stub:  # grown over the surface around its tip (the stub itself)
+            near = surface[np.linalg.norm(surface - tip, axis=1) <= 3.0 * r]
+            gcs[n] = grow_to_cover([gcs[n]], near)[0]
     ordered = [gcs[n] for n in names]
     for g, n in enumerate(names):  # alone first: a GC holds its own samples near it
         own = surface[owner == g]

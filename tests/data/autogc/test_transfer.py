@@ -9,9 +9,11 @@ import dataclasses
 import numpy as np
 import pytest
 import yaml
+from scipy.optimize import linear_sum_assignment
 
 from ngc_gen.data.autogc.template import load_template, template_from_dict
-from ngc_gen.data.autogc.transfer import TransferSettings, export_template, transfer_template
+from ngc_gen.data.autogc.transfer import (BodyFrame, TransferSettings, Tree, export_template,
+                                          match_cost, transfer_template)
 from ngc_gen.data.errors import DataError
 from ngc_gen.data.mesh.io import normalize
 from ngc_gen.data.mesh.sampling import sample_surface
@@ -94,6 +96,36 @@ def test_a_stubby_tail_pruned_with_the_spurs_is_found_on_the_finer_tree(template
     by = {g.name: g for g in tr.gcs}
     assert bool(by["tail"].contains(pts["tail_tip"][None])[0])
     assert not bool(by["torso"].contains(pts["tail_tip"][None])[0])
+
+def test_a_stub_tail_the_skeleton_never_finds_still_gets_a_tail_gc_over_it(template):
+    """A tail this short (a deer's) is pruned even on the finer tree, so it is missing; its GC
+    still reaches from the torso to the stub and holds the stub's tip, as a rig's tail GC
+    would (not a small stand-in inside the torso)."""
+    mesh, pts = _normalised(*quadruped(tail=0.1, tail_radius=0.05, tail_dir=(0.0, 1.0)))
+    tr = transfer_template(mesh, template, FAST, "stub tail")
+    assert tr.missing == ["tail"]
+    tail = tr.gcs[template.names.index("tail")]
+    assert bool(tail.contains(pts["tail_tip"][None])[0])
+    assert not bool(tail.contains(pts["torso"][None])[0])
+
+
+def test_a_galloping_front_foot_behind_the_hind_foot_keeps_its_legs_name(template):
+    """Left side of a gallop: the front foot lands behind the hind foot, so by where the feet
+    are the two legs swap; where each skeleton branch leaves the body (shoulder in front, hip
+    behind) names them right. Without the attachment term they swap (the test can fail)."""
+    legs = ["leg_fl", "leg_bl"]
+    tips = np.array([[-0.3, 0.5, -0.9], [-0.1, 0.5, -0.9]])     # front foot, hind foot
+    roots = np.array([[0.25, 0.3, 0.0], [-0.55, 0.3, 0.1]])     # shoulder, hip
+    nodes = np.vstack([tips, [[0.0, 0.0, 0.2]]])
+    tree = Tree(nodes=nodes, radius=np.full(3, 0.1), graph=None, main=np.ones(3, bool),
+                branch_of=np.array([0, 1, 2]),
+                branch_dir=np.array([[0, 0, -1.0], [0, 0, -1.0], [0, 0, 0]]),
+                branch_r=np.array([0.05, 0.05, 0.1]), branch_root=np.vstack([roots, nodes[2:]]))
+    body = BodyFrame(np.eye(3), np.zeros(3), np.ones(3))
+    for attach, want in ((True, [0, 1]), (False, [1, 0])):
+        C = match_cost(template, tree, body, legs, np.array([0, 1]), attach=attach)
+        assert list(linear_sum_assignment(C)[1]) == want, attach
+
 
 def test_a_mesh_without_a_tail_gets_a_small_tail_at_its_attachment(template):
     mesh, pts = _normalised(*quadruped(tail=0))
