@@ -624,6 +624,11 @@ def transfer(r: dict) -> str:
               + ("against rig GCs: " + "; ".join(
                   f"{k} MMD-CD {1e3 * gen[k]['mmd_cd']:.3f} x1e-3, 1-NNA {pct(gen[k]['nna_cd'], 1)}"
                   for k in measured) if measured else "against rig GCs: not measured yet") + "."]
+    held = (r.get("reconstruct_heldout") or {}).get("fscore") or {}
+    if held:
+        lines += ["", "Held-out species at rest, transferred and reconstructed into the transferred "
+                  "generator's shape-latent model (`stage=reconstruct`): F-score@0.01 "
+                  + ", ".join(f"{n} {f:.3f}" for n, f in sorted(held.items())) + "."]
     return "\n".join(lines)
 
 
