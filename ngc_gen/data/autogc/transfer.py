@@ -71,6 +71,9 @@ MISSING_REACH = 1.5  # a missing part reaches the surface nearest its place's en
 MISSING_SIGMA = np.array([1.0, 1.0, 2.0])  # how far from its place's end (front, left, up) a
                      # stub may be: up least (a deer's tail sticks up, a horse's hangs)
 MISSING_PAST = 0.1   # its length (and that much past it); else it is a quarter of its length
+START_REACH = 2.0  # a part on the root reaches back toward its template start by at most this x
+                   # its top radius (_reach_back)
+TIE_LARGER = 0.05  # an inferred tree's edge to a smaller GC costs up to this much more
 FINER = 0.4        # a mesh with parts missing is matched again on spurs this x as long kept
 
 
@@ -617,6 +620,22 @@ def _safe_up(up: np.ndarray, direction: np.ndarray) -> np.ndarray:
     return np.eye(3)[int(np.argmin(np.abs(d)))]
 
 
+def _reach_back(poly: np.ndarray, to_body, start: np.ndarray, radius: float) -> np.ndarray:
+    """A part on the root (a leg, the tail, the neck) as a rig has it: its skeleton path begins
+    where it leaves the body's surface, a rig's limb at the joint inside (a hip above the
+    thigh). The polyline (P, 3) is extended back along its own direction toward the template's
+    `start` (body frame), at most START_REACH x its top `radius`."""
+    tan = poly[min(8, len(poly) - 1)] - poly[0]
+    tan /= max(float(np.linalg.norm(tan)), 1e-12)
+    b0 = to_body(poly[0])
+    back = to_body(poly[0] - tan) - b0                   # one world unit back, in body units
+    length = float((start - b0) @ back / max(float(back @ back), 1e-12))
+    length = min(max(length, 0.0), START_REACH * radius)
+    if length <= 0.0:
+        return poly
+    return np.concatenate([np.linspace(poly[0] - length * tan, poly[0], 8)[:-1], poly])
+
+
 def _curve_points(gc: GeneralizedCylinder, n: int = 64) -> np.ndarray:
     return np.asarray(gc.to_world(np.stack([np.linspace(-1, 1, n), np.zeros(n), np.zeros(n)], 1)))
 
@@ -696,9 +715,12 @@ def transfer_template(mesh: trimesh.Trimesh, template: Template,
     ctrls = refine(ctrls, own_of, r0, parent_ix, partner_ix, (mid, orientation.left),
                    st.refine_steps, st.seed)
     dense_s = np.linspace(0.0, 1.0, 64)
-    for n, c, own in zip(matched, ctrls, own_of):
+    root_name = next(n for n in names if template.gc(n).parent is None)
+    for n, c, own, r in zip(matched, ctrls, own_of, r0):
         tgc = template.gc(n)
         poly = bernstein_basis(len(c) - 1, dense_s) @ c
+        if tgc.parent == root_name:
+            poly = _reach_back(poly, body.to_body, np.asarray(tgc.place["start"]), float(r[0]))
         up = _safe_up(M @ np.asarray(tgc.up), poly[-1] - poly[0])
         gcs[n] = template_gc(dataclasses.replace(tgc, up=tuple(up)), poly, own, st.margin, floor,
                              where)
@@ -779,7 +801,7 @@ def _inferred_tree(gcs: list[GeneralizedCylinder], body: BodyFrame) -> list[Temp
     most closely: the minimum spanning tree of how far the nearer end of one GC lies out of the
     other (relative radii, so an ear's base sits in the head, not in the other ear's thin
     tube; no "parents are larger" rule, so a thin neck sits between the torso and a larger
-    head), rooted at the largest GC; each child starts at the end in its parent (export flips
+    head, only a tie-breaker toward the larger of two equally close), rooted at the largest GC; each child starts at the end in its parent (export flips
     its place to start there). Its symmetric partner: the GC whose mirror image across the
     body's mid-plane lies closest."""
     from scipy.sparse.csgraph import breadth_first_order, minimum_spanning_tree
@@ -792,6 +814,10 @@ def _inferred_tree(gcs: list[GeneralizedCylinder], body: BodyFrame) -> list[Temp
     G = len(gcs)
     A = _attachment(gcs).min(2)
     W = np.minimum(A, A.T) + 1e-6          # zero would read as "no edge"
+    # an end as deep in two GCs (a leg's top where the neck leaves the torso) hangs on the
+    # larger: a small tie-breaker, far below the gaps that separate real attachments
+    big = np.maximum.outer(vol, vol) / max(max(vol), 1e-12)
+    W += TIE_LARGER * (1.0 - big)
     np.fill_diagonal(W, 0.0)
     _, pred = breadth_first_order(minimum_spanning_tree(W), root, directed=False)
     out = []
