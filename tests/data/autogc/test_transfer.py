@@ -12,8 +12,9 @@ import yaml
 from scipy.optimize import linear_sum_assignment
 
 from ngc_gen.data.autogc.template import load_template, template_from_dict
-from ngc_gen.data.autogc.transfer import (BodyFrame, TransferSettings, Tree, export_template,
-                                          match_cost, transfer_template)
+from ngc_gen.data.autogc.transfer import (START_REACH, BodyFrame, TransferSettings, Tree,
+                                          _reach_back, export_template, match_cost,
+                                          transfer_template)
 from ngc_gen.data.errors import DataError
 from ngc_gen.data.mesh.io import normalize
 from ngc_gen.data.mesh.sampling import sample_surface
@@ -125,6 +126,19 @@ def test_a_galloping_front_foot_behind_the_hind_foot_keeps_its_legs_name(templat
     for attach, want in ((True, [0, 1]), (False, [1, 0])):
         C = match_cost(template, tree, body, legs, np.array([0, 1]), attach=attach)
         assert list(linear_sum_assignment(C)[1]) == want, attach
+
+
+def test_a_part_on_the_root_reaches_back_toward_its_template_start():
+    """A leg's skeleton path begins below the hip (where it leaves the body); a rig's leg starts
+    at the hip joint. The path is extended back along itself toward the template's start, by
+    at most START_REACH x its top radius, and not at all when the start lies ahead of it."""
+    leg = np.stack([np.zeros(20), np.zeros(20), np.linspace(0.0, -1.0, 20)], 1)  # down from 0
+    ident = lambda p: np.asarray(p)  # noqa: E731  (body frame = world)
+    near = _reach_back(leg, ident, np.array([0.0, 0.0, 0.1]), radius=0.2)
+    assert np.allclose(near[0], [0.0, 0.0, 0.1]) and np.allclose(near[-1], leg[-1])
+    far = _reach_back(leg, ident, np.array([0.0, 0.3, 1.0]), radius=0.2)
+    assert np.allclose(far[0], [0.0, 0.0, START_REACH * 0.2])  # along itself, capped
+    assert _reach_back(leg, ident, np.array([0.0, 0.0, -0.5]), radius=0.2) is leg
 
 
 def test_a_mesh_without_a_tail_gets_a_small_tail_at_its_attachment(template):
