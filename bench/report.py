@@ -607,6 +607,13 @@ def cli(r: dict) -> str:
     return "\n".join(lines)
 
 
+def _spread(row: dict) -> str:
+    """' (sd over n sets: MMD-CD .., 1-NNA ..)' of a generator row that has it, else ''."""
+    sd = row.get("sd_over_sets")
+    return (f" (sd over sets: MMD-CD {1e3 * sd['mmd_cd']:.3f}, 1-NNA {pct(sd['nna_cd'], 1)})"
+            if sd else "")
+
+
 def transfer(r: dict) -> str:
     a, c = r["animals"], r["creatures"]
     rows = [["posed animals, rig withheld", a["n"], pct(a["matched"], 1), pct(a["purity_mean"], 1),
@@ -623,7 +630,8 @@ def transfer(r: dict) -> str:
               + " (of a chair, a torus and a sphere). Generator trained on transferred GCs "
               + ("against rig GCs: " + "; ".join(
                   f"{k} MMD-CD {1e3 * gen[k]['mmd_cd']:.3f} x1e-3, 1-NNA {pct(gen[k]['nna_cd'], 1)}"
-                  for k in measured) if measured else "against rig GCs: not measured yet") + "."]
+                  + _spread(gen[k]) for k in measured) if measured
+                  else "against rig GCs: not measured yet") + "."]
     held = (r.get("reconstruct_heldout") or {}).get("fscore") or {}
     if held:
         lines += ["", "Held-out species at rest, transferred and reconstructed into the transferred "

@@ -40,6 +40,7 @@ SAMPLES = 20000
 BOUND = 0.8        # data=animals' normalisation (the meshes are already in its frame)
 GEN = ROOT / ".cache/bench/transfer/generator"
 RUNS = ROOT / "bench/runs/transfer"
+METRICS = ("mmd_cd", "cov_cd", "nna_cd")
 AXES = {"up": "+y", "front": "+z"}  # the animals' axes, as the user of this collection knows them
 
 
@@ -145,7 +146,9 @@ def _train_generator(kind: str, folder: Path, args) -> tuple:
 def generator_rows(records: list[dict], clips_m: list, args) -> dict:
     """{rig, transferred}: a generator trained on each folder of the training animals (the same
     recipe, the same run) against the held-out clips, {mmd_cd, cov_cd, nna_cd}, the mean over
-    --sets sets."""
+    --sets sets, and their standard deviation over the sets (how far apart two generators may
+    lie by chance)."""
+    import numpy as np
     import trimesh
 
     from bench.animals import rows_for
@@ -160,8 +163,11 @@ def generator_rows(records: list[dict], clips_m: list, args) -> dict:
         where = RUNS / f"samples_{kind}"
         s = generate(gen, where, n=args.sets * K, seed=0, resolution=128, progress=False)
         ms = [trimesh.load(where / f"{n}.ply", process=False) for n in sorted(s["shapes"])]
-        out[kind] = rows_for({"g": [ms[i:i + K] for i in range(0, args.sets * K, K)]},
-                             clips_m, 2048)["g"]
+        per = rows_for({f"set{j}": [ms[j * K:(j + 1) * K]] for j in range(args.sets)}, clips_m,
+                       2048)
+        out[kind] = {k: float(np.mean([p[k] for p in per.values()])) for k in METRICS}
+        out[kind]["sd_over_sets"] = {k: float(np.std([p[k] for p in per.values()], ddof=1))
+                                     for k in METRICS} if args.sets > 1 else None
         print(f"generator ({kind} GCs) vs {K} held-out clips: {out[kind]}", flush=True)
     return out
 
@@ -257,7 +263,7 @@ def main() -> None:
     ap.add_argument("--shape-latent-steps", type=int, default=5000,
                     help="both generators' shape-latent steps (the recipe is experiment=animals)")
     ap.add_argument("--diffusion-steps", type=int, default=3000)
-    ap.add_argument("--sets", type=int, default=4,
+    ap.add_argument("--sets", type=int, default=8,
                     help="sets of as many samples as held-out clips, per generator (averaged)")
     args = ap.parse_args()
     bench = Bench("transfer")
