@@ -61,8 +61,7 @@ SIGMA_TIP = 0.3    # tip position error (body units) that costs 1
 W_DIRECTION = 1.0  # weight of 1 - cos(direction toward the tip)
 SIGMA_ATTACH = 0.3  # error (body units, front to back) of where a limb's branch leaves the body
 W_ATTACH = 1.0     # weight of that attachment term
-MAX_ATTACH = 6.0   # at most this much (= missing_cost's default): a leftover end that leaves
-                   # the body far from a limb's start is not that limb in the second pass
+MAX_ATTACH = 3.0   # at most this much: a galloping animal's skeleton may join its legs mid-body
 W_THICKNESS = 0.5  # weight of log(thickness ratio)^2
 W_SYMMETRY = 0.01  # refinement: weight of a symmetric pair's mirror mismatch in position (a
                    # posed animal's legs are not mirrored: at 1 a walking horse's front feet
