@@ -30,7 +30,6 @@ DeepSDF).
 from __future__ import annotations
 
 import json
-import os
 import sys
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
@@ -79,6 +78,7 @@ def staged() -> list[tuple[str, str, Path]]:
     import trimesh
     import yaml
 
+    from ngc_gen.data.atomic import atomic_write, atomic_write_text
     from ngc_gen.data.mesh.io import load_mesh
 
     out = []
@@ -89,18 +89,15 @@ def staged() -> list[tuple[str, str, Path]]:
             if not mesh.exists():
                 folder.mkdir(parents=True, exist_ok=True)
                 m = load_mesh(ann.mesh_path)
-                tmp = folder / f".{name}.tmp.ply"
-                trimesh.Trimesh(m.vertices, m.faces, process=False).export(tmp)
-                os.replace(tmp, mesh)
+                plain = trimesh.Trimesh(m.vertices, m.faces, process=False)
+                atomic_write(mesh, lambda f: f.write(plain.export(file_type="ply")))
             if kind != "auto":
                 d = ann.to_dict()
                 d["mesh"], d["name"] = mesh.name, name   # the auto entry's shape name
                 text = yaml.safe_dump(d, sort_keys=False)
                 target = folder / f"{name}.yaml"
                 if not target.exists() or target.read_text() != text:
-                    tmp = folder / f".{name}.tmp.yaml"
-                    tmp.write_text(text)
-                    os.replace(tmp, target)
+                    atomic_write_text(target, text)
             out.append((name, kind, folder))
     return out
 
@@ -117,9 +114,7 @@ def time_ratio() -> float:
 
 
 def fit_overrides(name: str, folder: Path, recipe: str, steps: int) -> list[str]:
-    n = steps
-    if recipe == "deepsdf":
-        n = max(1, round(n * time_ratio()))
+    n = max(1, round(steps * time_ratio())) if recipe == "deepsdf" else steps
     return ["stage=fit", "data=folder", f"data.path={folder}", f"trainer.max_steps={n}",
             "trainer.enable_progress_bar=false", "logger=csv", *RECIPES[recipe],
             f"prepare.cache_dir={ROOT}/.cache/prepared/junctions/{recipe}/{folder.name}"]

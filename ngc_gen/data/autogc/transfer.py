@@ -10,8 +10,8 @@ Pinocchio's two steps (a discrete embedding, then a continuous refinement) on ou
    assignment (Hungarian) with geometric costs: where the tip lies (side included, so a left
    leg cannot take a right foot; half as strict across for a part on the mid-plane), where
    its branch leaves the body (front to back, capped), the direction toward it from its
-   branch's root, and its
-   thickness relative to the body's thickest part against the template's; any template leaf
+   branch's root, and its thickness relative to the body's thickest part against the
+   template's; any template leaf
    may stay unmatched at ``missing_cost``. A second pass gives the limbs left out (a grazing
    head, galloping legs) the free ends left over that lie within their reach: at the limb
    chain's length from where it attaches, on its own side. Still missing: matched once more
@@ -411,7 +411,6 @@ def correspond(template: Template, tree: Tree, body: BodyFrame, settings: Transf
     # whether the mesh matches is judged on the pose terms alone; the assignment also weighs
     # where each branch leaves the body, unless that leaves more limbs out (a gallop's skeleton)
     assign, costs = assignment(match_cost(template, tree, body, leaf_gcs, leaves, attach=False))
-    attached = assignment(match_cost(template, tree, body, leaf_gcs, leaves))[0]
     cost = float(np.mean(costs)) if costs else float("inf")
     need = int(np.ceil(settings.min_matched * T))
     if len(assign) < max(need, 2) or cost > settings.max_match_cost:
@@ -421,6 +420,7 @@ def correspond(template: Template, tree: Tree, body: BodyFrame, settings: Transf
                         path=where, field="annotate.template",
                         fix="annotate this mesh with a template of its kind (or by hand), or "
                             "raise annotate.max_match_cost")
+    attached = assignment(match_cost(template, tree, body, leaf_gcs, leaves))[0]
     if len(attached) >= len(assign):
         assign = attached
     # second pass: a limb posed far from the template's place (a head lowered to graze, legs
@@ -801,8 +801,8 @@ def _inferred_tree(gcs: list[GeneralizedCylinder], body: BodyFrame) -> list[Temp
     most closely: the minimum spanning tree of how far the nearer end of one GC lies out of the
     other (relative radii, so an ear's base sits in the head, not in the other ear's thin
     tube; no "parents are larger" rule, so a thin neck sits between the torso and a larger
-    head, only a tie-breaker toward the larger of two equally close), rooted at the largest GC; each child starts at the end in its parent (export flips
-    its place to start there). Its symmetric partner: the GC whose mirror image across the
+    head, only a tie-breaker toward the larger of two equally close), rooted at the largest
+    GC; each child starts at the end in its parent (export flips its place to start there). Its symmetric partner: the GC whose mirror image across the
     body's mid-plane lies closest."""
     from scipy.sparse.csgraph import breadth_first_order, minimum_spanning_tree
 

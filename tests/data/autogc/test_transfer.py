@@ -98,6 +98,7 @@ def test_a_stubby_tail_pruned_with_the_spurs_is_found_on_the_finer_tree(template
     assert bool(by["tail"].contains(pts["tail_tip"][None])[0])
     assert not bool(by["torso"].contains(pts["tail_tip"][None])[0])
 
+
 def test_a_stub_tail_the_skeleton_never_finds_still_gets_a_tail_gc_over_it(template):
     """A tail this short (a deer's) is pruned even on the finer tree, so it is missing; its GC
     still reaches from the torso to the stub and holds the stub's tip, as a rig's tail GC
