@@ -141,3 +141,20 @@ def test_a_partial_seams_run_keeps_the_other_meshes_entries():
     part = crop(box, np.array([1.0, 1.0, 1.0]), 0.5)          # the corner's faces only
     assert len(part.faces) > 0
     assert np.linalg.norm(part.vertices - 1.0, axis=1).max() < 0.6    # the big faces split
+
+
+def test_the_transfer_section_shows_the_generators_spread_and_the_heldout_reconstruction():
+    """A reader judges the rig-vs-transferred generator gap against the spread over sample
+    sets, and sees the held-out species' F-scores; an older result without them still renders."""
+    base = json.loads((ROOT / "bench/results/transfer.json").read_text())
+    r = {**base,
+         "generator": {"rig": {"mmd_cd": 0.0103, "nna_cd": 0.648,
+                               "sd_over_sets": {"mmd_cd": 0.0006, "nna_cd": 0.065}},
+                       "transferred": {"mmd_cd": 0.0116, "nna_cd": 0.658}},
+         "reconstruct_heldout": {"fscore": {"husky_rest": 0.916, "deer_rest": 0.885}}}
+    text = report.transfer(r)
+    assert "rig MMD-CD 10.300 x1e-3, 1-NNA 64.8% (sd over sets: MMD-CD 0.600, 1-NNA 6.5%)" in text
+    assert "transferred MMD-CD 11.600 x1e-3, 1-NNA 65.8%." in text   # no spread recorded
+    assert "F-score@0.01 deer_rest 0.885, husky_rest 0.916." in text
+    old = report.transfer({**base, "generator": None, "reconstruct_heldout": None})
+    assert "not measured yet" in old and "Held-out species" not in old
