@@ -8,8 +8,9 @@ the transferred GC of the same name, averaged over the matched meshes; endpoint 
 of each curve end from the rig GC's, over the rig GC's arc length (median over GCs, ends and
 meshes); matched = share of meshes not refused; s_per_mesh = median transfer seconds (the mean,
 with each process's first mesh compiling its kernels, in details).
-creatures: a template exported from the true GCs of the first 8 built creatures (z up, +x front), transferred
-onto the next 24 written as plain meshes; purity against their true GCs.
+creatures: a template exported from the true GCs of the first 8 built creatures (z up, +x front)
+and calibrated on them (its `start_at` / `end_at`), transferred onto the next 24 written as
+plain meshes; purity against their true GCs.
 refused: which of a chair, a torus and a sphere the quadruped template refuses.
 generator: the training split's animals (those the transfer did not refuse) as two annotated
 folders, their rig GCs and their transferred GCs; a generator (experiment=animals' recipe,
@@ -275,7 +276,8 @@ def main() -> None:
     from ngc_gen.data.atomic import atomic_write_text
     from ngc_gen.data.autogc.orient import Orientation
     from ngc_gen.data.autogc.template import load_template
-    from ngc_gen.data.autogc.transfer import export_template
+    from ngc_gen.data.autogc.calibrate import calibrate_ends
+    from ngc_gen.data.autogc.transfer import TransferSettings, export_template
     from ngc_gen.data.mesh.sampling import sample_surface
     from ngc_gen.data.rigs.animals import Animals
     from ngc_gen.data.workers import map_shapes
@@ -301,13 +303,15 @@ def main() -> None:
     z_up = Orientation(np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0]), ("given", "given"))
     have = creature_names(64)[:8 + args.creatures]
     build_creatures(cdir, 64, seed=0, only=have, workers=args.workers)
-    shapes = []
+    shapes, annotated = [], []
     for stem in have[:8]:
         ann = load_annotation(cdir / f"{stem}.yaml")
         m = trimesh.load(cdir / f"{stem}.ply", process=False)
         pts, _ = sample_surface(m.vertices, m.faces, SAMPLES, np.random.default_rng(0))
         shapes.append((ann.gcs, pts, z_up))
-    ctemplate = export_template(shapes, "creature")
+        annotated.append((stem, m, ann.gcs))
+    ctemplate = calibrate_ends(export_template(shapes, "creature"), annotated,
+                               TransferSettings(up="+z", front="+x"))
     cpath = ROOT / "bench/results/transfer_creature_template.yaml"
     atomic_write_text(cpath, ctemplate.to_yaml())
     ctasks = [(stem, str(cdir / f"{stem}.ply"), str(cdir / f"{stem}.yaml"), str(cpath),

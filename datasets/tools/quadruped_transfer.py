@@ -1,11 +1,14 @@
 """Writes datasets/animals/quadruped_transfer.yaml: the quadruped template (quadruped.yaml) with
 where each part sits (`place`), averaged over the rig GCs of the twelve species at rest
-(`data=animals data.split=rest`; the rigs are y-up and face +z).
+(`data=animals data.split=rest`; the rigs are y-up and face +z), and where the rig ends each
+part in the GC the transfer finds (`start_at`, `end_at`: ngc_gen/data/autogc/calibrate.py),
+the median over the same twelve meshes, their triangles only.
 
     python datasets/tools/quadruped_transfer.py
 """
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -14,9 +17,10 @@ import yaml
 
 from ngc_gen.data.annotations import load_annotation
 from ngc_gen.data.atomic import atomic_write_text
+from ngc_gen.data.autogc.calibrate import calibrate_ends
 from ngc_gen.data.autogc.orient import Orientation
 from ngc_gen.data.autogc.template import load_template
-from ngc_gen.data.autogc.transfer import export_template
+from ngc_gen.data.autogc.transfer import TransferSettings, export_template
 from ngc_gen.data.mesh.sampling import sample_surface
 from ngc_gen.data.rigs.animals import Animals
 
@@ -30,17 +34,25 @@ def main() -> None:
                 rigs_dir=str(ROOT / ".cache/rigs"), out_dir=str(ROOT / ".cache/datasets/animals_f1"),
                 frames=1, split="rest")
     y_up = Orientation(np.array([0.0, 1.0, 0.0]), np.array([0.0, 0.0, 1.0]), ("given", "given"))
-    shapes = []
+    rig = load_template(conf["template"])
+    # the parts every quadruped has: GCs carved out of another (a stag's antlers) stay the rig's
+    base = dataclasses.replace(rig, gcs=tuple(g for g in rig.gcs if g.carve is None))
+    shapes, annotated = [], []
     for rec in Animals(**conf).build():
         ann = load_annotation(rec["annotation"])
+        gcs = [g for g in ann.gcs if g.name in base.names]
         mesh = trimesh.load(rec["mesh"], process=False)
         pts, _ = sample_surface(mesh.vertices, mesh.faces, 20000, np.random.default_rng(0))
-        shapes.append((ann.gcs, np.concatenate([mesh.vertices, pts]), y_up))
-    t = export_template(shapes, "quadruped", load_template(conf["template"]))
+        shapes.append((gcs, np.concatenate([mesh.vertices, pts]), y_up))
+        annotated.append((rec["name"], mesh, gcs))
+    t = export_template(shapes, "quadruped", base)
+    t = calibrate_ends(t, annotated, TransferSettings(up="+y", front="+z"))
     out = ROOT / "datasets/animals/quadruped_transfer.yaml"
     atomic_write_text(out, "# quadruped.yaml plus where each part sits (`place`: body frame front, left, up of\n"
                            "# the bounding box, over its half extents), averaged over the twelve species\n"
-                           "# at rest; written by datasets/tools/quadruped_transfer.py. Transfer it onto\n"
+                           "# at rest, and where the rig ends each part in the GC the transfer finds\n"
+                           "# (start_at, end_at: relative coordinates u, a, b; the median over the same\n"
+                           "# meshes); written by datasets/tools/quadruped_transfer.py. Transfer it onto\n"
                            "# your own meshes: python train.py stage=annotate data=folder data.path=DIR\n"
                            "# annotate.template=datasets/animals/quadruped_transfer.yaml\n" + t.to_yaml())
     print(out)

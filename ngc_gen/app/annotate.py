@@ -14,7 +14,9 @@ instead (ngc_gen/data/autogc/transfer.py): the same names, order, degrees and ke
 shape-latent layout and one edit program for the folder. A mesh that does not match is one
 line of the table and the rest are still annotated; the folder gets `transfer.png` (a colour
 per template GC across the meshes) and `transfer.json` (the table). `annotate.export_template=
-PATH` writes the template of the annotated meshes (averaged over the folder).
+PATH` writes the template of the annotated meshes (averaged over the folder). A template from
+annotated GCs (an annotated mesh's YAML, or the automatic GCs exported) is calibrated on its
+mesh (ngc_gen/data/autogc/calibrate.py): the transfer ends each part where that annotation does.
 """
 from __future__ import annotations
 
@@ -28,6 +30,7 @@ from omegaconf import DictConfig, OmegaConf
 from ngc_gen.data.annotations import Annotation
 from ngc_gen.data.atomic import atomic_write_text
 from ngc_gen.data.autogc.auto import AutoGCSettings, auto_annotation
+from ngc_gen.data.autogc.calibrate import calibrate_ends
 from ngc_gen.data.autogc.coverage import coverage_stats
 from ngc_gen.data.autogc.orient import detect_orientation, parse_axis
 from ngc_gen.data.autogc.template import Template, load_template
@@ -110,6 +113,7 @@ def load_transfer_template(path: str, d: dict) -> Template:
         mesh, _, _ = normalize(load_mesh(ann.mesh_path), ann.bound)
         points = _surface(mesh, int(d.get("seed", 0)))
         t = export_template([(ann.gcs, points, _orientation_of(ann.gcs, points, d))], ann.name)
+        t = calibrate_ends(t, [(ann.name, mesh, ann.gcs)], TransferSettings.from_config(d))
         return Template(t.name, t.gcs, t.version, str(p), t.frame)
     return load_template(p)
 
@@ -153,6 +157,7 @@ def run_annotate(cfg: DictConfig) -> list[dict]:
         mesh, _, _ = normalize(load_mesh(first.mesh_path), first.bound)
         points = _surface(mesh, settings.seed)
         t = export_template([(first.gcs, points, _orientation_of(first.gcs, points, conf))], first.name)
+        t = calibrate_ends(t, [(first.name, mesh, first.gcs)], TransferSettings.from_config(conf))
         _write_template(t, Path(conf["export_template"]), f"the automatic GCs of {first.name}")
     print(f"run directory: {run_dir}")
     return rows

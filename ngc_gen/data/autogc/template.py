@@ -25,7 +25,11 @@ sits instead of (or besides) its joints: `frame: {up: [0, 1, 0], front: [0, 0, 1
 (the frame its `up` vectors are written in; default +z up, +x front) and per GC
 `place: {start: [f, l, u], end: [f, l, u], radius: r}`: its curve's ends in the body frame
 (front, left, up), centred on the surface's bounding box and divided by its half extents, and
-its mean radius over the half length. `joints` may then be left out. `train.py
+its mean radius over the half length; optionally `start_at`, `end_at`: where the annotator's
+curve ends sit in the GC the transfer finds, as relative coordinates [u, a, b] of that GC
+(u = -1 / 1 its ends, a, b in its radii; docs/gcs.md), so a rig's leg starts at its hip inside
+the body and a rig's head ends where its bone meets the face (`autogc.calibrate` measures them
+on annotated meshes). `joints` may then be left out. `train.py
 stage=annotate annotate.export_template=PATH` writes one from any annotated mesh.
 
 Joint names may be glob patterns (`Tail*`, `Ear?.L`): a pattern in `joints` takes every
@@ -49,6 +53,7 @@ TEMPLATE_VERSION = 1
 TOP_KEYS = {"version", "name", "description", "gcs", "frame"}
 GC_KEYS = {"name", "joints", "skinned", "degree", "keys", "up", "extend", "parent", "attach",
            "symmetric", "place", "carve"}
+PLACE_KEYS = {"start", "end", "radius", "start_at", "end_at"}
 DEFAULT_FRAME = {"up": (0.0, 0.0, 1.0), "front": (1.0, 0.0, 0.0)}
 _GLOB = set("*?[")
 
@@ -85,6 +90,8 @@ class TemplateGC:
             d["place"] = {"start": [round(float(x), 5) for x in self.place["start"]],
                           "end": [round(float(x), 5) for x in self.place["end"]],
                           "radius": round(float(self.place["radius"]), 5)}
+            d["place"].update({k: [round(float(x), 5) for x in self.place[k]]
+                               for k in ("start_at", "end_at") if k in self.place})
         if self.carve is not None:
             d["carve"] = {"from": self.carve["from"], "side": None if self.carve["side"] is None
                           else [float(x) for x in self.carve["side"]]}
@@ -207,13 +214,17 @@ def _vec3(v) -> bool:
 def _place(p, path, gc) -> dict | None:
     if p is None:
         return None
-    if not (isinstance(p, dict) and set(p) == {"start", "end", "radius"} and _vec3(p["start"])
-            and _vec3(p["end"]) and isinstance(p["radius"], (int, float))
-            and not isinstance(p["radius"], bool) and p["radius"] > 0):
-        _fail(f"place must be {{start: [f, l, u], end: [f, l, u], radius: r > 0}}, got {p!r}",
+    if not (isinstance(p, dict) and {"start", "end", "radius"} <= set(p) <= PLACE_KEYS
+            and _vec3(p["start"]) and _vec3(p["end"]) and isinstance(p["radius"], (int, float))
+            and not isinstance(p["radius"], bool) and p["radius"] > 0
+            and all(_vec3(p[k]) for k in ("start_at", "end_at") if k in p)):
+        _fail(f"place must be {{start: [f, l, u], end: [f, l, u], radius: r > 0}} (optionally "
+              f"start_at, end_at: [u, a, b]), got {p!r}",
               path, gc, "place", "write it with train.py stage=annotate annotate.export_template=PATH")
-    return {"start": tuple(float(x) for x in p["start"]), "end": tuple(float(x) for x in p["end"]),
-            "radius": float(p["radius"])}
+    out = {"start": tuple(float(x) for x in p["start"]), "end": tuple(float(x) for x in p["end"]),
+           "radius": float(p["radius"])}
+    out.update({k: tuple(float(x) for x in p[k]) for k in ("start_at", "end_at") if k in p})
+    return out
 
 
 def _carve(c, path, gc) -> dict | None:

@@ -74,6 +74,7 @@ MISSING_PAST = 0.1   # its length (and that much past it); else it is a quarter 
 START_REACH = 2.0  # a part on the root reaches back toward its template start by at most this x
                    # its top radius (_reach_back)
 TIE_LARGER = 0.05  # an inferred tree's edge to a smaller GC costs up to this much more
+RHO_FAR = 2.0      # an inferred tree reads GC ends farther than this out of a GC as this far
 FINER = 0.4        # a mesh with parts missing is matched again on spurs this x as long kept
 
 
@@ -636,6 +637,18 @@ def _reach_back(poly: np.ndarray, to_body, start: np.ndarray, radius: float) -> 
     return np.concatenate([np.linspace(poly[0] - length * tan, poly[0], 8)[:-1], poly])
 
 
+def _moved_ends(gc: GeneralizedCylinder, place: dict, n: int = 64) -> np.ndarray:
+    """The GC's curve (n, 3) with its ends moved to the template's `start_at` / `end_at`
+    (relative coordinates in this GC; template module docstring), each move fading linearly
+    along the arc to nothing at the other end."""
+    C = _curve_points(gc, n)
+    at = np.array([place.get("start_at", (-1.0, 0.0, 0.0)), place.get("end_at", (1.0, 0.0, 0.0))])
+    target = np.asarray(gc.to_world(at))
+    arc = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(C, axis=0), axis=1))]
+    w = (arc / max(arc[-1], 1e-12))[:, None]
+    return C + (1.0 - w) * (target[0] - C[0]) + w * (target[1] - C[-1])
+
+
 def _curve_points(gc: GeneralizedCylinder, n: int = 64) -> np.ndarray:
     return np.asarray(gc.to_world(np.stack([np.linspace(-1, 1, n), np.zeros(n), np.zeros(n)], 1)))
 
@@ -672,15 +685,26 @@ def transfer_template(mesh: trimesh.Trimesh, template: Template,
     # same for every mesh of the folder (one shape-latent layout), also for a mesh retried below
     M = template_rotation(template, orientation)
     try:
-        paths, labels, missing, cost = correspond(template, tree, body, st, where)
+        found = correspond(template, tree, body, st, where)
     except DataError:
         if up is None:
             raise
+        found = None
+    if up is not None and (found is None or found[2]):
         # the collection's up, given, does not hold for this mesh (an animal lying on its
-        # side): once more with its own up detected, the given front kept
-        orientation = detect_orientation(curves, volumes, None, None, front, surface)
-        body = BodyFrame.of(surface, orientation)
-        paths, labels, missing, cost = correspond(template, tree, body, st, where)
+        # side: refused, or parts missing): once more with its own up detected, the given
+        # front kept; the better match (fewer parts missing, then the lower cost) stays
+        own = detect_orientation(curves, volumes, None, None, front, surface)
+        own_body = BodyFrame.of(surface, own)
+        try:
+            again = correspond(template, tree, own_body, st, where)
+        except DataError:
+            if found is None:
+                raise
+            again = None
+        if again is not None and (found is None or (len(again[2]), again[3]) < (len(found[2]), found[3])):
+            orientation, body, found = own, own_body, again
+    paths, labels, missing, cost = found
     if missing:  # a stubby part (a short tail) pruned with the spurs: once more with finer ones
         fine = skeleton_tree(sk, thick, FINER * st.min_branch_length, st.max_gcs)
         try:
@@ -724,6 +748,11 @@ def transfer_template(mesh: trimesh.Trimesh, template: Template,
         up = _safe_up(M @ np.asarray(tgc.up), poly[-1] - poly[0])
         gcs[n] = template_gc(dataclasses.replace(tgc, up=tuple(up)), poly, own, st.margin, floor,
                              where)
+        if "start_at" in tgc.place or "end_at" in tgc.place:  # the annotator's ends
+            poly = _moved_ends(gcs[n], tgc.place)
+            up = _safe_up(M @ np.asarray(tgc.up), poly[-1] - poly[0])
+            gcs[n] = template_gc(dataclasses.replace(tgc, up=tuple(up)), poly, own, st.margin,
+                                 floor, where)
     surface_body = body.to_body(surface) if missing else None
     for n in missing:  # a GC from where the part would attach to the surface where it would end
         tgc = template.gc(n)
@@ -813,7 +842,10 @@ def _inferred_tree(gcs: list[GeneralizedCylinder], body: BodyFrame) -> list[Temp
     curves = [_curve_points(g) for g in gcs]
     G = len(gcs)
     A = _attachment(gcs).min(2)
-    W = np.minimum(A, A.T) + 1e-6          # zero would read as "no edge"
+    # the deeper end decides; the other way counts half (up to RHO_FAR): a leg's top sits in
+    # the torso and the torso's front end in the leg's top, where a neck's base only reaches
+    # into the leg (rig-like ends, calibrate: a shoulder joint high in the chest)
+    W = np.minimum(A, A.T) + 0.5 * np.minimum(np.maximum(A, A.T), RHO_FAR) + 1e-6  # 0: no edge
     # an end as deep in two GCs (a leg's top where the neck leaves the torso) hangs on the
     # larger: a small tie-breaker, far below the gaps that separate real attachments
     big = np.maximum.outer(vol, vol) / max(max(vol), 1e-12)
@@ -873,7 +905,10 @@ def export_template(shapes: list[tuple[list[GeneralizedCylinder], np.ndarray, Or
             raise DataError(f"the GCs {names} are not template {base.name}'s {base.names}",
                             path=base.source, field="annotate.template",
                             fix="export from meshes annotated with this template")
-        tgcs = [dataclasses.replace(g, place=p) for g, p in zip(base.gcs, mean)]
+        # the base's ends (where its annotator ends each part: calibrate) are kept
+        tgcs = [dataclasses.replace(g, place={**p, **{k: v for k, v in (g.place or {}).items()
+                                                      if k in ("start_at", "end_at")}})
+                for g, p in zip(base.gcs, mean)]
         frame = base.frame or {"up": tuple(or0.up), "front": tuple(or0.front)}
     else:  # the GCs' up vectors are in the first mesh's frame
         tgcs = [dataclasses.replace(g, place=p) for g, p in zip(inferred, mean)]
