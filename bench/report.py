@@ -755,9 +755,17 @@ def _glance_animals(r):
 
 def _glance_transfer(r):
     a = r["animals"]
-    return (f"quadruped template on {a['n']} posed animals, rig withheld: {pct(a['matched'], 1)} "
-            f"matched, purity {pct(a['purity_mean'], 1)} (worst GC {pct(a['purity_worst'], 1)}); "
+    line = (f"quadruped template on {a['n']} posed animals, rig withheld: {pct(a['matched'], 1)} "
+            f"matched, purity {pct(a['purity_mean'], 1)} (worst GC {pct(a['purity_worst'], 1)}), "
+            f"ends {a['endpoint_err_median']:.3f} of a part's length; "
             f"creatures {pct(r['creatures']['purity_mean'], 1)}")
+    gen = r.get("generator") or {}
+    rig, tr = gen.get("rig") or {}, gen.get("transferred") or {}
+    if rig.get("mmd_cd") and tr.get("mmd_cd"):
+        line += (f"; generator on transferred GCs vs rig GCs: MMD-CD "
+                 f"{100 * (tr['mmd_cd'] / rig['mmd_cd'] - 1):+.1f}%, 1-NNA "
+                 f"{100 * (tr['nna_cd'] / rig['nna_cd'] - 1):+.1f}%")
+    return line
 
 
 def _glance_cli(r):
