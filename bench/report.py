@@ -634,8 +634,10 @@ def transfer(r: dict) -> str:
                   else "against rig GCs: not measured yet") + "."]
     held = (r.get("reconstruct_heldout") or {}).get("fscore") or {}
     if held:
+        steps = ((r.get("details") or {}).get("generator_recipe") or {}).get("reconstruct_refine_steps")
         lines += ["", "Held-out species at rest, transferred and reconstructed into the transferred "
-                  "generator's shape-latent model (`stage=reconstruct`): F-score@0.01 "
+                  "generator's shape-latent model (`stage=reconstruct`"
+                  + (f", `reconstruct.refine_steps={steps}`" if steps else "") + "): F-score@0.01 "
                   + ", ".join(f"{n} {f:.3f}" for n, f in sorted(held.items())) + "."]
     return "\n".join(lines)
 

@@ -17,7 +17,8 @@ folders, their rig GCs and their transferred GCs; a generator (experiment=animal
 --shape-latent-steps / --diffusion-steps) trained on each in the same run, --sets x 30 samples
 against the 30 held-out clips: MMD-CD, COV, 1-NNA (as bench/animals.py).
 reconstruct_heldout: the held-out species at rest, transferred and put into the transferred
-generator's shape-latent model by stage=reconstruct (latent, then codes): F-score@0.01.
+generator's shape-latent model by stage=reconstruct (latent, then codes, --refine-steps of
+them: 1500, where the stage's default 600 leaves the codes short of converged): F-score@0.01.
 Writes bench/results/transfer.png: one transferred animal per species, GCs in template colours.
 
     python bench/transfer.py [--limit N] [--workers W] [--no-generator]
@@ -147,8 +148,8 @@ def _train_generator(kind: str, folder: Path, args) -> tuple:
 def generator_rows(records: list[dict], clips_m: list, args) -> dict:
     """{rig, transferred}: a generator trained on each folder of the training animals (the same
     recipe, the same run) against the held-out clips, {mmd_cd, cov_cd, nna_cd}, the mean over
-    --sets sets, and their standard deviation over the sets (how far apart two generators may
-    lie by chance)."""
+    --sets sets, their standard deviation over the sets (how far apart two generators may
+    lie by chance) and each set's figures (per_set)."""
     import numpy as np
     import trimesh
 
@@ -169,6 +170,7 @@ def generator_rows(records: list[dict], clips_m: list, args) -> dict:
         out[kind] = {k: float(np.mean([p[k] for p in per.values()])) for k in METRICS}
         out[kind]["sd_over_sets"] = {k: float(np.std([p[k] for p in per.values()], ddof=1))
                                      for k in METRICS} if args.sets > 1 else None
+        out[kind]["per_set"] = {k: [round(float(p[k]), 6) for p in per.values()] for k in METRICS}
         print(f"generator ({kind} GCs) vs {K} held-out clips: {out[kind]}", flush=True)
     return out
 
@@ -193,6 +195,7 @@ def reconstruct_heldout(rest: list[dict], args) -> dict:
     cfg = compose_config(overrides=["stage=reconstruct", f"run={sl.run_dir}", "data=folder",
                                     f"data.path={folder}", "seed=0", "logger=csv",
                                     "trainer.enable_progress_bar=false",
+                                    f"reconstruct.refine_steps={args.refine_steps}",
                                     "prepare.cache_dir=${paths.cache_dir}/prepared/transfer_heldout"])
 
     def fit(run_dir: Path) -> dict:
@@ -264,6 +267,9 @@ def main() -> None:
     ap.add_argument("--shape-latent-steps", type=int, default=5000,
                     help="both generators' shape-latent steps (the recipe is experiment=animals)")
     ap.add_argument("--diffusion-steps", type=int, default=3000)
+    ap.add_argument("--refine-steps", type=int, default=1500,
+                    help="held-out reconstruction: reconstruct.refine_steps (the codes after the "
+                         "latent; the stage's default 600 leaves them short of converged)")
     ap.add_argument("--sets", type=int, default=8,
                     help="sets of as many samples as held-out clips, per generator (averaged)")
     args = ap.parse_args()
@@ -360,7 +366,8 @@ def main() -> None:
                     "template": str(TEMPLATE.relative_to(ROOT)),
                     "generator_recipe": {"shape_latent_steps": args.shape_latent_steps,
                                          "diffusion_steps": args.diffusion_steps,
-                                         "sets": args.sets, "reference": "held-out clips"},
+                                         "sets": args.sets, "reference": "held-out clips",
+                                         "reconstruct_refine_steps": args.refine_steps},
                     "refused_errors": errors,
                     "per_mesh": rows},
     }

@@ -74,7 +74,6 @@ MISSING_PAST = 0.1   # its length (and that much past it); else it is a quarter 
 START_REACH = 2.0  # a part on the root reaches back toward its template start by at most this x
                    # its top radius (_reach_back)
 TIE_LARGER = 0.05  # an inferred tree's edge to a smaller GC costs up to this much more
-RHO_FAR = 2.0      # an inferred tree reads GC ends farther than this out of a GC as this far
 FINER = 0.4        # a mesh with parts missing is matched again on spurs this x as long kept
 
 
@@ -826,32 +825,34 @@ def _attachment(gcs: list[GeneralizedCylinder]) -> np.ndarray:
 
 
 def _inferred_tree(gcs: list[GeneralizedCylinder], body: BodyFrame) -> list[TemplateGC]:
-    """Template GCs for annotated GCs without a template. The tree is the one whose GCs touch
-    most closely: the minimum spanning tree of how far the nearer end of one GC lies out of the
-    other (relative radii, so an ear's base sits in the head, not in the other ear's thin
-    tube; no "parents are larger" rule, so a thin neck sits between the torso and a larger
-    head, only a tie-breaker toward the larger of two equally close), rooted at the largest
-    GC; each child starts at the end in its parent (export flips its place to start there). Its symmetric partner: the GC whose mirror image across the
-    body's mid-plane lies closest."""
-    from scipy.sparse.csgraph import breadth_first_order, minimum_spanning_tree
+    """Template GCs for annotated GCs without a template. Each child's nearer end lies in its
+    parent: the tree is the minimum spanning arborescence (Edmonds), rooted at the largest GC,
+    of how far the nearer end of a GC lies out of its parent (relative radii, so an ear's base
+    sits in the head, not in the other ear's thin tube; no "parents are larger" rule, so a thin
+    neck sits between the torso and a larger head). An end inside several GCs (rho <= 1: a
+    rig's shoulder joint high in the chest, where the neck's base is too) hangs on the largest
+    of them. Each child starts at the end in its parent (export flips its place to start
+    there). Its symmetric partner: the GC whose mirror image across the body's mid-plane lies
+    closest."""
+    import networkx as nx
 
     dicts = [g.to_dict() for g in gcs]
-    vol = [float(np.ptp(_curve_points(g), axis=0).sum()) * np.mean(
-        [np.prod(k["radii"]) for k in d["keys"]]) for g, d in zip(gcs, dicts)]
+    vol = np.array([float(np.ptp(_curve_points(g), axis=0).sum()) * np.mean(
+        [np.prod(k["radii"]) for k in d["keys"]]) for g, d in zip(gcs, dicts)])
     root = int(np.argmax(vol))
     curves = [_curve_points(g) for g in gcs]
     G = len(gcs)
-    A = _attachment(gcs).min(2)
-    # the deeper end decides; the other way counts half (up to RHO_FAR): a leg's top sits in
-    # the torso and the torso's front end in the leg's top, where a neck's base only reaches
-    # into the leg (rig-like ends, calibrate: a shoulder joint high in the chest)
-    W = np.minimum(A, A.T) + 0.5 * np.minimum(np.maximum(A, A.T), RHO_FAR) + 1e-6  # 0: no edge
-    # an end as deep in two GCs (a leg's top where the neck leaves the torso) hangs on the
-    # larger: a small tie-breaker, far below the gaps that separate real attachments
-    big = np.maximum.outer(vol, vol) / max(max(vol), 1e-12)
-    W += TIE_LARGER * (1.0 - big)
-    np.fill_diagonal(W, 0.0)
-    _, pred = breadth_first_order(minimum_spanning_tree(W), root, directed=False)
+    A = _attachment(gcs).min(2)                     # (child, parent): its nearer end's rho
+    # inside is inside; among GCs equally close a small tie-breaker toward the larger, far
+    # below the gaps that separate real attachments
+    W = np.maximum(A, 1.0) + TIE_LARGER * (1.0 - vol / max(vol.max(), 1e-12))[None, :]
+    graph = nx.DiGraph()
+    graph.add_nodes_from(range(G))
+    graph.add_weighted_edges_from((j, i, float(W[i, j])) for i in range(G) for j in range(G)
+                                  if i != j and i != root)
+    pred = np.full(G, -1)
+    for j, i in nx.minimum_spanning_arborescence(graph).edges():
+        pred[i] = j
     out = []
     for i, (g, d) in enumerate(zip(gcs, dicts)):
         parent, extend = None, [True, True]

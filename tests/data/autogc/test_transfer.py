@@ -11,8 +11,10 @@ import pytest
 import yaml
 from scipy.optimize import linear_sum_assignment
 
+from ngc_gen.data.autogc.orient import Orientation
 from ngc_gen.data.autogc.template import load_template, template_from_dict
 from ngc_gen.data.autogc.transfer import (START_REACH, BodyFrame, TransferSettings, Tree,
+                                          _inferred_tree,
                                           _reach_back, export_template, match_cost,
                                           transfer_template)
 from ngc_gen.data.errors import DataError
@@ -194,6 +196,36 @@ def test_exported_template_loads_and_transfers(template, transfers, tmp_path):
     parents = {g.name: g.parent for g in tree.gcs}
     assert parents["torso"] is None and parents["leg_fl"] == "torso" and parents["head"] == "neck"
     assert {g.name: g.symmetric for g in tree.gcs}["leg_fl"] == "leg_fr"
+
+
+def _tube(name, a, b, r):
+    from ngc_gen.geometry import GeneralizedCylinder
+
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    return GeneralizedCylinder.from_dict({
+        "name": name, "curve": {"type": "bezier", "points": [a.tolist(), ((a + b) / 2).tolist(),
+                                                             b.tolist()]},
+        "up": [1.0, 0.0, 0.0] if abs(b - a)[2] > abs(b - a)[0] else [0.0, 0.0, 1.0],
+        "keys": [{"t": 0.0, "radii": [r, r]}, {"t": 1.0, "radii": [r, r]}], "caps": [r, r]})
+
+
+def test_an_inferred_tree_hangs_a_shoulder_inside_the_neck_base_on_the_torso():
+    """A rig's front leg starts at a shoulder joint high in the chest, where the neck's base is
+    too: deeper in the neck than in the torso, but inside both, it belongs to the torso; a head
+    larger than its neck still hangs on the neck (no "parents are larger" rule)."""
+    gcs = [_tube("torso", (-1.0, 0, 0), (1.0, 0, 0), 0.4),
+           _tube("neck", (0.8, 0, 0.2), (1.2, 0, 0.8), 0.15),
+           _tube("head", (1.2, 0, 0.8), (1.9, 0, 0.8), 0.3),
+           _tube("leg", (0.85, 0.0, 0.28), (0.85, 0.0, -1.2), 0.12)]
+    from ngc_gen.data.autogc.transfer import _attachment
+
+    A = _attachment(gcs).min(2)
+    assert A[3, 1] < A[3, 0] <= 1.0            # the leg's top: deeper in the neck, in both
+    pts = np.concatenate([np.asarray(g.to_world(np.random.default_rng(0).uniform(-1, 1, (200, 3))))
+                          for g in gcs])
+    body = BodyFrame.of(pts, Orientation(np.array([0.0, 0, 1]), np.array([1.0, 0, 0])))
+    parents = {t.name: t.parent for t in _inferred_tree(gcs, body)}
+    assert parents == {"torso": None, "neck": "torso", "head": "neck", "leg": "torso"}
 
 
 def test_a_template_without_places_says_how_to_get_one(template):
