@@ -12,7 +12,9 @@ Pinocchio's two steps (a discrete embedding, then a continuous refinement) on ou
    its branch leaves the body (front to back, capped), the direction toward it from its
    branch's root, and its thickness relative to the body's thickest part against the
    template's; any template leaf
-   may stay unmatched at ``missing_cost``. A second pass gives the limbs left out (a grazing
+   may stay unmatched at ``missing_cost``. Two limbs of one side whose branches leave the body
+   in the other order than the template starts them (a gallop's crossed legs) are swapped
+   (``_front_to_back``). A second pass gives the limbs left out (a grazing
    head, galloping legs) the free ends left over that lie within their reach: at the limb
    chain's length from where it attaches, on its own side. Still missing: matched once more
    on a finer tree (spurs ``FINER`` x as long kept: a short tail). Tree-consistent by
@@ -321,6 +323,30 @@ def match_cost(template: Template, tree: Tree, body: BodyFrame, leaf_gcs: list[s
     return C
 
 
+def _front_to_back(template: Template, tree: Tree, body: BodyFrame,
+                   assign: dict[str, int]) -> dict[str, int]:
+    """Two matched limbs on one side of the body, where the template starts one in front of
+    the other (a front and a hind leg) but this mesh's branch for it leaves the body more than
+    SIGMA_ATTACH behind the other's: their ends swapped. A gallop's crossed legs put each foot
+    at the other's place; where the legs leave the body does not cross."""
+    def top(name):
+        return ([name, *_ancestors(template, name)][:-1] or [name])[-1]
+
+    out = dict(assign)
+    names = list(out)
+    for i, a in enumerate(names):
+        for b in names[i + 1:]:
+            sa, sb = (np.asarray(template.gc(top(n)).place["start"]) for n in (a, b))
+            if template.gc(top(a)).parent != template.gc(top(b)).parent or \
+                    min(abs(sa[1]), abs(sb[1])) < 0.2 or np.sign(sa[1]) != np.sign(sb[1]):
+                continue                                   # not one side's pair
+            fa, fb = (body.to_body(tree.branch_root[tree.branch_of[out[n]]])[0] for n in (a, b))
+            if (sa[0] - sb[0]) * (fa - fb) < 0 and abs(fa - fb) > SIGMA_ATTACH and \
+                    abs(sa[0] - sb[0]) > SIGMA_ATTACH:
+                out[a], out[b] = out[b], out[a]
+    return out
+
+
 def _ancestors(template: Template, name: str) -> list[str]:
     out, p = [], template.gc(name).parent
     while p is not None:
@@ -433,6 +459,7 @@ def correspond(template: Template, tree: Tree, body: BodyFrame, settings: Transf
         for r, c in zip(*linear_sum_assignment(C2)):
             if C2[r, c] < settings.missing_cost:
                 assign[left_gcs[r]] = int(free[c])
+    assign = _front_to_back(template, tree, body, assign)
     rp = template.gc(root_gc).place
     root_pos = body.to_world((np.asarray(rp["start"]) + np.asarray(rp["end"])) / 2.0)
     main_idx = np.flatnonzero(tree.main)

@@ -14,7 +14,7 @@ from scipy.optimize import linear_sum_assignment
 from ngc_gen.data.autogc.orient import Orientation
 from ngc_gen.data.autogc.template import load_template, template_from_dict
 from ngc_gen.data.autogc.transfer import (START_REACH, BodyFrame, TransferSettings, Tree,
-                                          _inferred_tree,
+                                          _front_to_back, _inferred_tree,
                                           _reach_back, export_template, match_cost,
                                           transfer_template)
 from ngc_gen.data.errors import DataError
@@ -129,6 +129,27 @@ def test_a_galloping_front_foot_behind_the_hind_foot_keeps_its_legs_name(templat
     for attach, want in ((True, [0, 1]), (False, [1, 0])):
         C = match_cost(template, tree, body, legs, np.array([0, 1]), attach=attach)
         assert list(linear_sum_assignment(C)[1]) == want, attach
+
+
+def test_a_crossed_pair_on_one_side_is_named_by_where_its_legs_leave_the_body(template):
+    """When the matching still gives a gallop's front leg the hind foot (each foot at the other's
+    place), the pair on that side is swapped back: the front leg's branch leaves the body at
+    the shoulder. Legs that leave at one place (a dog's skeleton joining them mid-body) and a
+    left leg against a right one are left as matched."""
+    roots = np.array([[0.25, 0.3, 0.0], [-0.55, 0.3, 0.1], [0.25, -0.3, 0.0], [0.1, 0.3, 0.1]])
+    nodes = np.array([[-0.3, 0.5, -0.9], [-0.1, 0.5, -0.9], [0.3, -0.5, -0.9], [0.0, 0.5, -0.9]])
+    tree = Tree(nodes=nodes, radius=np.full(4, 0.1), graph=None, main=np.ones(4, bool),
+                branch_of=np.arange(4), branch_dir=np.tile([0, 0, -1.0], (4, 1)),
+                branch_r=np.full(4, 0.05), branch_root=roots)
+    body = BodyFrame(np.eye(3), np.zeros(3), np.ones(3))
+    crossed = {"leg_fl": 1, "leg_bl": 0, "leg_fr": 2}       # front-left took the hip's branch
+    assert _front_to_back(template, tree, body, crossed) == {"leg_fl": 0, "leg_bl": 1, "leg_fr": 2}
+    assert _front_to_back(template, tree, body, {"leg_fl": 0, "leg_bl": 1}) == \
+        {"leg_fl": 0, "leg_bl": 1}                              # already right
+    near = {"leg_fl": 3, "leg_bl": 0}   # 0.15 apart (under SIGMA_ATTACH): the matching stands
+    assert _front_to_back(template, tree, body, near) == near
+    assert _front_to_back(template, tree, body, {"leg_fr": 1, "leg_bl": 2}) == \
+        {"leg_fr": 1, "leg_bl": 2}                              # two sides: not a pair
 
 
 def test_a_part_on_the_root_reaches_back_toward_its_template_start():
