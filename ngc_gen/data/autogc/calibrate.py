@@ -18,12 +18,11 @@ import dataclasses
 import numpy as np
 import trimesh
 
-from ngc_gen.data.autogc.template import Template
+from ngc_gen.data.autogc.template import AT_KEYS, Template
 from ngc_gen.data.autogc.transfer import TransferSettings, transfer_template
 from ngc_gen.data.errors import DataError
 from ngc_gen.geometry import GeneralizedCylinder
 
-AT_KEYS = ("start_at", "end_at")
 ENDS = np.array([[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0]])  # a curve's ends, relative coordinates
 
 

@@ -53,7 +53,8 @@ TEMPLATE_VERSION = 1
 TOP_KEYS = {"version", "name", "description", "gcs", "frame"}
 GC_KEYS = {"name", "joints", "skinned", "degree", "keys", "up", "extend", "parent", "attach",
            "symmetric", "place", "carve"}
-PLACE_KEYS = {"start", "end", "radius", "start_at", "end_at"}
+AT_KEYS = ("start_at", "end_at")  # place's optional calibrated ends (autogc.calibrate)
+PLACE_KEYS = {"start", "end", "radius", *AT_KEYS}
 DEFAULT_FRAME = {"up": (0.0, 0.0, 1.0), "front": (1.0, 0.0, 0.0)}
 _GLOB = set("*?[")
 
@@ -91,7 +92,7 @@ class TemplateGC:
                           "end": [round(float(x), 5) for x in self.place["end"]],
                           "radius": round(float(self.place["radius"]), 5)}
             d["place"].update({k: [round(float(x), 5) for x in self.place[k]]
-                               for k in ("start_at", "end_at") if k in self.place})
+                               for k in AT_KEYS if k in self.place})
         if self.carve is not None:
             d["carve"] = {"from": self.carve["from"], "side": None if self.carve["side"] is None
                           else [float(x) for x in self.carve["side"]]}
@@ -217,13 +218,13 @@ def _place(p, path, gc) -> dict | None:
     if not (isinstance(p, dict) and {"start", "end", "radius"} <= set(p) <= PLACE_KEYS
             and _vec3(p["start"]) and _vec3(p["end"]) and isinstance(p["radius"], (int, float))
             and not isinstance(p["radius"], bool) and p["radius"] > 0
-            and all(_vec3(p[k]) for k in ("start_at", "end_at") if k in p)):
+            and all(_vec3(p[k]) for k in AT_KEYS if k in p)):
         _fail(f"place must be {{start: [f, l, u], end: [f, l, u], radius: r > 0}} (optionally "
               f"start_at, end_at: [u, a, b]), got {p!r}",
               path, gc, "place", "write it with train.py stage=annotate annotate.export_template=PATH")
     out = {"start": tuple(float(x) for x in p["start"]), "end": tuple(float(x) for x in p["end"]),
            "radius": float(p["radius"])}
-    out.update({k: tuple(float(x) for x in p[k]) for k in ("start_at", "end_at") if k in p})
+    out.update({k: tuple(float(x) for x in p[k]) for k in AT_KEYS if k in p})
     return out
 
 

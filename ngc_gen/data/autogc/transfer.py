@@ -52,7 +52,7 @@ from ngc_gen.data.autogc.branches import branch_graph, junction_key
 from ngc_gen.data.autogc.coverage import grow_to_cover, rho_matrix
 from ngc_gen.data.autogc.orient import Orientation, detect_orientation, parse_axis
 from ngc_gen.data.autogc.skeleton import BACKENDS, local_thickness, proxy_skeleton
-from ngc_gen.data.autogc.template import Template, TemplateGC
+from ngc_gen.data.autogc.template import AT_KEYS, Template, TemplateGC
 from ngc_gen.data.errors import DataError
 from ngc_gen.data.mesh.proxy import closed_proxy
 from ngc_gen.data.mesh.sampling import gc_membership, sample_surface
@@ -301,7 +301,7 @@ def match_cost(template: Template, tree: Tree, body: BodyFrame, leaf_gcs: list[s
         sigma = np.full(3, SIGMA_TIP)
         if template.gc(name).symmetric is None:  # on the mid-plane: its side hardly tells
             sigma[1] *= 2.0
-        chain = [name, *_ancestors(template, name)][:-1]      # up to the root's child
+        chain = _chain(template, name)
         # where its branch leaves the body, front to back, against where any GC of its chain
         # starts (a branch may hold a whole leg, or only a head past its ears): it stays when
         # the limb swings (a galloping front foot behind its shoulder)
@@ -330,7 +330,7 @@ def _front_to_back(template: Template, tree: Tree, body: BodyFrame,
     SIGMA_ATTACH behind the other's: their ends swapped. A gallop's crossed legs put each foot
     at the other's place; where the legs leave the body does not cross."""
     def top(name):
-        return ([name, *_ancestors(template, name)][:-1] or [name])[-1]
+        return (_chain(template, name) or [name])[-1]
 
     out = dict(assign)
     names = list(out)
@@ -345,6 +345,11 @@ def _front_to_back(template: Template, tree: Tree, body: BodyFrame,
                     abs(sa[0] - sb[0]) > SIGMA_ATTACH:
                 out[a], out[b] = out[b], out[a]
     return out
+
+
+def _chain(template: Template, name: str) -> list[str]:
+    """The GC and its ancestors up to the root's child (the root left out)."""
+    return [name, *_ancestors(template, name)][:-1]
 
 
 def _ancestors(template: Template, name: str) -> list[str]:
@@ -710,34 +715,34 @@ def transfer_template(mesh: trimesh.Trimesh, template: Template,
     # the template's up vectors turned into the collection's frame: with the axes given, the
     # same for every mesh of the folder (one shape-latent layout), also for a mesh retried below
     M = template_rotation(template, orientation)
-    try:
-        found = correspond(template, tree, body, st, where)
-    except DataError:
-        if up is None:
-            raise
-        found = None
-    if up is not None and (found is None or found[2]):
+    def attempt(on: Tree, frame: BodyFrame):
+        """correspond's match, or the DataError that refuses it."""
+        try:
+            return correspond(template, on, frame, st, where)
+        except DataError as e:
+            return e
+
+    found = attempt(tree, body)
+    if isinstance(found, DataError) and up is None:
+        raise found
+    if up is not None and (isinstance(found, DataError) or found[2]):
         # the collection's up, given, does not hold for this mesh (an animal lying on its
         # side: refused, or parts missing): once more with its own up detected, the given
         # front kept; the better match (fewer parts missing, then the lower cost) stays
         own = detect_orientation(curves, volumes, None, None, front, surface)
         own_body = BodyFrame.of(surface, own)
-        try:
-            again = correspond(template, tree, own_body, st, where)
-        except DataError:
-            if found is None:
-                raise
-            again = None
-        if again is not None and (found is None or (len(again[2]), again[3]) < (len(found[2]), found[3])):
+        again = attempt(tree, own_body)
+        if isinstance(again, DataError):
+            if isinstance(found, DataError):
+                raise again
+        elif isinstance(found, DataError) or \
+                (len(again[2]), again[3]) < (len(found[2]), found[3]):
             orientation, body, found = own, own_body, again
     paths, labels, missing, cost = found
     if missing:  # a stubby part (a short tail) pruned with the spurs: once more with finer ones
         fine = skeleton_tree(sk, thick, FINER * st.min_branch_length, st.max_gcs)
-        try:
-            again = correspond(template, fine, body, st, where)
-        except DataError:
-            again = None
-        if again is not None and len(again[2]) < len(missing):
+        again = attempt(fine, body)
+        if not isinstance(again, DataError) and len(again[2]) < len(missing):
             tree, (paths, labels, missing, cost) = fine, again
     owner = labels[cKDTree(tree.nodes).query(surface, k=1)[1]]
     names = template.names
@@ -774,7 +779,7 @@ def transfer_template(mesh: trimesh.Trimesh, template: Template,
         up = _safe_up(M @ np.asarray(tgc.up), poly[-1] - poly[0])
         gcs[n] = template_gc(dataclasses.replace(tgc, up=tuple(up)), poly, own, st.margin, floor,
                              where)
-        if "start_at" in tgc.place or "end_at" in tgc.place:  # the annotator's ends
+        if any(k in tgc.place for k in AT_KEYS):  # the annotator's ends
             poly = _moved_ends(gcs[n], tgc.place)
             up = _safe_up(M @ np.asarray(tgc.up), poly[-1] - poly[0])
             gcs[n] = template_gc(dataclasses.replace(tgc, up=tuple(up)), poly, own, st.margin,
@@ -935,7 +940,7 @@ def export_template(shapes: list[tuple[list[GeneralizedCylinder], np.ndarray, Or
                             fix="export from meshes annotated with this template")
         # the base's ends (where its annotator ends each part: calibrate) are kept
         tgcs = [dataclasses.replace(g, place={**p, **{k: v for k, v in (g.place or {}).items()
-                                                      if k in ("start_at", "end_at")}})
+                                                      if k in AT_KEYS}})
                 for g, p in zip(base.gcs, mean)]
         frame = base.frame or {"up": tuple(or0.up), "front": tuple(or0.front)}
     else:  # the GCs' up vectors are in the first mesh's frame
