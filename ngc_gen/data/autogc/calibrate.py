@@ -7,9 +7,10 @@ the body and ends where its last bone meets the surface, its head ends where the
 leaves the skull. The template records that rule per GC end as relative coordinates [u, a, b]
 of the transferred GC (``place.start_at`` / ``place.end_at``; the template module's docstring):
 the template is transferred onto annotated meshes (only their triangles), the annotated curve
-ends are read in the transferred GCs' relative coordinates, and the median over the meshes is
-kept. Relative coordinates follow the part (along its curve, across in its radii), so one
-rule serves a standing and a galloping leg.
+ends are read in the transferred GCs' relative coordinates, and of those the one that lands
+within TOLERANCE of the annotated end on the most meshes is kept (``_best``). Relative
+coordinates follow the part (along its curve, across in its radii), so one rule serves a
+standing and a galloping leg.
 """
 from __future__ import annotations
 
@@ -23,7 +24,10 @@ from ngc_gen.data.autogc.transfer import TransferSettings, transfer_template
 from ngc_gen.data.errors import DataError
 from ngc_gen.geometry import GeneralizedCylinder
 
-ENDS = np.array([[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0]])  # a curve's ends, relative coordinates
+LINE = np.stack([np.linspace(-1.0, 1.0, 65), np.zeros(65), np.zeros(65)], 1)  # a GC's curve,
+                                                                     # relative coordinates
+TOLERANCE = 0.1  # an end this x its part's length from the annotated one counts as right (the
+                 # endpoint tolerance docs/transfer.md measures against)
 
 
 def without_ends(template: Template) -> Template:
@@ -33,36 +37,78 @@ def without_ends(template: Template) -> Template:
     return dataclasses.replace(template, gcs=gcs)
 
 
+def _best(cands: np.ndarray, gcs: list[GeneralizedCylinder], truth: np.ndarray,
+          length: np.ndarray) -> np.ndarray:
+    """Of the candidate relative coordinates (C, 3), the one that, put in each mesh's
+    transferred GC (M of them), lands within TOLERANCE x the annotated part's length (M,) of
+    that mesh's annotated end (M, 3) on the most meshes; ties to the lower median distance.
+    Annotated ends can cluster in two places (two poses, two species' rigs): their median
+    falls between the clusters, near no annotated end; this lands in the larger one."""
+    world = np.stack([np.asarray(g.to_world(cands), dtype=np.float64) for g in gcs])  # (M, C, 3)
+    err = np.linalg.norm(world - truth[:, None], axis=2) / length[:, None]
+    hits = (err <= TOLERANCE).sum(0)
+    best = np.flatnonzero(hits == hits.max())
+    return cands[best[int(np.argmin(np.median(err[:, best], axis=0)))]]
+
+
+def _measure(task) -> dict | None:
+    """One annotated mesh (a worker's task): per GC the transfer (without ends) found and did
+    not report missing, (that GC as a dict, the annotated ends (2, 3), the annotated ends in
+    its relative coordinates (2, 3), the annotated part's length); None when it was refused."""
+    template, settings, name, mesh, truth = task
+    by_name = {g["name"]: GeneralizedCylinder.from_dict(g) for g in truth}
+    try:
+        tr = transfer_template(mesh, template, settings, name)
+    except DataError:
+        return None
+    out = {}
+    for g in tr.gcs:
+        if g.name in tr.missing:
+            continue
+        line = np.asarray(by_name[g.name].to_world(LINE), dtype=np.float64)
+        length = float(np.linalg.norm(np.diff(line, axis=0), axis=1).sum())
+        ends = line[[0, -1]]
+        out[g.name] = (g.to_dict(), ends, np.asarray(g.to_relative(ends), dtype=np.float64),
+                       max(length, 1e-12))
+    return out
+
+
 def calibrate_ends(template: Template,
                    annotated: list[tuple[str, trimesh.Trimesh, list[GeneralizedCylinder]]],
-                   settings: TransferSettings | None = None) -> Template:
-    """The template with `start_at` / `end_at` per GC: the median over the annotated meshes
-    [(name, mesh, its annotated GCs with the template's names)] of where each annotated curve
-    end lies in the GC the transfer (without ends) finds. A GC the transfer reported missing,
-    or a mesh it refused, does not count; a GC never measured keeps no ends."""
+                   settings: TransferSettings | None = None,
+                   workers: int | None = None) -> Template:
+    """The template with `start_at` / `end_at` per GC: over the annotated meshes [(name, mesh,
+    its annotated GCs with the template's names)], where each annotated curve end lies in the
+    GC the transfer (without ends) finds, as relative coordinates; of those (and their
+    per-coordinate median) the one within TOLERANCE of the annotated end on the most meshes
+    (`_best`; one mesh: its own). A GC the transfer reported missing, or a mesh it refused,
+    does not count; a GC never measured keeps no ends. The meshes are transferred in `workers`
+    processes (map_shapes)."""
+    from ngc_gen.data.workers import map_shapes
+
     plain = without_ends(template)
-    rel: dict[str, list[np.ndarray]] = {n: [] for n in template.names}
+    tasks = []
     for name, mesh, truth in annotated:
-        by_name = {g.name: g for g in truth}
-        lacking = [n for n in template.names if n not in by_name]
+        lacking = [n for n in template.names if n not in {g.name for g in truth}]
         if lacking:
             raise DataError(f"its annotation has no GC {lacking[0]!r} of template "
                             f"{template.name}", path=name, field="gcs",
                             fix="calibrate on meshes annotated with this template")
-        try:
-            tr = transfer_template(mesh, plain, settings, name)
-        except DataError:
-            continue
-        for g in tr.gcs:
-            if g.name in tr.missing:
-                continue
-            ends = np.asarray(by_name[g.name].to_world(ENDS))
-            rel[g.name].append(np.asarray(g.to_relative(ends), dtype=np.float64))
+        tasks.append((plain, settings, name, mesh, [g.to_dict() for g in truth]))
+    seen: dict[str, list[tuple]] = {n: [] for n in template.names}
+    for found in map_shapes(_measure, tasks, workers):
+        for n, m in (found or {}).items():
+            seen[n].append(m)
     gcs = []
     for g in plain.gcs:
-        if rel[g.name]:
-            med = np.median(np.stack(rel[g.name]), axis=0)
-            g = dataclasses.replace(g, place={**g.place, "start_at": tuple(med[0]),
-                                              "end_at": tuple(med[1])})
+        if seen[g.name]:
+            found, truth, rel, length = zip(*seen[g.name])
+            found = [GeneralizedCylinder.from_dict(d) for d in found]
+            rel, truth, length = np.stack(rel), np.stack(truth), np.asarray(length)
+            at = [_best(np.concatenate([rel[:, e], np.median(rel[:, e], axis=0)[None]]),
+                        found, truth[:, e], length) for e in (0, 1)]
+            g = dataclasses.replace(g, place={**g.place,
+                                              "start_at": tuple(float(x) for x in at[0]),
+                                              "end_at": tuple(float(x) for x in at[1])})
         gcs.append(g)
     return dataclasses.replace(template, gcs=tuple(gcs))

@@ -84,3 +84,22 @@ def test_ends_round_trip_and_bad_ones_are_refused(tmp_path):
     with pytest.raises(DataError, match="start_at") as e:
         template_from_dict(d, "bad.yaml")
     assert "bad.yaml" in str(e.value) and "\n" not in str(e.value)
+
+
+def test_the_calibrated_end_lands_in_the_largest_cluster_not_between():
+    """Annotated ends in three clusters around a part's tip (4, 3 and 2 meshes, 0.3 of its
+    length out to three sides): the calibrated end is the four's. The per-coordinate median
+    (and the point of least median distance) lies at the tip itself, 0.3 from every annotated
+    end: within the tolerance of none."""
+    from ngc_gen.data.autogc.calibrate import TOLERANCE, _best
+
+    gcs = [_straight_gc()] * 9
+    sides = [[0.0, 0.3, 0.0]] * 4 + [[0.0, 0.0, 0.3]] * 3 + [[0.0, -0.3, -0.3]] * 2
+    truth = np.array([1.0, 0.0, 0.0]) + np.array(sides) + 0.005 * np.arange(9)[:, None]
+    rel = np.asarray(gcs[0].to_relative(truth))
+    cands = np.concatenate([rel, np.median(rel, axis=0)[None]])
+    chosen = np.asarray(gcs[0].to_world(_best(cands, gcs, truth, np.ones(9))[None]))[0]
+    hits = np.linalg.norm(truth - chosen, axis=1) <= TOLERANCE
+    assert hits[:4].all() and not hits[4:].any(), (chosen, hits)
+    # the one mesh case: its own end
+    np.testing.assert_allclose(_best(rel[5:6], gcs[:1], truth[5:6], np.ones(1)), rel[5])
