@@ -39,16 +39,18 @@ def main() -> None:
     rig = load_template(conf["template"])
     # the parts every quadruped has: GCs carved out of another (a stag's antlers) stay the rig's
     base = dataclasses.replace(rig, gcs=tuple(g for g in rig.gcs if g.carve is None))
+    def rig_gcs(rec) -> list:
+        return [g for g in load_annotation(rec["annotation"]).gcs if g.name in base.names]
+
     shapes = []
     for rec in Animals(**conf).build():
-        gcs = [g for g in load_annotation(rec["annotation"]).gcs if g.name in base.names]
+        gcs = rig_gcs(rec)
         mesh = trimesh.load(rec["mesh"], process=False)
         pts, _ = sample_surface(mesh.vertices, mesh.faces, 20000, np.random.default_rng(0))
         shapes.append((gcs, np.concatenate([mesh.vertices, pts]), y_up))
     posed = {**conf, "out_dir": str(ROOT / ".cache/datasets/animals_f5"), "frames": 5,
              "split": "train"}
-    annotated = [(rec["name"], trimesh.load(rec["mesh"], process=False),
-                  [g for g in load_annotation(rec["annotation"]).gcs if g.name in base.names])
+    annotated = [(rec["name"], trimesh.load(rec["mesh"], process=False), rig_gcs(rec))
                  for rec in Animals(**posed).build() if rec["frame"] > 0]
     t = export_template(shapes, "quadruped", base)
     print(f"calibrating the ends on {len(annotated)} posed animals", flush=True)

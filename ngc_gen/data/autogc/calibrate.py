@@ -24,8 +24,7 @@ from ngc_gen.data.autogc.transfer import TransferSettings, transfer_template
 from ngc_gen.data.errors import DataError
 from ngc_gen.geometry import GeneralizedCylinder
 
-LINE = np.stack([np.linspace(-1.0, 1.0, 65), np.zeros(65), np.zeros(65)], 1)  # a GC's curve,
-                                                                     # relative coordinates
+ENDS = np.array([[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0]])  # a curve's ends, relative coordinates
 TOLERANCE = 0.1  # an end this x its part's length from the annotated one counts as right (the
                  # endpoint tolerance docs/transfer.md measures against)
 
@@ -65,11 +64,10 @@ def _measure(task) -> dict | None:
     for g in tr.gcs:
         if g.name in tr.missing:
             continue
-        line = np.asarray(by_name[g.name].to_world(LINE), dtype=np.float64)
-        length = float(np.linalg.norm(np.diff(line, axis=0), axis=1).sum())
-        ends = line[[0, -1]]
+        truth_gc = by_name[g.name]
+        ends = np.asarray(truth_gc.to_world(ENDS), dtype=np.float64)
         out[g.name] = (g.to_dict(), ends, np.asarray(g.to_relative(ends), dtype=np.float64),
-                       max(length, 1e-12))
+                       max(float(truth_gc.length), 1e-12))
     return out
 
 
@@ -89,7 +87,8 @@ def calibrate_ends(template: Template,
     plain = without_ends(template)
     tasks = []
     for name, mesh, truth in annotated:
-        lacking = [n for n in template.names if n not in {g.name for g in truth}]
+        have = {g.name for g in truth}
+        lacking = [n for n in template.names if n not in have]
         if lacking:
             raise DataError(f"its annotation has no GC {lacking[0]!r} of template "
                             f"{template.name}", path=name, field="gcs",
