@@ -15,8 +15,8 @@ many shapes as the reference):
   train_set   the ceiling: training meshes (random subsets)
   noise       the floor: latents ~ N(mean, std^2) per dimension of the trained latents
   train_decoded  the training latents themselves decoded and meshed like the samples (random
-              subsets): what a generator that reproduced its latents exactly would score, so
-              generated - train_decoded is the diffusion's share of the gap to the ceiling
+              subsets, no latent twice): what a generator that reproduced its latents exactly,
+              and never the same one twice, would score
 References: `clips` = training species at their held-out clips (data.heldout_clips_by_species:
 3 per species, rotated so every clip stays in training for other species), `species` =
 held-out species at every clip. nearest_train_cd_median: the median over generated shapes of the Chamfer distance
