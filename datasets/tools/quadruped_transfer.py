@@ -39,6 +39,7 @@ def main() -> None:
     rig = load_template(conf["template"])
     # the parts every quadruped has: GCs carved out of another (a stag's antlers) stay the rig's
     base = dataclasses.replace(rig, gcs=tuple(g for g in rig.gcs if g.carve is None))
+
     def rig_gcs(rec) -> list:
         return [g for g in load_annotation(rec["annotation"]).gcs if g.name in base.names]
 

@@ -52,10 +52,10 @@ def _best(cands: np.ndarray, gcs: list[GeneralizedCylinder], truth: np.ndarray,
 
 def _measure(task) -> dict | None:
     """One annotated mesh (a worker's task): per GC the transfer (without ends) found and did
-    not report missing, (that GC as a dict, the annotated ends (2, 3), the annotated ends in
-    its relative coordinates (2, 3), the annotated part's length); None when it was refused."""
+    not report missing, (that GC, the annotated ends (2, 3), the annotated ends in its
+    relative coordinates (2, 3), the annotated part's length); None when it was refused."""
     template, settings, name, mesh, truth = task
-    by_name = {g["name"]: GeneralizedCylinder.from_dict(g) for g in truth}
+    by_name = {g.name: g for g in truth}
     try:
         tr = transfer_template(mesh, template, settings, name)
     except DataError:
@@ -66,7 +66,7 @@ def _measure(task) -> dict | None:
             continue
         truth_gc = by_name[g.name]
         ends = np.asarray(truth_gc.to_world(ENDS), dtype=np.float64)
-        out[g.name] = (g.to_dict(), ends, np.asarray(g.to_relative(ends), dtype=np.float64),
+        out[g.name] = (g, ends, np.asarray(g.to_relative(ends), dtype=np.float64),
                        max(float(truth_gc.length), 1e-12))
     return out
 
@@ -93,16 +93,15 @@ def calibrate_ends(template: Template,
             raise DataError(f"its annotation has no GC {lacking[0]!r} of template "
                             f"{template.name}", path=name, field="gcs",
                             fix="calibrate on meshes annotated with this template")
-        tasks.append((plain, settings, name, mesh, [g.to_dict() for g in truth]))
+        tasks.append((plain, settings, name, mesh, list(truth)))
     seen: dict[str, list[tuple]] = {n: [] for n in template.names}
-    for found in map_shapes(_measure, tasks, workers):
-        for n, m in (found or {}).items():
+    for measured in map_shapes(_measure, tasks, workers):
+        for n, m in (measured or {}).items():
             seen[n].append(m)
     gcs = []
     for g in plain.gcs:
         if seen[g.name]:
             found, truth, rel, length = zip(*seen[g.name])
-            found = [GeneralizedCylinder.from_dict(d) for d in found]
             rel, truth, length = np.stack(rel), np.stack(truth), np.asarray(length)
             at = [_best(np.concatenate([rel[:, e], np.median(rel[:, e], axis=0)[None]]),
                         found, truth[:, e], length) for e in (0, 1)]
