@@ -20,7 +20,7 @@ from ngc_gen.data.atomic import atomic_write_text
 from .shape_latent import with_stage_steps
 
 # settings of the `diffusion` group the stage reads itself (not LatentDiffusion arguments)
-RUNNER_KEYS = ("batch_size", "batches_per_epoch", "max_steps")
+RUNNER_KEYS = ("batch_size", "batches_per_epoch", "max_steps", "pose_transfer")
 EVAL_SEED, SAMPLE_SEED = 1, 0  # the EDM loss before/after and the nearest-neighbour samples
 
 
@@ -53,6 +53,21 @@ def nearest_neighbour_stats(samples: torch.Tensor, train: torch.Tensor, std: tor
             "train_to_train_median": float(d_tt.median())}
 
 
+def transferred_latents(shape_latent, settings) -> torch.Tensor:
+    """`diffusion.pose_transfer` ({bodies, template}): every body of the training shapes in
+    every other body's training poses (ngc_gen.generate.pose_transfer), parents from the GC
+    template the shapes were made with."""
+    from ngc_gen.data.autogc.template import load_template
+    from ngc_gen.generate.pose_transfer import pose_transfer_latents
+
+    template = load_template(settings.template)
+    moved = pose_transfer_latents(shape_latent, list(settings.bodies),
+                                  {g.name: g.parent for g in template.gcs})
+    print(f"pose transfer: {len(moved)} latents, every body in the others' poses "
+          f"({template.name} template)", flush=True)
+    return moved
+
+
 def run_diffusion(cfg: DictConfig) -> dict:
     import lightning as L
     from torch.utils.data import DataLoader, TensorDataset
@@ -66,13 +81,17 @@ def run_diffusion(cfg: DictConfig) -> dict:
     ckpt = resolve_checkpoint(cfg.shape_latent_run, FIX, "shape-latent run").resolve()
     shape_latent = ShapeLatentModule.from_checkpoint(ckpt)
     latents = shape_latent.latents.weight.detach().float().clone()
+    n_shapes = len(latents)
+    if cfg.diffusion.get("pose_transfer"):
+        latents = torch.cat([latents, transferred_latents(shape_latent,
+                                                          cfg.diffusion.pose_transfer)])
     run_dir = start_run(cfg, fixed_seeds={"edm_loss_eval": EVAL_SEED, "samples": SAMPLE_SEED})
 
     L.seed_everything(cfg.seed, workers=True, verbose=False)
     module = instantiate_group(
         cfg.diffusion, RUNNER_KEYS, dim=latents.shape[1],
         meta={"shape_latent_checkpoint": str(ckpt), "names": shape_latent.names,
-              "n_latents": int(len(latents))})
+              "n_latents": n_shapes})
     module.fit_standardisation(latents)
     before = module.evaluate_loss(latents, seed=EVAL_SEED, repeats=8)
     dataset = TensorDataset(latents)
@@ -86,7 +105,8 @@ def run_diffusion(cfg: DictConfig) -> dict:
     after = module.evaluate_loss(latents, seed=EVAL_SEED, repeats=8, use_ema=True)
     samples = module.sample(min(256, 4 * len(latents)), seed=SAMPLE_SEED)
     metrics = {"steps": int(trainer.global_step), "start_step": start_step, "train_s": train_s,
-               "n_latents": int(len(latents)), "dim": int(latents.shape[1]),
+               "n_latents": n_shapes, "n_transferred": int(len(latents) - n_shapes),
+               "dim": int(latents.shape[1]),
                "space_dim": module.space_dim,
                "edm_loss_untrained": before, "edm_loss_ema": after,
                **nearest_neighbour_stats(samples, latents, module.latent_std),
@@ -95,8 +115,10 @@ def run_diffusion(cfg: DictConfig) -> dict:
     atomic_write_text(run_dir / "metrics.json", json.dumps(metrics, indent=2))
     space = (f" ({module.space_dim} principal axes)" if module.space_dim != latents.shape[1]
              else "")
-    print(f"\ndiffusion: {len(latents)} latents x {latents.shape[1]} dims{space}, {metrics['steps']} "
-          f"steps in {train_s:.0f} s; EDM loss {before:.3f} (untrained) -> {after:.3f} (EMA)")
+    moved = f" + {len(latents) - n_shapes} pose-transferred" if len(latents) > n_shapes else ""
+    print(f"\ndiffusion: {n_shapes}{moved} latents x {latents.shape[1]} dims{space}, "
+          f"{metrics['steps']} steps in {train_s:.0f} s; EDM loss {before:.3f} (untrained) -> "
+          f"{after:.3f} (EMA)")
     print(f"  nearest training latent (std units): samples {metrics['sample_to_train_median']:.2f}"
           f" median, training latents to each other {metrics['train_to_train_median']:.2f}")
     print(f"run directory: {run_dir}\nnext: python sample.py run={run_dir} mode=generate n=16")
