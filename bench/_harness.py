@@ -230,7 +230,8 @@ def file_identity(paths) -> dict:
 #: settings added after fits were cached, at the value that does what the code did before
 #: they existed: left out of a recipe while they hold it, so adding a setting does not
 #: invalidate every cached fit (a fit with any other value gets its own key)
-NEUTRAL = {("junction_weight",): 0.0, ("prepare", "pair_margin"): 0.0}
+NEUTRAL = {("junction_weight",): 0.0, ("prepare", "pair_margin"): 0.0,
+           ("diffusion", "pose_transfer"): None}
 
 
 def config_recipe(cfg) -> dict:

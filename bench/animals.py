@@ -58,9 +58,10 @@ def data_overrides(args) -> list[str]:
             "logger=csv", f"seed={args.seed}"]
 
 
-def cached_stage(cache: FitCache, name: str, cfg, run, refit: bool, runs: Path = RUNS):
-    """A stage's run from the fit cache, keyed by its whole config and the data's identity;
-    runs/<name> links to it."""
+def cached_stage(cache: FitCache, name: str, cfg, run, refit: bool, runs: Path = RUNS,
+                 leave_out: tuple[str, ...] = ()):
+    """A stage's run from the fit cache, keyed by its config (less the `leave_out` groups,
+    which it never reads) and the data's identity; runs/<name> links to it."""
     from omegaconf import open_dict
 
     def fit(run_dir: Path) -> dict:
@@ -70,8 +71,9 @@ def cached_stage(cache: FitCache, name: str, cfg, run, refit: bool, runs: Path =
         run(cfg)
         return {"stage_s": time.perf_counter() - t0}
 
-    f = cache.get({"stage": name, "config": config_recipe(cfg), "data": dataset_identity(cfg)},
-                  fit, refit=refit)
+    recipe = {k: v for k, v in config_recipe(cfg).items() if k not in leave_out}
+    f = cache.get({"stage": name, "config": recipe, "data": dataset_identity(cfg)}, fit,
+                  refit=refit)
     link_latest(runs / name, f.run_dir)
     return f
 
@@ -118,7 +120,7 @@ def train(args) -> dict:
     sl = cached_stage(cache, "shape_latent", compose_config(overrides=[
         *base, "stage=shape_latent", "shape_latent.preview=0",
         *([f"shape_latent.max_steps={args.shape_latent_steps}"] if args.shape_latent_steps
-          else [])]), run_shape_latent, args.refit)
+          else [])]), run_shape_latent, args.refit, leave_out=("diffusion",))
     diff = cached_stage(cache, "diffusion", compose_config(overrides=[
         *base, "stage=diffusion", f"shape_latent_run={sl.run_dir}",
         *([f"diffusion.max_steps={args.diffusion_steps}"] if args.diffusion_steps else [])]),

@@ -93,6 +93,25 @@ def check_runs(cfg: DictConfig) -> None:
                    {"ngc_gen.autodecoder": KINDS["ngc_gen.autodecoder"]}, fix)
 
 
+def check_pose_transfer(pt) -> None:
+    """diffusion.pose_transfer: null, or bodies (a non-empty list of names) and the GC template
+    file the shapes were made with (its GCs' parents)."""
+    if not pt:
+        return
+    key = "diffusion.pose_transfer"
+    bodies = pt.get("bodies")
+    if not isinstance(bodies, (list, tuple)) and type(bodies).__name__ != "ListConfig" \
+            or not bodies or not all(isinstance(b, str) and b for b in bodies):
+        raise ConfigError("needs a non-empty list of body names", key=f"{key}.bodies",
+                          value=bodies, fix="list the names the shape names start with, e.g. "
+                          "diffusion.pose_transfer.bodies=[wolf,horse]")
+    template = pt.get("template")
+    if not template or not Path(str(template)).is_file():
+        raise ConfigError("GC template file not found", key=f"{key}.template", value=template,
+                          fix="pass the template the shapes were made with (the animals': "
+                          "datasets/animals/quadruped.yaml), or diffusion.pose_transfer=null")
+
+
 def check_inputs(cfg: DictConfig) -> None:
     """What train.py checks before torch loads, so a wrong command fails in about a second: the
     stage name, the step count, the resolutions (numbers whose grid fits in memory), and the
@@ -109,6 +128,8 @@ def check_inputs(cfg: DictConfig) -> None:
             and cfg.shape_latent.get("preview_resolution") is not None:
         check_resolution(cfg, "shape_latent.preview_resolution")
     check_runs(cfg)
+    if cfg.stage == "diffusion" and cfg.get("diffusion") is not None:
+        check_pose_transfer(cfg.diffusion.get("pose_transfer"))
     data = cfg.get("data")
     if (stage.mesh_folder or cfg.stage == "pipeline") and data is not None:
         from omegaconf import OmegaConf

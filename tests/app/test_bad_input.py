@@ -396,6 +396,22 @@ def case_cli_diffusion_on_a_fit_run(t, i):
         r"stage=shape_latent` run"
 
 
+def case_cli_diffusion_pose_transfer_template_missing(t, i):
+    return train_cli(t, "stage=diffusion", f"shape_latent_run={i['sl']}",
+                     f"diffusion.pose_transfer={{bodies:[a,b],template:{t}/nowhere.yaml}}"), \
+        r"diffusion\.pose_transfer\.template = .*nowhere\.yaml': GC template file not found\. " \
+        r"Fix: pass the template the shapes were made with"
+
+
+def case_pose_transfer_template_of_other_gcs(t, i):
+    """The quadruped template for a run whose GCs are not the quadruped's."""
+    return in_process(run_diffusion, "train", [
+        "stage=diffusion", f"shape_latent_run={i['sl']}", f"run_dir={t}/run",
+        "diffusion.pose_transfer={bodies:[a,b],template:datasets/animals/quadruped.yaml}"]), \
+        r"pose transfer: the GC template gives no parent for \[.*\].*Fix: pass the GC " \
+        r"template the shapes were made with"
+
+
 def case_cli_sample_n_two(t, i):
     return command("sample.py", f"run={i['diff']}", "n=two", f"out_dir={t}/out"), \
         r"n = 'two': must be a whole number >= 1, not the text 'two'\. Fix: pass n="

@@ -49,6 +49,12 @@ def runs(tmp_path_factory):
     return out
 
 
+def test_the_diffusion_also_learns_each_animal_in_the_others_poses(runs):
+    """experiment=animals' pose transfer: the wolf in the horse's 2 poses and back."""
+    m = json.loads((runs["diff"] / "metrics.json").read_text())
+    assert (m["n_latents"], m["n_transferred"]) == (4, 4)
+
+
 def test_generated_animals_carry_the_template_gcs(runs):
     names = load_annotation(runs["data"] / "wolf_walk_00.yaml").gc_names
     for i in range(2):
