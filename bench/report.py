@@ -581,7 +581,12 @@ def animals(r: dict) -> str:
     lines += [f"{r['n_train']} training animals ({rc['frames']} frames per clip); fit of the rest "
               f"poses {rc['fit_steps']} steps, shape latents {rc['shape_latent_steps']}, diffusion "
               f"{rc['diffusion_steps']}" + (f" on {rc['diffusion_space_dim']} principal axes of the "
-              f"latents" if rc.get("diffusion_space_dim") else "") + ". Memorisation: median Chamfer from a generated animal to its "
+              f"latents" if rc.get("diffusion_space_dim") else "")
+              + (f", trained on the training latents and {rc['diffusion_transferred']} pose-transferred "
+                 f"ones" if rc.get("diffusion_transferred") else "")
+              + (f". Generated rows: {rc['sets']} set{'s' if rc['sets'] > 1 else ''} of as many shapes as "
+                 f"the reference; ceiling: {rc['train_subsets']} training subsets" if rc.get("sets") else "")
+              + ". Memorisation: median Chamfer from a generated animal to its "
               f"nearest training animal {1e3 * r['nearest_train_cd_median']:.3f} x1e-3. "
               f"{rc['interp'][0]} -> {rc['interp'][1]}: largest consecutive-step Chamfer "
               + (f"{interp:.2f} x their mean" if interp is not None else "undefined (an empty mesh)")
