@@ -5,7 +5,7 @@ import importlib
 from dataclasses import dataclass
 from pathlib import Path
 
-from omegaconf import DictConfig
+from omegaconf import DictConfig, ListConfig
 
 from .checks import check_extract, check_resolution, trainer_steps
 from .errors import ConfigError
@@ -100,8 +100,8 @@ def check_pose_transfer(pt) -> None:
         return
     key = "diffusion.pose_transfer"
     bodies = pt.get("bodies")
-    if not isinstance(bodies, (list, tuple)) and type(bodies).__name__ != "ListConfig" \
-            or not bodies or not all(isinstance(b, str) and b for b in bodies):
+    if not isinstance(bodies, (list, tuple, ListConfig)) or not bodies \
+            or not all(isinstance(b, str) and b for b in bodies):
         raise ConfigError("needs a non-empty list of body names", key=f"{key}.bodies",
                           value=bodies, fix="list the names the shape names start with, e.g. "
                           "diffusion.pose_transfer.bodies=[wolf,horse]")
