@@ -54,16 +54,19 @@ def nearest_neighbour_stats(samples: torch.Tensor, train: torch.Tensor, std: tor
 
 
 def transferred_latents(shape_latent, settings) -> torch.Tensor:
-    """`diffusion.pose_transfer` ({bodies, template}): every body of the training shapes in
-    every other body's training poses (ngc_gen.generate.pose_transfer), parents from the GC
+    """`diffusion.pose_transfer` ({bodies, template, poses}): every body of the training shapes
+    in the other bodies' training poses it lacks (poses=missing, the first of POSES and the one
+    taken when unset) or in all of them (ngc_gen.generate.pose_transfer), parents from the GC
     template the shapes were made with."""
     from ngc_gen.data.autogc.template import load_template
-    from ngc_gen.generate.pose_transfer import pose_transfer_latents
+    from ngc_gen.generate.pose_transfer import POSES, pose_transfer_latents
 
     template = load_template(settings.template)
+    poses = settings.get("poses") or POSES[0]
     moved = pose_transfer_latents(shape_latent, list(settings.bodies),
-                                  {g.name: g.parent for g in template.gcs})
-    print(f"pose transfer: {len(moved)} latents, every body in the others' poses "
+                                  {g.name: g.parent for g in template.gcs}, poses)
+    what = "the poses it lacks" if poses == "missing" else "all poses"
+    print(f"pose transfer: {len(moved)} latents, every body in the others' {what} "
           f"({template.name} template)", flush=True)
     return moved
 

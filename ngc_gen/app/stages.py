@@ -105,6 +105,9 @@ def check_pose_transfer(pt) -> None:
         raise ConfigError("needs a non-empty list of body names", key=f"{key}.bodies",
                           value=bodies, fix="list the names the shape names start with, e.g. "
                           "diffusion.pose_transfer.bodies=[wolf,horse]")
+    if pt.get("poses") not in (None, "missing", "all"):
+        raise ConfigError("must be missing (the poses a body lacks) or all", key=f"{key}.poses",
+                          value=pt.get("poses"), fix=f"pass {key}.poses=missing")
     template = pt.get("template")
     if not template or not Path(str(template)).is_file():
         raise ConfigError("GC template file not found", key=f"{key}.template", value=template,

@@ -21,6 +21,9 @@ import torch
 
 from ngc_gen.data.errors import DataError
 
+#: which of another body's poses a body is moved to (`diffusion.pose_transfer.poses`)
+POSES = ("missing", "all")
+
 
 def swing(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     """(N, 3) directions u, v -> (N, 3, 3) the smallest rotations taking u to v (Rodrigues;
@@ -144,10 +147,15 @@ def body_and_pose(names: list[str], bodies: list[str]) -> list[tuple[str, str] |
     return out
 
 
-def transfer_triples(theta: np.ndarray, names: list[str], bodies: list[str], points):
-    """Index triples (a_q, b_q, b_p): every body A at every training pose p of every other body
-    B, through the pose q both have in training that is nearest B's p (control points `points`,
-    an index array into theta). Pairs with no pose in common are skipped."""
+def transfer_triples(theta: np.ndarray, names: list[str], bodies: list[str], points,
+                     poses: str = "missing"):
+    """Index triples (a_q, b_q, b_p): body A at training pose p of another body B, through the
+    pose q both have in training that is nearest B's p (control points `points`, an index array
+    into theta). poses="missing": only the poses A has no training shape of (A is already seen
+    in its own); "all": every pose of B. Pairs with no pose in common are skipped."""
+    if poses not in POSES:
+        raise DataError(f"pose transfer: poses must be one of {POSES}, got {poses!r}",
+                        field="diffusion.pose_transfer.poses")
     split = body_and_pose(names, bodies)
     index: dict[str, dict[str, int]] = {}
     for i, bp in enumerate(split):
@@ -167,12 +175,14 @@ def transfer_triples(theta: np.ndarray, names: list[str], bodies: list[str], poi
             S = theta[[poses_b[p] for p in shared]][:, points]
             P = theta[list(poses_b.values())][:, points]
             q = ((P[:, None] - S[None]) ** 2).sum(-1).argmin(1)
-            for ip, k in zip(poses_b.values(), q):
-                triples.append((poses_a[shared[k]], poses_b[shared[k]], ip))
+            for (p, ip), k in zip(poses_b.items(), q):
+                if poses == "all" or p not in poses_a:
+                    triples.append((poses_a[shared[k]], poses_b[shared[k]], ip))
     return np.asarray(triples, dtype=np.int64).reshape(-1, 3)
 
 
-def pose_transfer_latents(shape_latent, bodies: list[str], parents: dict) -> torch.Tensor:
+def pose_transfer_latents(shape_latent, bodies: list[str], parents: dict,
+                          poses: str = "missing") -> torch.Tensor:
     """The transferred latents of a shape-latent module (explicit GC entries): GC entries in the
     decoder's std units (held within its bound), free entries A's at q. (T, D) float."""
     sd = shape_latent.shape_decoder
@@ -183,7 +193,9 @@ def pose_transfer_latents(shape_latent, bodies: list[str], parents: dict) -> tor
     theta = shape_latent.target_params.double().cpu().numpy()
     points = np.concatenate([np.arange(s.start, s.stop) for (_, f), s in pt.slice.items()
                              if f == "points"])
-    tri = transfer_triples(theta, shape_latent.names, list(bodies), points)
+    tri = transfer_triples(theta, shape_latent.names, list(bodies), points, poses)
+    if not len(tri):  # every body already has every pose the others have
+        return torch.zeros(0, shape_latent.latents.weight.shape[1])
     moved = torch.as_tensor(pt(theta[tri[:, 0]], theta[tri[:, 1]], theta[tri[:, 2]]))
     z = sd.gc_part(sd.normalise(moved.to(sd.param_mean))).clamp(-sd.bound, sd.bound)
     free = shape_latent.latents.weight.detach()[torch.as_tensor(tri[:, 0]), sd.n_params:]

@@ -126,7 +126,7 @@ def test_triples_pair_every_body_with_the_others_poses_through_a_shared_one():
              "fox_idle_00", "fox_run_00", "cat_walk_00"]
     theta = np.stack([body(seed=i) for i in range(len(names))])
     pidx = np.arange(SL[("torso", "points")].start, SL[("leg", "points")].stop)
-    tri = transfer_triples(theta, names, bodies, pidx)
+    tri = transfer_triples(theta, names, bodies, pidx, poses="all")
     got = {(names[a], names[b], names[p]) for a, b, p in tri}
     assert ("horse_walk_00", "horse_white_walk_00", "horse_white_idle_00") in got
     assert ("horse_white_idle_00", "fox_idle_00", "fox_run_00") in got  # horse_white, not horse
@@ -137,6 +137,19 @@ def test_triples_pair_every_body_with_the_others_poses_through_a_shared_one():
     for a, b, _ in got:
         assert a.rsplit("_", 2)[-2:] == b.rsplit("_", 2)[-2:] and a != b
     assert len(got) == len(tri) == 2 + 2 + 2 + 2  # horse<->horse_white, horse_white<->fox
+
+
+def test_by_default_a_body_is_moved_only_to_the_poses_it_lacks():
+    names = ["horse_walk_00", "horse_walk_01", "horse_white_walk_00", "horse_white_idle_00",
+             "fox_idle_00", "fox_run_00"]
+    theta = np.stack([body(seed=i) for i in range(len(names))])
+    pidx = np.arange(SL[("torso", "points")].start, SL[("leg", "points")].stop)
+    got = {(names[a], names[p]) for a, _, p in
+           transfer_triples(theta, names, ["horse", "horse_white", "fox"], pidx)}
+    assert got == {("horse_walk_00", "horse_white_idle_00"),      # the horse has no idle
+                   ("horse_white_walk_00", "horse_walk_01"),
+                   ("horse_white_idle_00", "fox_run_00"),
+                   ("fox_idle_00", "horse_white_walk_00")}
 
 
 def test_the_shared_pose_nearest_the_target_is_the_one_used():
@@ -154,6 +167,9 @@ def test_bad_setups_say_what_to_fix():
         PoseTransfer(TEMPLATE, {"torso": None, "neck": "torso", "head": "neck"})
     with pytest.raises(DataError, match="one root"):
         PoseTransfer(TEMPLATE, {**PARENTS, "leg": None})
+    with pytest.raises(DataError, match="poses must be one of"):
+        transfer_triples(np.stack([body()] * 2), ["wolf_a_00", "fox_a_00"], ["wolf", "fox"],
+                         np.arange(3), poses="some")
     with pytest.raises(DataError, match="two bodies or more"):
         transfer_triples(np.stack([body()] * 2), ["wolf_a_00", "wolf_b_00"], ["wolf", "fox"],
                          np.arange(3))
