@@ -65,9 +65,9 @@ def transferred_latents(shape_latent, settings) -> torch.Tensor:
     poses = settings.get("poses") or POSES[0]
     moved = pose_transfer_latents(shape_latent, list(settings.bodies),
                                   {g.name: g.parent for g in template.gcs}, poses)
-    what = "the poses it lacks" if poses == "missing" else "all poses"
-    print(f"pose transfer: {len(moved)} latents, every body in the others' {what} "
-          f"({template.name} template)", flush=True)
+    what = "the other bodies' poses it lacks" if poses == "missing" else "all the others' poses"
+    print(f"pose transfer: {len(moved)} latents, every body in {what} ({template.name} "
+          f"template)", flush=True)
     return moved
 
 
