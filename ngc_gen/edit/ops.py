@@ -127,14 +127,18 @@ def tangent(curve, s) -> np.ndarray:
 
 
 def min_rotation(a: np.ndarray, b: np.ndarray, fallback_axis: np.ndarray) -> np.ndarray:
-    """Smallest rotation (3, 3) taking unit vector a to unit vector b.
+    """Smallest rotation (..., 3, 3) taking unit vector a to unit vector b (each (..., 3)).
 
     For b = -a the axis is ambiguous: turn 180 degrees about `fallback_axis` (unit, normal to a)."""
-    v, c = np.cross(a, b), float(a @ b)
-    if c < -1.0 + 1e-12:
-        return 2.0 * np.outer(fallback_axis, fallback_axis) - np.eye(3)
-    vx = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
-    return np.eye(3) + vx + vx @ vx / (1.0 + c)
+    a, b, f = np.broadcast_arrays(*(np.asarray(x, np.float64) for x in (a, b, fallback_axis)))
+    v, c = np.cross(a, b), (a * b).sum(-1)
+    vx = np.zeros(v.shape + (3,))
+    vx[..., 0, 1], vx[..., 0, 2], vx[..., 1, 2] = -v[..., 2], v[..., 1], -v[..., 0]
+    vx = vx - np.swapaxes(vx, -1, -2)
+    flip = c < -1.0 + 1e-12
+    turn = np.eye(3) + vx + vx @ vx / np.where(flip, 1.0, 1.0 + c)[..., None, None]
+    half = 2.0 * f[..., :, None] * f[..., None, :] - np.eye(3)
+    return np.where(flip[..., None, None], half, turn)
 
 
 def carry_up(gc: GeneralizedCylinder, curve) -> np.ndarray:

@@ -20,24 +20,19 @@ import numpy as np
 import torch
 
 from ngc_gen.data.errors import DataError
+from ngc_gen.edit.ops import min_rotation
 
 #: which of another body's poses a body is moved to (`diffusion.pose_transfer.poses`)
 POSES = ("missing", "all")
 
 
 def swing(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """(N, 3) directions u, v -> (N, 3, 3) the smallest rotations taking u to v (Rodrigues;
-    identity where they are parallel)."""
+    """(N, 3) directions u, v -> (N, 3, 3) the smallest rotations taking u to v (the edit ops'
+    `min_rotation`; a reversal turns about an axis normal to u)."""
     u = u / np.linalg.norm(u, axis=-1, keepdims=True)
     v = v / np.linalg.norm(v, axis=-1, keepdims=True)
-    w = np.cross(u, v)
-    s2 = (w ** 2).sum(-1)
-    c = (u * v).sum(-1)
-    K = np.zeros(w.shape[:-1] + (3, 3))
-    K[..., 0, 1], K[..., 0, 2], K[..., 1, 2] = -w[..., 2], w[..., 1], -w[..., 0]
-    K = K - np.swapaxes(K, -1, -2)
-    f = np.where(s2 > 1e-24, (1.0 - c) / np.where(s2 > 1e-24, s2, 1.0), 0.0)
-    return np.eye(3) + K + (K @ K) * f[..., None, None]
+    normal = np.cross(u, np.eye(3)[np.abs(u).argmin(-1)])
+    return min_rotation(u, v, normal / np.linalg.norm(normal, axis=-1, keepdims=True))
 
 
 def similarity(x: np.ndarray, y: np.ndarray):
