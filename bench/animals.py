@@ -262,6 +262,7 @@ def main():
         "frames": args.frames, "fit_steps": runs["fit"]["steps"],
         "shape_latent_steps": runs["shape_latent"]["steps"],
         "diffusion_steps": runs["diffusion"]["steps"],
+        "diffusion_batch": runs["diffusion"].get("batch_size"),
         "diffusion_space_dim": runs["diffusion"].get("space_dim"),
         "diffusion_transferred": runs["diffusion"].get("n_transferred", 0), "sets": args.sets,
         "train_subsets": args.train_subsets, "resolution": args.resolution,

@@ -580,7 +580,9 @@ def animals(r: dict) -> str:
     interp = r["interp_max_over_mean"]
     lines += [f"{r['n_train']} training animals ({rc['frames']} frames per clip); fit of the rest "
               f"poses {rc['fit_steps']} steps, shape latents {rc['shape_latent_steps']}, diffusion "
-              f"{rc['diffusion_steps']}" + (f" on {rc['diffusion_space_dim']} principal axes of the "
+              f"{rc['diffusion_steps']}" + (f" (batches of {rc['diffusion_batch']})"
+                                            if rc.get("diffusion_batch") else "")
+              + (f" on {rc['diffusion_space_dim']} principal axes of the "
               f"latents" if rc.get("diffusion_space_dim") else "")
               + (f", trained on the training latents and {rc['diffusion_transferred']} pose-transferred "
                  f"ones" if rc.get("diffusion_transferred") else "")

@@ -109,6 +109,7 @@ def run_diffusion(cfg: DictConfig) -> dict:
     samples = module.sample(min(256, 4 * len(latents)), seed=SAMPLE_SEED)
     metrics = {"steps": int(trainer.global_step), "start_step": start_step, "train_s": train_s,
                "n_latents": n_shapes, "n_transferred": int(len(latents) - n_shapes),
+               "batch_size": batch,
                "dim": int(latents.shape[1]),
                "space_dim": module.space_dim,
                "edm_loss_untrained": before, "edm_loss_ema": after,
