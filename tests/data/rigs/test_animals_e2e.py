@@ -55,6 +55,7 @@ def test_the_diffusion_also_learns_each_animal_in_the_others_poses(runs):
     back."""
     m = json.loads((runs["diff"] / "metrics.json").read_text())
     assert (m["n_latents"], m["n_transferred"]) == (4, 4)
+    assert m["batch_size"] == 8   # the recipe's 256, at most the latents there are
 
 
 def test_generated_animals_carry_the_template_gcs(runs):
