@@ -143,7 +143,7 @@ def body_and_pose(names: list[str], bodies: list[str]) -> list[tuple[str, str] |
 
 
 def transfer_triples(theta: np.ndarray, names: list[str], bodies: list[str], points,
-                     poses: str = "missing"):
+                     poses: str = POSES[0]):
     """Index triples (a_q, b_q, b_p): body A at training pose p of another body B, through the
     pose q both have in training that is nearest B's p (control points `points`, an index array
     into theta). poses="missing": only the poses A has no training shape of (A is already seen
@@ -177,7 +177,7 @@ def transfer_triples(theta: np.ndarray, names: list[str], bodies: list[str], poi
 
 
 def pose_transfer_latents(shape_latent, bodies: list[str], parents: dict,
-                          poses: str = "missing") -> torch.Tensor:
+                          poses: str = POSES[0]) -> torch.Tensor:
     """The transferred latents of a shape-latent module (explicit GC entries): GC entries in the
     decoder's std units (held within its bound), free entries A's at q. (T, D) float."""
     sd = shape_latent.shape_decoder
