@@ -6,7 +6,10 @@ standardised latents), the same value in loss and preconditioning. `standardise=
 further: the per-dimension standardised latents are rotated onto their principal axes and only
 the axes that hold `pca_variance` of the variance are kept (still in per-dimension units, not
 whitened); the EDM works in that smaller space (`space_dim`) and what the dropped axes hold is
-decoded at the training mean. A few hundred latents of a few hundred entries span at most N - 1
+decoded at the training mean (`pca_complete=mean`) or taken from the training latent nearest on
+the kept axes (`pca_complete=nearest`: the kept axes come from the EDM, the detail they leave
+out from the data, as a nearest-neighbour regression of the dropped axes on the kept ones;
+the residuals travel in the checkpoint). A few hundred latents of a few hundred entries span at most N - 1
 directions and are strongly correlated (a pose moves every GC of a limb), so most directions of
 the per-dimension space carry little or no data; the denoiser then fits the directions that do.
 docs/generation.md has the measurements (what the dropped axes cost, and why whitening the kept
@@ -30,6 +33,7 @@ from .parts import keywords, optimizer_factory
 
 CHECKPOINT_KIND = "ngc_gen.diffusion"
 STANDARDISE = ("per_dim", "scalar", "none", "pca")
+PCA_COMPLETE = ("mean", "nearest")
 
 
 class LatentDiffusion(L.LightningModule):
@@ -47,13 +51,17 @@ class LatentDiffusion(L.LightningModule):
                  P_std: float = 1.2, sigma_data: float = 1.0, ema_halflife_steps: float = 500.0,
                  ema_rampup: float | None = 0.05, ema_decay: float | None = None,
                  standardise: str = "per_dim", std_eps: float = 1e-6,
-                 pca_variance: float = 0.95, space_dim: int | None = None, optimizer=None,
+                 pca_variance: float = 0.95, pca_complete: str = "mean",
+                 space_dim: int | None = None, bank_size: int = 0, optimizer=None,
                  meta: dict | None = None, checkpoint_kind: str = CHECKPOINT_KIND):
         super().__init__()
         if standardise not in STANDARDISE:
             raise ValueError(f"unknown standardise {standardise!r}; choose one of {STANDARDISE}")
         if not 0.0 < pca_variance <= 1.0:
             raise ValueError(f"pca_variance must be in (0, 1], got {pca_variance}")
+        if pca_complete not in PCA_COMPLETE:
+            raise ValueError(f"unknown pca_complete {pca_complete!r}; choose one of "
+                             f"{PCA_COMPLETE}")
         space_dim = int(space_dim or dim) if standardise == "pca" else dim
         self.save_hyperparameters(ignore=["denoiser", "optimizer"])
         net_kw = keywords(denoiser, ResidualMLPDenoiser)
@@ -68,13 +76,19 @@ class LatentDiffusion(L.LightningModule):
 
     def _build(self, space_dim: int) -> None:
         """The denoiser (and its EMA copy) over `space_dim` entries; with standardise=pca also
-        the principal axes (dim, space_dim)."""
+        the principal axes (dim, space_dim) and, with pca_complete=nearest, the training
+        latents' coordinates on them (bank_size, space_dim) and what they leave out
+        (bank_size, dim), in per-dimension units."""
         self.hparams.space_dim = int(space_dim)
         self.net = EDMPrecond(ResidualMLPDenoiser(space_dim, **self.hparams.denoiser),
                               self.hparams.sigma_data)
         self.ema = copy.deepcopy(self.net).requires_grad_(False)
         if self.hparams.standardise == "pca":
             self.register_buffer("pca_axes", torch.eye(self.hparams.dim)[:, :space_dim])
+            if self.hparams.pca_complete == "nearest":
+                n = int(self.hparams.bank_size)
+                self.register_buffer("pca_bank", torch.zeros(n, space_dim))
+                self.register_buffer("pca_residual", torch.zeros(n, self.hparams.dim))
 
     @property
     def space_dim(self) -> int:
@@ -108,9 +122,15 @@ class LatentDiffusion(L.LightningModule):
             share = var.cumsum(0) / var.sum().clamp_min(1e-300)
             keep = int((share < self.hparams.pca_variance - 1e-12).sum()) + 1
             keep = max(1, min(keep, len(z) - 1, int((var > 1e-12 * var[0]).sum())))
-            if keep != self.space_dim:
+            complete = self.hparams.pca_complete == "nearest"
+            if keep != self.space_dim or (complete and len(z) != self.hparams.bank_size):
+                self.hparams.bank_size = len(z) if complete else 0
                 self._build(keep)
             self.pca_axes.copy_(vt[:keep].T)
+            if complete:
+                coords = u @ vt[:keep].T
+                self.pca_bank.copy_(coords)
+                self.pca_residual.copy_(u - coords @ vt[:keep])
 
     def standardise(self, latents: torch.Tensor) -> torch.Tensor:
         """(B, dim) original -> (B, space_dim) standardised, in latents' dtype (pca: the
@@ -121,9 +141,15 @@ class LatentDiffusion(L.LightningModule):
         return u
 
     def destandardise(self, x: torch.Tensor) -> torch.Tensor:
-        """(B, space_dim) standardised -> (B, dim) original, in x's dtype."""
+        """(B, space_dim) standardised -> (B, dim) original, in x's dtype (pca: the dropped
+        axes at the training mean, or with pca_complete=nearest as the training latent nearest
+        to x on the kept axes has them)."""
         if self.hparams.standardise == "pca":
-            x = x @ self.pca_axes.to(x).T
+            u = x @ self.pca_axes.to(x).T
+            if self.hparams.pca_complete == "nearest":
+                near = torch.cdist(x.detach(), self.pca_bank.to(x)).argmin(1)
+                u = u + self.pca_residual.to(x)[near]
+            x = u
         return x * self.latent_std.to(x) + self.latent_mean.to(x)
 
     def _require_standardisation(self) -> None:

@@ -223,6 +223,39 @@ def test_pca_variance_one_keeps_every_direction_with_data(low_rank):
         LatentDiffusion(20, standardise="pca", pca_variance=0.0)
 
 
+def test_pca_complete_nearest_takes_the_dropped_axes_from_the_nearest_training_latent(
+        low_rank, tmp_path):
+    """pca_complete=nearest: a point on the kept axes gets what the training latent nearest to
+    it there holds on the dropped ones, so each training latent comes back whole where the
+    mean completion loses its tail; the residuals travel in the checkpoint."""
+    kw = dict(denoiser=dict(width=16, depth=1), standardise="pca", pca_variance=0.9)
+    mean, near = LatentDiffusion(20, **kw), LatentDiffusion(20, pca_complete="nearest", **kw)
+    for m in (mean, near):
+        m.fit_standardisation(low_rank)
+    assert near.space_dim == mean.space_dim < 3      # the third axis (scale 0.2) is dropped
+    assert near.pca_bank.shape == (64, near.space_dim)
+    x = near.standardise(low_rank)
+    scale = low_rank.std(0)
+    lost = float(((mean.destandardise(x) - low_rank) / scale).abs().max())
+    kept = float(((near.destandardise(x) - low_rank) / scale).abs().max())
+    assert lost > 0.05 and kept < 1e-4
+    # off the data: the nearest latent's residual, added to the point's own kept coordinates
+    y = x[:5] + 0.01
+    d = torch.cdist(y, x)
+    want = mean.destandardise(y) + (low_rank - mean.destandardise(x))[d.argmin(1)]
+    torch.testing.assert_close(near.destandardise(y), want, atol=1e-4, rtol=1e-5)
+    tr = trainer(2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        tr.fit(near, DataLoader(TensorDataset(low_rank), batch_size=32))
+    tr.save_checkpoint(tmp_path / "near.ckpt")
+    loaded = LatentDiffusion.from_checkpoint(tmp_path / "near.ckpt")
+    torch.testing.assert_close(loaded.pca_residual, near.pca_residual)
+    assert torch.equal(loaded.sample(8, seed=1), near.sample(8, seed=1))
+    with pytest.raises(ValueError, match="pca_complete"):
+        LatentDiffusion(20, standardise="pca", pca_complete="nearst")
+
+
 def test_pca_needs_statistics_before_training(low_rank):
     m = LatentDiffusion(20, denoiser=dict(width=8, depth=1), standardise="pca")
     with warnings.catch_warnings():
