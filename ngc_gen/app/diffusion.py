@@ -112,13 +112,16 @@ def run_diffusion(cfg: DictConfig) -> dict:
                "batch_size": batch,
                "dim": int(latents.shape[1]),
                "space_dim": module.space_dim,
+               "pca_complete": module.hparams.pca_complete if module.space_dim != latents.shape[1]
+               else None,
                "edm_loss_untrained": before, "edm_loss_ema": after,
                **nearest_neighbour_stats(samples, latents, module.latent_std),
                "checkpoint": str(run_dir / "checkpoints" / "last.ckpt"),
                "shape_latent_checkpoint": str(ckpt)}
     atomic_write_text(run_dir / "metrics.json", json.dumps(metrics, indent=2))
-    space = (f" ({module.space_dim} principal axes)" if module.space_dim != latents.shape[1]
-             else "")
+    rest = {"mean": "", "nearest": ", the others from the nearest latent"}
+    space = (f" ({module.space_dim} principal axes{rest[metrics['pca_complete']]})"
+             if metrics["pca_complete"] else "")
     moved = f" + {len(latents) - n_shapes} pose-transferred" if len(latents) > n_shapes else ""
     print(f"\ndiffusion: {n_shapes}{moved} latents x {latents.shape[1]} dims{space}, "
           f"{metrics['steps']} steps in {train_s:.0f} s; EDM loss {before:.3f} (untrained) -> "

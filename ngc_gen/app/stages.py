@@ -93,6 +93,17 @@ def check_runs(cfg: DictConfig) -> None:
                    {"ngc_gen.autodecoder": KINDS["ngc_gen.autodecoder"]}, fix)
 
 
+def check_diffusion(d) -> None:
+    """diffusion.standardise and diffusion.pca_complete name known choices."""
+    from ngc_gen.lit.diffusion_options import PCA_COMPLETE, STANDARDISE
+
+    for key, allowed in (("standardise", STANDARDISE), ("pca_complete", PCA_COMPLETE)):
+        if d.get(key) is not None and d.get(key) not in allowed:
+            raise ConfigError("unknown choice", key=f"diffusion.{key}", value=d.get(key),
+                              fix=f"choose one of {', '.join(allowed)}")
+    check_pose_transfer(d.get("pose_transfer"))
+
+
 def check_pose_transfer(pt) -> None:
     """diffusion.pose_transfer: null, or bodies (a non-empty list of names) and the GC template
     file the shapes were made with (its GCs' parents)."""
@@ -132,7 +143,7 @@ def check_inputs(cfg: DictConfig) -> None:
         check_resolution(cfg, "shape_latent.preview_resolution")
     check_runs(cfg)
     if cfg.stage == "diffusion" and cfg.get("diffusion") is not None:
-        check_pose_transfer(cfg.diffusion.get("pose_transfer"))
+        check_diffusion(cfg.diffusion)
     data = cfg.get("data")
     if (stage.mesh_folder or cfg.stage == "pipeline") and data is not None:
         from omegaconf import OmegaConf

@@ -29,11 +29,10 @@ from ngc_gen.models.edm import EDMLoss, EDMPrecond, ResidualMLPDenoiser
 from ngc_gen.models.sampler import edm_sampler
 
 from .checkpoint import load_module
+from .diffusion_options import PCA_COMPLETE, STANDARDISE
 from .parts import keywords, optimizer_factory
 
 CHECKPOINT_KIND = "ngc_gen.diffusion"
-STANDARDISE = ("per_dim", "scalar", "none", "pca")
-PCA_COMPLETE = ("mean", "nearest")
 
 
 class LatentDiffusion(L.LightningModule):

@@ -403,6 +403,12 @@ def case_cli_diffusion_pose_transfer_template_missing(t, i):
         r"Fix: pass the template the shapes were made with"
 
 
+def case_cli_diffusion_pca_complete_unknown(t, i):
+    return train_cli(t, "stage=diffusion", f"shape_latent_run={i['sl']}",
+                     "diffusion.pca_complete=nearst"), \
+        r"diffusion\.pca_complete = 'nearst': unknown choice\. Fix: choose one of mean, nearest"
+
+
 def case_pose_transfer_template_of_other_gcs(t, i):
     """The quadruped template for a run whose GCs are not the quadruped's."""
     return in_process(run_diffusion, "train", [
