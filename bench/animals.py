@@ -264,6 +264,7 @@ def main():
         "diffusion_steps": runs["diffusion"]["steps"],
         "diffusion_batch": runs["diffusion"].get("batch_size"),
         "diffusion_space_dim": runs["diffusion"].get("space_dim"),
+        "diffusion_pca_complete": runs["diffusion"].get("pca_complete"),
         "diffusion_transferred": runs["diffusion"].get("n_transferred", 0), "sets": args.sets,
         "train_subsets": args.train_subsets, "resolution": args.resolution,
         "points": args.points, "interp": [a, b], "interp_empty_meshes": int(empty),

@@ -584,6 +584,8 @@ def animals(r: dict) -> str:
                                             if rc.get("diffusion_batch") else "")
               + (f" on {rc['diffusion_space_dim']} principal axes of the "
               f"latents" if rc.get("diffusion_space_dim") else "")
+              + (" (the others from the nearest training latent)"
+                 if rc.get("diffusion_pca_complete") == "nearest" else "")
               + (f", trained on the training latents and {rc['diffusion_transferred']} pose-transferred "
                  f"ones" if rc.get("diffusion_transferred") else "")
               + (f". Generated rows: {rc['sets']} set{'s' if rc['sets'] > 1 else ''} of as many shapes as "
