@@ -9,9 +9,10 @@ whitened); the EDM works in that smaller space (`space_dim`) and what the droppe
 decoded at the training mean (`pca_complete=mean`) or taken from the training latent nearest on
 the kept axes (`pca_complete=nearest`: the kept axes come from the EDM, the detail they leave
 out from the data, as a nearest-neighbour regression of the dropped axes on the kept ones;
-the residuals travel in the checkpoint). A few hundred latents of a few hundred entries span at most N - 1
-directions and are strongly correlated (a pose moves every GC of a limb), so most directions of
-the per-dimension space carry little or no data; the denoiser then fits the directions that do.
+the residuals travel in the checkpoint). A few hundred latents of a few hundred entries span
+at most N - 1 directions and are strongly correlated (a pose moves every GC of a limb), so most
+directions of the per-dimension space carry little or no data; the denoiser then fits the
+directions that do.
 docs/generation.md has the measurements (what the dropped axes cost, and why whitening the kept
 axes made samples worse).
 
