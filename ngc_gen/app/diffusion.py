@@ -119,9 +119,8 @@ def run_diffusion(cfg: DictConfig) -> dict:
                "checkpoint": str(run_dir / "checkpoints" / "last.ckpt"),
                "shape_latent_checkpoint": str(ckpt)}
     atomic_write_text(run_dir / "metrics.json", json.dumps(metrics, indent=2))
-    rest = {"mean": "", "nearest": ", the others from the nearest latent"}
-    space = (f" ({module.space_dim} principal axes{rest[metrics['pca_complete']]})"
-             if metrics["pca_complete"] else "")
+    rest = ", the others from the nearest latent" if metrics["pca_complete"] == "nearest" else ""
+    space = f" ({module.space_dim} principal axes{rest})" if metrics["pca_complete"] else ""
     moved = f" + {len(latents) - n_shapes} pose-transferred" if len(latents) > n_shapes else ""
     print(f"\ndiffusion: {n_shapes}{moved} latents x {latents.shape[1]} dims{space}, "
           f"{metrics['steps']} steps in {train_s:.0f} s; EDM loss {before:.3f} (untrained) -> "
