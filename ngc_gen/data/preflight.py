@@ -11,7 +11,7 @@ from pathlib import Path
 from ngc_gen.data.annotation_file import read_annotation_yaml
 from ngc_gen.data.errors import DataError
 from ngc_gen.data.mesh.header import check_mesh_file
-from ngc_gen.data.mesh_folder import mesh_files
+from ngc_gen.data.mesh_folder import mesh_files, run_annotations
 
 RESOURCE_PREFIXES = ("pyvista:",)  # shipped meshes (`mesh.io.RESOURCE_SCHEMES`): read later
 
@@ -58,6 +58,9 @@ def check_data(node) -> None:
     target = str(node.get("_target_", "")).rsplit(".", 1)[-1]
     if target == "AnnotatedShapes":
         for a in node.get("annotations") or []:
+            check_annotation_file(a)
+    elif target == "MeshFolder" and run_annotations(node["path"]):
+        for a in run_annotations(node["path"]):
             check_annotation_file(a)
     elif target == "MeshFolder":
         for mesh in mesh_files(node["path"]):
