@@ -13,8 +13,9 @@ joint of the main tree):
   line from one pair of feet to the other, left = up x front;
 - the joints left over hang off the body in pieces; the pieces that reach past the front or the
   back legs' tops sit at an end. The end whose biggest piece carries more skin is the front:
-  that piece is neck + head (the head: its first joint where the chain branches, ears, jaw or
-  horns, or its last), its joints behind the front legs' tops are the torso's; the piece that
+  that piece is neck + head (the head: the deepest joint of its main path, into the heaviest
+  child each time, whose subtree still carries HEAD_SHARE of the piece's skin: a jaw or a trunk
+  carries less), its joints behind the front legs' tops are the torso's; the piece that
   reaches farthest past the other end is the tail (its first joint, where it sits on the spine,
   moves the rump: the torso's). The spine from the back legs' branch to the front legs', with
   what the neck gave it, is the torso's curve; every other joint is skinned to the torso.
@@ -40,6 +41,7 @@ from .rig import Rig
 ROLES = ("torso", "neck", "head", "tail", "leg_fl", "leg_fr", "leg_bl", "leg_br")
 GROUND = 0.1    # a foot ends within this share of the mesh's height of its lowest point
 MIDLINE = 0.5   # leg joints nearer the mid-plane than this x their foot sit inside the body
+HEAD_SHARE = 0.5  # the head's subtree carries at least this share of the neck + head's skin
 SAME = 0.01     # joints nearer than this x the skeleton's size sit at the same place
 AXES = np.vstack([np.eye(3), -np.eye(3)])
 
@@ -255,31 +257,34 @@ def _main_path(par, piece: list[int], load: np.ndarray) -> list[int]:
 def _neck_head(par, piece, P, load, axis, top):
     """(neck skinned, head skinned, its main path's joints behind the front legs' tops (on the
     torso's curve; they and their side branches are skinned to the torso), neck chain, head
-    joint) of the piece at the front: its main path; the head is the joint of it
-    past `top` that carries the most skin; a side branch goes with the main-path joint nearest
-    to where it starts."""
+    joint) of the piece at the front. A side branch goes with the main-path joint nearest to
+    where it starts (ears hung from the last neck joint are the head's); the head is the
+    deepest joint past `top` that, with what follows it, carries HEAD_SHARE of the skin past
+    `top` (a jaw or a trunk carries less)."""
     path = _main_path(par, piece, load)
     k = 0
     while k < len(path) - 1 and float(P[path[k]] @ axis) <= top:
         k += 1
-    behind, ahead = path[:k], path[k:]
-    h = k + int(np.argmax(load[ahead]))
+    at = {j: i for i, j in enumerate(path)}
+    members = set(piece)
+    for j in piece:
+        if j not in at and par[j] in at and j in members:  # a side branch: all of its subtree
+            near = int(np.argmin(np.linalg.norm(P[path] - P[j], axis=1)))
+            for t in _subtree(par, j):
+                if t in members:
+                    at[t] = near
+    group = np.zeros(len(path))
+    np.add.at(group, [at[j] for j in piece], load[piece])
+    after = np.cumsum(group[::-1])[::-1]  # skin of joint i and all that follows it
+    h = max(i for i in range(k, len(path)) if after[i] >= HEAD_SHARE * after[k])
     head = path[h]
     neck_chain = path[k: h + 1]
     if len(neck_chain) < 2:
         attach = int(par[path[k]])
         neck_chain = ([attach] if attach >= 0 else []) + neck_chain
-    on_path = set(path)
-    group = {j: ("torso" if i < k else "neck" if i < h else "head") for i, j in enumerate(path)}
-    for j in piece:
-        if j not in on_path and par[j] in on_path:  # a side branch: all of its subtree
-            near = path[int(np.argmin(np.linalg.norm(P[path] - P[j], axis=1)))]
-            for s in _subtree(par, j):
-                if s in set(piece):
-                    group[s] = group[near]
-    neck = [j for j in piece if group.get(j) == "neck"]
-    head_skin = [j for j in piece if group.get(j) == "head"]
-    return neck, head_skin, behind, neck_chain, head
+    neck = [j for j in piece if k <= at[j] < h]
+    head_skin = [j for j in piece if at[j] >= h]
+    return neck, head_skin, path[:k], neck_chain, head
 
 
 def structure_map(rig: Rig, template: Template, up=None) -> JointMap:
