@@ -287,11 +287,13 @@ def _neck_head(par, piece, P, load, axis, top):
     return neck, head_skin, path[:k], neck_chain, head
 
 
-def structure_map(rig: Rig, template: Template, up=None) -> JointMap:
-    """The joint map of `rig` onto `template` by its structure (module docstring); `up`: the
-    rig's up axis (3,) when known. DataError with one line when it cannot be mapped."""
-    missing = [r for r in ROLES if r not in template.names]
-    extra = [g.name for g in template.gcs if g.name not in ROLES and g.carve is None]
+def structure_map(rig: Rig, template: Template | None = None, up=None) -> JointMap:
+    """The joint map of `rig` onto `template` (None: the ROLES alone) by its structure (module
+    docstring); `up`: the rig's up axis (3,) when known. DataError with one line when it
+    cannot be mapped."""
+    missing = [r for r in ROLES if template is not None and r not in template.names]
+    extra = [] if template is None else \
+        [g.name for g in template.gcs if g.name not in ROLES and g.carve is None]
     if missing or extra:
         raise _refuse(rig, f"the template's GCs {extra or missing} are not the quadruped's "
                            f"{', '.join(ROLES)}")
@@ -371,9 +373,8 @@ def _assemble(rig, template, P, par, active, load, up, axis, legs, pairs, size) 
                                      + behind))
     resolved["torso"] = {"chain": torso_chain,
                          "skinned": [j for j in range(len(par)) if j not in claimed]}
-    for g in template.gcs:
-        resolved.setdefault(g.name, {"chain": [], "skinned": []})
-    return JointMap({g.name: resolved[g.name] for g in template.gcs}, up, axis)
+    names = ROLES if template is None else template.names
+    return JointMap({g: resolved.get(g, {"chain": [], "skinned": []}) for g in names}, up, axis)
 
 
 def load_joint_map(path: str | os.PathLike, rig: Rig, template: Template) -> JointMap:
