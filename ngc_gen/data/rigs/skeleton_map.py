@@ -137,11 +137,13 @@ def _path_up(par: np.ndarray, j: int) -> list[int]:
 
 
 def _feet(P, par, active, V, up) -> list[int]:
-    """The skinned leaves within GROUND x height of the mesh's lowest point along `up`."""
+    """The skinned leaves within GROUND x height of the mesh's lowest point along `up` (the
+    four lowest of them when more reach: a trunk or a tail can hang near the ground too)."""
     h, hv = P @ up, V @ up
     kids = np.bincount(par[par >= 0], minlength=len(par))
     leaves = np.flatnonzero(active & (kids == 0))
-    return [int(j) for j in leaves if h[j] - hv.min() <= GROUND * np.ptp(hv)]
+    near = sorted((float(h[j]), int(j)) for j in leaves if h[j] - hv.min() <= GROUND * np.ptp(hv))
+    return sorted(j for _, j in near[:4])
 
 
 def _detect_up(P, par, active, V) -> np.ndarray:
