@@ -9,8 +9,7 @@ refused), names_right (every template GC's purity >= 0.5 and each leg on its sid
 silently_wrong (written with head/tail or front/back swapped, or a GC's purity < 0.2),
 orientation_right (the rotation written within 20 degrees of the truth), outside_volume_ratio
 (the volume of the GCs' union outside the mesh over the mesh's volume, by Monte Carlo; median
-over meshes); zeroad's outside_volume_ratio_before: the same meshes and rotations with the GCs
-grown all round where a point lies outside them (annotate.hug=false, the growth before hugging).
+over meshes).
 """
 from __future__ import annotations
 
@@ -178,8 +177,6 @@ def collections(animals: list[dict], workers: int, deb: str | None, limit: int |
     zero = zero[:limit] if limit else zero
     runs["zeroad"] = [(r["name"], r["mesh"], r["annotation"], 1000 + i, ZEROAD_FRAME, {})
                       for i, r in enumerate(zero)]
-    # the same meshes and rotations with the GCs grown all round (annotate.hug=false)
-    runs["zeroad_before"] = [(*t[:5], {"hug": False}) for t in runs["zeroad"]]
     out, per_mesh = {}, {}
     for key, tasks in runs.items():
         t0 = time.perf_counter()
@@ -188,7 +185,4 @@ def collections(animals: list[dict], workers: int, deb: str | None, limit: int |
         per_mesh[key] = rows
         print(f"{key}: {len(rows)} meshes, {time.perf_counter() - t0:.0f} s: "
               f"{ {k: v for k, v in out[key].items() if k != 'purity_per_gc'} }", flush=True)
-    before = out.pop("zeroad_before")
-    if out["zeroad"].get("n"):
-        out["zeroad"]["outside_volume_ratio_before"] = before.get("outside_volume_ratio")
     return {**out, "per_mesh": per_mesh}

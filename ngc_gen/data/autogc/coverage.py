@@ -36,32 +36,12 @@ def coverage_stats(gcs: Sequence[GeneralizedCylinder], points: np.ndarray) -> di
             "per_gc": np.bincount(pg, minlength=len(gcs)) / max(len(points), 1)}
 
 
-def _axis_growth(rel: np.ndarray, rho: np.ndarray, slack: float, hug: bool) -> np.ndarray:
-    """(P, 2) factors for the two radii that bring each tube point (rel (P, 3), rho (P,)) inside
-    with ``slack``: both by rho, or (hug) only the radius the point lies along where that widens
-    the section's area less (a horn above a head widens the head upward, not all round)."""
-    both = np.repeat((rho * slack)[:, None], 2, axis=1)
-    if not hug:
-        return both
-    ab = np.abs(rel[:, 1:3])
-    main = (ab[:, 1] > ab[:, 0]).astype(int)            # the coordinate it lies along
-    other = ab[np.arange(len(ab)), 1 - main]
-    room = 1.0 / slack ** 2 - other ** 2
-    one = ab[np.arange(len(ab)), main] / np.sqrt(np.clip(room, 1e-12, None))
-    out = np.ones_like(both)
-    out[np.arange(len(ab)), main] = one
-    ok = (room > 0) & (one <= (rho * slack) ** 2)      # one radius widens the section less
-    return np.where(ok[:, None], np.maximum(out, 1.0), both)
-
-
-def _grown(gc: GeneralizedCylinder, rel: np.ndarray, rho: np.ndarray, slack: float,
-           hug: bool = False) -> GeneralizedCylinder:
+def _grown(gc: GeneralizedCylinder, rel: np.ndarray, rho: np.ndarray, slack: float) -> GeneralizedCylinder:
     """gc with the keys around each point's t (tube points) or the cap of its end (past an end)
-    grown so every given point (rel (P, 3), rho (P,) > 1) lies inside with ``slack``; hug:
-    only the radius each tube point lies along (``_axis_growth``)."""
+    grown so every given point (rel (P, 3), rho (P,) > 1) lies inside with ``slack``."""
     d = gc.to_dict()
     key_t = np.array([k["t"] for k in d["keys"]])
-    grow = np.ones((len(key_t), 2))
+    grow = np.ones(len(key_t))
     caps = np.array(d["caps"], dtype=np.float64)
     u = rel[:, 0]
     tube = np.abs(u) <= 1.0
@@ -69,7 +49,7 @@ def _grown(gc: GeneralizedCylinder, rel: np.ndarray, rho: np.ndarray, slack: flo
         t = (u[tube] + 1.0) / 2.0
         hi = np.clip(np.searchsorted(key_t, t, side="left"), 0, len(key_t) - 1)
         lo = np.clip(hi - 1, 0, len(key_t) - 1)
-        f = _axis_growth(rel[tube], rho[tube], slack, hug)
+        f = rho[tube] * slack
         np.maximum.at(grow, hi, f)
         np.maximum.at(grow, lo, f)
     for end, past in ((0, u < -1.0), (1, u > 1.0)):
@@ -83,22 +63,20 @@ def _grown(gc: GeneralizedCylinder, rel: np.ndarray, rho: np.ndarray, slack: flo
         caps[end] *= max(1.0, float(cap_f.max()))
         if (~near).any():
             k = 0 if end == 0 else len(key_t) - 1
-            grow[k] = np.maximum(grow[k], float(rho[past][~near].max()) * slack)
-    d["keys"] = [{**k, "radii": [r * f for r, f in zip(k["radii"], g)]}
-                 for k, g in zip(d["keys"], grow)]
+            grow[k] = max(grow[k], float(rho[past][~near].max()) * slack)
+    d["keys"] = [{**k, "radii": [r * g for r in k["radii"]]} for k, g in zip(d["keys"], grow)]
     d["caps"] = caps.tolist()
     return GeneralizedCylinder.from_dict(d)
 
 
 def grow_to_cover(gcs: list[GeneralizedCylinder], points: np.ndarray, slack: float = 1.02,
                   max_rounds: int = 8, owner: np.ndarray | None = None,
-                  groups: np.ndarray | None = None, hug: bool = False) -> list[GeneralizedCylinder]:
+                  groups: np.ndarray | None = None) -> list[GeneralizedCylinder]:
     """GCs grown locally until every point (N, 3) is inside one: each uncovered point is given
     to the GC it is relatively nearest to (smallest rho), among the GCs of its ``owner``'s
     group if ``owner`` (N,) and ``groups`` (G,) are given (a piece of a mesh never grows to
     hold another piece), and that GC's keys or cap around it grow. A last resort after
-    ``max_rounds`` scales whole GCs. hug: a tube point widens only the radius it lies along
-    (``_axis_growth``), so a GC holding a horn or an ear does not swell all round."""
+    ``max_rounds`` scales whole GCs."""
     gcs = list(gcs)
     for round_ in range(max_rounds + 10):
         pp, _, _ = gc_membership(points, gcs)
@@ -114,7 +92,7 @@ def grow_to_cover(gcs: list[GeneralizedCylinder], points: np.ndarray, slack: flo
             mine = given == g
             if round_ < max_rounds:
                 rel = np.asarray(gcs[g].to_relative(q[mine]))
-                gcs[g] = _grown(gcs[g], rel, rho[g, mine], slack, hug)
+                gcs[g] = _grown(gcs[g], rel, rho[g, mine], slack)
             else:  # uniform growth: always terminates, rarely needed
                 d = gcs[g].to_dict()
                 d["keys"] = [{**k, "radii": [r * 1.1 for r in k["radii"]]} for k in d["keys"]]

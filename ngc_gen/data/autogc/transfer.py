@@ -100,7 +100,6 @@ class TransferSettings:
     min_matched: float = 0.6
     refine_steps: int = 60
     min_tube: float = 0.22
-    hug: bool = True
 
     def __post_init__(self):
         checks = {"resolution": self.resolution >= 16, "samples": self.samples >= 100,
@@ -814,8 +813,8 @@ def transfer_template(mesh: trimesh.Trimesh, template: Template,
         if n in missing or not len(own):
             continue
         rho, _ = rho_matrix([ordered[g]], own)
-        ordered[g] = grow_to_cover([ordered[g]], own[rho[0] <= OWN_REACH], hug=st.hug)[0]
-    ordered = grow_to_cover(ordered, surface, hug=st.hug)
+        ordered[g] = grow_to_cover([ordered[g]], own[rho[0] <= OWN_REACH])[0]
+    ordered = grow_to_cover(ordered, surface)
     root = next(n for n in names if template.gc(n).parent is None)
     if root in paths:  # the template's parts are tubes: a plate (a chair's seat) is no torso
         keys = ordered[names.index(root)].to_dict()["keys"]
