@@ -185,4 +185,6 @@ def collections(animals: list[dict], workers: int, deb: str | None, limit: int |
         per_mesh[key] = rows
         print(f"{key}: {len(rows)} meshes, {time.perf_counter() - t0:.0f} s: "
               f"{ {k: v for k, v in out[key].items() if k != 'purity_per_gc'} }", flush=True)
+    if out["zeroad"].get("n"):  # GCs that hug are not built: nothing to compare against
+        out["zeroad"]["outside_volume_ratio_before"] = None
     return {**out, "per_mesh": per_mesh}

@@ -91,7 +91,7 @@ def test_the_checks_refuse_a_head_behind_the_torso(template):
 def test_wahba_recovers_a_rotation():
     Q = Rotation.random(random_state=0).as_matrix()
     body = np.random.default_rng(0).normal(size=(6, 3))
-    assert angle_deg(wahba(body @ Q, body, np.ones(6)) @ Q.T) < 1e-6
+    assert angle_deg(wahba(body @ Q, body, np.ones(6)) @ Q.T) < 1e-4
 
 
 def test_the_frame_key_turns_the_mesh_and_is_checked(tmp_path):
