@@ -39,7 +39,6 @@ def spread(items: list, limit: int | None) -> list:
 def zeroad_meshes(deb: str | None, limit: int | None = None) -> list[dict]:
     """The 0 A.D. quadrupeds at rest as .ply + truth .yaml (rig GCs) under ZEROAD_DIR, built
     once (`limit`: only that many, spread over the collection)."""
-    import trimesh  # noqa: F401
 
     from ngc_gen.data.annotations import Annotation
     from ngc_gen.data.atomic import atomic_write_text

@@ -14,7 +14,7 @@ from ngc_gen.data.annotations import Annotation, annotation_from_dict
 from ngc_gen.data.autogc.frame import angle_deg, moved_gcs, read_override, wahba
 from ngc_gen.data.autogc.template import load_template
 from ngc_gen.data.autogc.transfer import TransferSettings, transfer_template
-from ngc_gen.data.autogc.verify import verify
+from ngc_gen.data.autogc.transfer.verify import verify
 from ngc_gen.data.errors import DataError
 from ngc_gen.data.mesh.io import normalize
 
