@@ -69,7 +69,6 @@ def zeroad_meshes(deb: str | None, limit: int | None = None) -> list[dict]:
 def one(task):
     """Worker: one mesh turned by its seeded rotation, transferred (no axes unless given), scored
     against its truth GCs turned the same way."""
-    import numpy as np
     import trimesh
     from scipy.spatial.transform import Rotation
 
@@ -104,7 +103,10 @@ def one(task):
             "names": [g.name for g in tr.gcs], "orientation_err_deg": err,
             "legs_sides": _legs_on_sides(tr, truth_all, mesh),
             "outside_volume_ratio": outside_volume_ratio(tr.gcs, mesh), "missing": tr.missing,
-            "confidence": tr.confidence}
+            "confidence": tr.confidence, "turn_deg": angle_deg(Q),
+            # for the picture (left out of the JSON): the written frame's rotation and GCs
+            "written": {"from_file": (tr.rotation @ Q).tolist(),
+                        "gcs": [g.to_dict() for g in moved_gcs(tr.gcs, tr.rotation, np.zeros(3), 1.0)]}}
 
 
 def _legs_on_sides(tr, truth, mesh) -> bool:
@@ -196,4 +198,36 @@ def collections(animals: list[dict], workers: int, deb: str | None, limit: int |
               f"{ {k: v for k, v in out[key].items() if k != 'purity_per_gc'} }", flush=True)
     if out["zeroad"].get("n"):  # GCs that hug are not built: nothing to compare against
         out["zeroad"]["outside_volume_ratio_before"] = None
+        picture(per_mesh["zeroad"], {r["name"]: r["species"] for r in zero},
+                ROOT / "bench/results/transfer.png")
+    for rows in per_mesh.values():
+        for r in rows:
+            r.pop("written", None)
     return {**out, "per_mesh": per_mesh}
+
+
+def picture(rows: list[dict], species: dict[str, str], path: Path, n: int = 8) -> None:
+    """One matched 0 A.D. animal per species, as turned at random and written back in the
+    template's frame, each GC in its template colour (the README's transfer picture)."""
+    import trimesh
+
+    from ngc_gen.data.autogc.frame import rotated_mesh
+    from ngc_gen.data.autogc.template import load_template
+    from ngc_gen.geometry import GeneralizedCylinder
+    from ngc_gen.viz.gc_colors import render_gc_collection
+    from ngc_gen.viz.render import render_or_warn
+
+    template = load_template(TRANSFER_TEMPLATE)
+    cells, seen = [], set()
+    for r in rows:
+        sp = species.get(r["mesh"], r["mesh"])
+        if "error" in r or sp in seen or len(cells) == n:
+            continue
+        seen.add(sp)
+        mesh = rotated_mesh(trimesh.load(ZEROAD_DIR / f"{r['mesh']}.ply", process=False),
+                            np.asarray(r["written"]["from_file"]))
+        gcs = [GeneralizedCylinder.from_dict(d) for d in r["written"]["gcs"]]
+        cells.append((f"{sp} (turned {r['turn_deg']:.0f} deg)", mesh, gcs))
+    if cells:
+        render_or_warn(render_gc_collection, path, cells, template.names,
+                       up=[np.asarray(template.up)] * len(cells))
