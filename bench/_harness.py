@@ -134,8 +134,8 @@ class Bench:
     """One bench run: `Bench(name)` at the start records the load, the date and the commit;
     `write(result)` writes bench/results/<name>.json with the machine record added."""
 
-    def __init__(self, name: str, results: Path = RESULTS):
-        self.name, self.results = name, Path(results)
+    def __init__(self, name: str, results: Path | None = None):
+        self.name, self.results = name, Path(results if results is not None else RESULTS)
         self.load_before, self.date_utc = load_1min(), now_utc()
 
     @property
