@@ -10,8 +10,8 @@ BIN := $(VENV)/bin
 $(BIN)/activate:
 	$(PY) -m venv $(VENV)
 
-# --no-compile: byte-compiling every module of every package at install time cost 39 s for torch
-# alone (12 s without). Instead `ngc_gen.app.bytecode` compiles what the commands import, once:
+# --no-compile: byte-compiling every module of every package at install time costs 39 s for torch
+# alone (12 s without); `ngc_gen.app.bytecode` compiles what the commands import, once:
 # where PYTHONDONTWRITEBYTECODE=1 is set no command would ever write a .pyc, and each would
 # compile torch, Lightning and trimesh again (bench/cli.py measures both sides: make bench-cli)
 $(VENV)/.installed: $(BIN)/activate pyproject.toml
@@ -38,8 +38,8 @@ chromium:
 	fi
 
 # the tests in TEST_WORKERS processes (pytest-xdist), a module's tests on one worker (its shared
-# fixtures are built once): most tests use one core, so 2 workers on 2 cores took the default
-# run from 739 s to 479 s here. TEST_WORKERS=0 runs them in this process.
+# fixtures are built once): most tests use one core, so on 2 cores 2 workers run the default
+# suite in 479 s against 739 s for one. TEST_WORKERS=0 runs them in this process.
 TEST_WORKERS ?= 2
 PYTEST := $(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadscope
 
