@@ -5,7 +5,8 @@ bench/results/<name>.json: one source for every figure.
     python -m bench.report --check    # exit 1 and show the difference if a table is stale
 
 Each bench registered in `bench.BENCHES` owns its formatters: `table(result)` (its block in
-bench/README.md) and, optionally, `headline(result)` (its row in the README's glance table).
+bench/README.md; without one, its top-level scalars as key / value rows) and, optionally,
+`headline(result)` (its row in the README's glance table).
 A page's block between `<!-- table:<name> -->` and `<!-- /table:<name> -->` is replaced by the
 bench's table and one line from its machine record (bench/_harness.py); the `glance` block by
 one headline per bench. A registered bench with no section in bench/README.md gets one appended
@@ -70,6 +71,14 @@ def module(name: str, package: str = "bench"):
     return importlib.import_module(f"{package}.{name}")
 
 
+def scalars(res: dict) -> str:
+    """The table of a bench that has no `table` of its own: its top-level numbers, strings and
+    booleans as key / value rows."""
+    rows = [[f"`{k}`", f"{v:.4g}" if isinstance(v, float) else v] for k, v in res.items()
+            if isinstance(v, (int, float, str, bool)) and k != "machine"]
+    return "\n".join(rows_table(["key", "value"], rows))
+
+
 def glance(results: Path = RESULTS, benches=BENCHES, package: str = "bench") -> str:
     """The README's results table: one headline per bench that has one and a result."""
     order = [b for b in GLANCE_ORDER if b in benches] + \
@@ -93,7 +102,8 @@ def block(name: str, results: Path = RESULTS, benches=BENCHES, package: str = "b
     if not path.is_file():
         return f"No result yet: run `make bench-{name.replace('_', '-')}`.\n"
     res = json.loads(path.read_text())
-    return f"{module(name, package).table(res)}\n\n{machine_line(name, res)}\n"
+    table = getattr(module(name, package), "table", scalars)
+    return f"{table(res)}\n\n{machine_line(name, res)}\n"
 
 
 def sections_added(text: str, benches=BENCHES) -> str:

@@ -24,6 +24,9 @@ def test_the_add_a_bench_example_runs_and_renders(tmp_path, monkeypatch):
     (pkg / "__init__.py").write_text('BENCHES = ("toy",)\n')
     (pkg / "toy.py").write_text(example())
     monkeypatch.syspath_prepend(str(tmp_path))
+    for name in ("toybench", "toybench.toy"):      # the modules leave with the test
+        monkeypatch.setitem(sys.modules, name, None)
+        monkeypatch.delitem(sys.modules, name)
     monkeypatch.setattr(_harness, "RESULTS", tmp_path / "results")
     monkeypatch.setattr(sys, "argv", ["toy", "--n", "1000"])
     from toybench import toy
@@ -41,6 +44,10 @@ def test_the_add_a_bench_example_runs_and_renders(tmp_path, monkeypatch):
     readme = "<!-- table:glance -->\n<!-- /table:glance -->\n"
     glance = report.render(readme, tmp_path / "results", ("toy",), "toybench")
     assert "| [toy](bench/README.md#toy) | 1000 numbers summed in " in glance
+    del toy.table, toy.headline               # a bench that has not written them yet
+    page = report.render(page, tmp_path / "results", ("toy",), "toybench")
+    assert "| key | value |\n|---|---|\n| `n` | 1000 |" in page
+    assert "[toy]" not in report.render(readme, tmp_path / "results", ("toy",), "toybench")
 
 
 def test_a_registered_bench_without_a_section_gets_one():
