@@ -43,7 +43,7 @@ def overrides(args) -> list[str]:
 
 def compose_batch_size() -> int:
     """The recipe's batch size (conf/experiment/generate.yaml)."""
-    from ngc_gen.app.config import compose_config
+    from ngc_gen.app.runtime.config import compose_config
 
     return int(compose_config(overrides=["experiment=generate"]).batch_size)
 
@@ -55,9 +55,9 @@ def train(args) -> dict:
     a new diffusion fit), else trained now; --refit trains both again. bench/runs/generate/
     shape_latent and diffusion link to them. -> {shape_latent, diffusion (their metrics),
     shape_latent_dir, diffusion_dir, shape_latent_stage_s (when trained in this call)}."""
-    from ngc_gen.app.config import compose_config
-    from ngc_gen.app.diffusion import run_diffusion
-    from ngc_gen.app.shape_latent import run_shape_latent
+    from ngc_gen.app.runtime.config import compose_config
+    from ngc_gen.app.stages.train_diffusion import run_diffusion
+    from ngc_gen.app.stages.train_shape_latent import run_shape_latent
 
     cache, refit = FitCache("generate"), getattr(args, "refit", False)
     times = {}
@@ -82,7 +82,7 @@ def mesh_set(gen, latents, names, out_dir, resolution):
     """Decode and mesh latents like sample.py does; returns (meshes, seconds per mesh)."""
     import trimesh
 
-    from ngc_gen.app.outputs import extract_and_write
+    from ngc_gen.app.runtime.outputs import extract_and_write
     from ngc_gen.generate.shapes import decode_shapes
 
     shapes = decode_shapes(gen.shape_latent, latents, names)

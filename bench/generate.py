@@ -98,7 +98,7 @@ def sample_sets(gen, args, train_meshes: list, n_ref: int, split: dict):
     import numpy as np
     import trimesh
 
-    from ngc_gen.app.sample import generate
+    from ngc_gen.app.stages.sample import generate
 
     n_gen = args.sets * n_ref
     sampled = generate(gen, RUNS / "samples", n=n_gen, seed=args.seed,
@@ -132,7 +132,7 @@ def main():
 
     torch.set_num_threads(args.threads)
 
-    from ngc_gen.app.config import repo_root
+    from ngc_gen.app.runtime.config import repo_root
     from ngc_gen.data.datasets import Creatures
     from ngc_gen.eval import pairwise_chamfer
     from ngc_gen.generate import load_generator
