@@ -112,7 +112,8 @@ def sections_added(text: str, benches=BENCHES) -> str:
     have = set(blocks_in(text))
     for name in benches:
         if name not in have:
-            text = text.rstrip("\n") + f"\n\n## {name}\n\n<!-- table:{name} -->\n<!-- /table:{name} -->\n"
+            text = (text.rstrip("\n") + f"\n\n## {name}\n\n"
+                    f"<!-- table:{name} -->\n<!-- /table:{name} -->\n")
     return text
 
 
