@@ -349,6 +349,18 @@ class GeneralizedCylinder:
         check_points(x, "relative coordinates")
         return back(chunked(self._to_world, x, self.chunk))
 
+    def centre_line(self, n: int) -> np.ndarray:
+        """(n, 3) float64 world points of the curve at n evenly spaced normalised arc lengths
+        from start to end (relative coordinates (u, 0, 0), u in [-1, 1])."""
+        u = np.linspace(-1.0, 1.0, n)
+        return np.asarray(self.to_world(np.stack([u, np.zeros(n), np.zeros(n)], 1)),
+                          dtype=np.float64)
+
+    def mean_radius(self) -> float:
+        """The mean over the keys of each key's ellipse radius sqrt(r_y r_z) (its geometric
+        mean: the radius of the circle of the same area)."""
+        return float(torch.sqrt(self._key_r.prod(dim=1)).mean())
+
     @staticmethod
     def relative_measure(rel):
         """(N, 3) relative coords -> (N,) rho^2 = max(|u|-1, 0)^2 + a^2 + b^2: 1 on the GC's

@@ -18,23 +18,15 @@ import time
 from contextlib import contextmanager
 from pathlib import Path
 
+from ngc_gen import workspace
+
+from .errors import user_error_types
+
 log = logging.getLogger(__name__)
 
-# (module, class) of the project's bad-input errors; FileNotFoundError and the OSErrors below too
-USER_ERROR_CLASSES = (("ngc_gen.app.runtime.errors", "ConfigError"),
-                      ("ngc_gen.data.errors", "DataError"),
-                      ("ngc_gen.edit.errors", "EditError"),
-                      ("ngc_gen.geometry.errors", "GeometryError"),
-                      ("ngc_gen.extract.budget", "GridTooLarge"))
 # OS errors that are the machine's state, not a bug: a full disk, a read-only or missing folder
 ENVIRONMENT_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM,
                       errno.ENOTDIR, errno.EISDIR, errno.EEXIST}
-
-
-def user_error_types() -> tuple[type, ...]:
-    """The bad-input exception classes of the layers imported so far."""
-    found = [getattr(sys.modules[m], c) for m, c in USER_ERROR_CLASSES if m in sys.modules]
-    return (*found, FileNotFoundError)
 
 
 def os_error_message(e: OSError) -> str:
@@ -104,7 +96,7 @@ def hydra_message(e: BaseException) -> str | None:
 
 # what a run directory holds before a stage has made anything: Hydra's record of the call and
 # the stage's record of its settings (config.yaml, seeds.json)
-RECORD_ONLY = {".hydra", "config.yaml", "seeds.json"}
+RECORD_ONLY = {".hydra", workspace.CONFIG, workspace.SEEDS}
 
 
 def discard_hydra_record() -> None:

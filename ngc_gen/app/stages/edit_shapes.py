@@ -20,6 +20,7 @@ from pathlib import Path
 import yaml
 
 # light imports only: the program and out_dir are checked before torch loads (`run_edit`)
+from ngc_gen import workspace
 from ngc_gen.edit.errors import EditError
 
 from ..runtime.background_render import BackgroundRenderer
@@ -135,7 +136,7 @@ def _apply(cfg, parts: dict, out_dir: Path, renderer, t_start: float) -> dict:
                  if mixes else "") + "\n")
     for name, mesh in (("undeformed.ply", before.mesh), ("deformed.ply", after.mesh)):
         atomic_write(out_dir / name, lambda f, m=mesh: f.write(m.export(file_type="ply")))
-    atomic_write_text(out_dir / "edited.yaml", header + edited.to_yaml(relative_to=out_dir))
+    atomic_write_text(workspace.edited(out_dir), header + edited.to_yaml(relative_to=out_dir))
     prog = {"name": program.name, "description": program.description, "shape": shape,
             "smooth_union": program.smooth_union, "ops": program.ops}
     atomic_write_text(out_dir / "program.yaml",
@@ -143,11 +144,11 @@ def _apply(cfg, parts: dict, out_dir: Path, renderer, t_start: float) -> dict:
                                      width=100))
     if cfg.get("picture", True):
         metrics["picture"] = render_edit(before.mesh, gcs, after.mesh, edited.gcs,
-                                         out_dir / "edit.png", program.name, up=cfg.viz.up,
-                                         renderer=renderer)
+                                         workspace.picture(out_dir, "edit"), program.name,
+                                         up=cfg.viz.up, renderer=renderer)
     metrics["time_total_s"] = time.perf_counter() - t_start
     metrics["out_dir"] = str(out_dir)
-    atomic_write_text(out_dir / "metrics.json", json.dumps(_json_safe(metrics), indent=2))
+    atomic_write_text(workspace.metrics(out_dir), json.dumps(_json_safe(metrics), indent=2))
     print_summary(metrics)
     return metrics
 

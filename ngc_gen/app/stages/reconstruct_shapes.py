@@ -23,6 +23,7 @@ from pathlib import Path
 import torch
 from omegaconf import DictConfig, open_dict
 
+from ngc_gen import workspace
 from ngc_gen.data.atomic import atomic_write, atomic_write_text
 from ngc_gen.data.errors import DataError
 
@@ -41,9 +42,9 @@ OUTPUTS = {
                                       "normalize: {bound: 0.8} is the identity (the sample.py "
                                       "convention): to edit or prepare again; rescaled, so a "
                                       "score against the raw input mesh differs from meshes/'s",
-    "shapes.ckpt": "the reconstructed shapes for edit.py run=<this run> shape=<name>",
-    "latents.pt": "one latent per shape: sample.py mode=interpolate latents=<this file>",
-    "reconstruct.png": "per shape the input mesh (left) beside its reconstruction (right)",
+    workspace.SHAPES_CHECKPOINT: "the reconstructed shapes for edit.py run=<this run> shape=<name>",
+    workspace.LATENTS: "one latent per shape: sample.py mode=interpolate latents=<this file>",
+    workspace.PICTURES["reconstruct"]: "per shape the input mesh (left) beside its reconstruction (right)",
 }
 
 
@@ -103,8 +104,8 @@ def _codes(cfg: DictConfig, path: Path) -> dict:
     metrics, gt = score_fit(cfg, module.cpu().eval(), prepared, run_dir)
     metrics.update(into=str(path), kind=kind, steps=int(trained.trainer.global_step),
                    train_s=trained.seconds,
-                   checkpoint=str(run_dir / "checkpoints" / "last.ckpt"))
-    atomic_write_text(run_dir / "metrics.json", json.dumps(metrics, indent=2))
+                   checkpoint=str(workspace.last_checkpoint(run_dir)))
+    atomic_write_text(workspace.metrics(run_dir), json.dumps(metrics, indent=2))
     render_comparison(gt, run_dir, gcs=named_gcs(prepared) if kind == "ngc" else None,
                       up=cfg.viz.up)
     print_metrics(metrics)
@@ -195,8 +196,8 @@ def _latents(cfg: DictConfig, path: Path) -> dict:
     if trained.trainer.global_rank != 0:
         return {}
     module = module.cpu().eval()
-    last = run_dir / "checkpoints" / "last.ckpt"
-    save_latents(run_dir / "latents.pt", module, last)
+    last = workspace.last_checkpoint(run_dir)
+    save_latents(workspace.latents(run_dir), module, last)
     refined = _refine_codes(cfg, module, prepared, run_dir, meta) if gcs_from == "input" else None
     res = int(cfg.extract.resolution)
     settings = sparse_settings(cfg.extract.sparse)
@@ -214,11 +215,11 @@ def _latents(cfg: DictConfig, path: Path) -> dict:
             gt = trimesh.Trimesh(s.mesh_vertices, s.mesh_faces, process=False)
             per[shape.name] = {k: v for k, v in reconstruction_metrics(
                 mesh, gt, seed=cfg.metrics_seed).items() if isinstance(v, (int, float, bool))}
-            atomic_write(run_dir / "meshes" / f"{shape.name}.ply",
+            atomic_write(workspace.mesh(run_dir, shape.name),
                          lambda f, m=mesh: f.write(m.export(file_type="ply")))
             m, gcs, _, _ = normalise(mesh, shape.gc_dicts())
             written.append(write_shape(run_dir / "shapes", shape.name, m, gcs, shape.codes))
-    write_edit_checkpoint(run_dir / "shapes.ckpt", module.ngc, written,
+    write_edit_checkpoint(workspace.shapes_checkpoint(run_dir), module.ngc, written,
                           source=f"train.py stage=reconstruct run={path}")
     keys = [k for k, v in next(iter(per.values())).items() if not isinstance(v, bool)]
     mean = {k: float(sum(p[k] for p in per.values()) / len(per)) for k in keys}
@@ -226,17 +227,17 @@ def _latents(cfg: DictConfig, path: Path) -> dict:
                "gcs": gcs_from, "refine_steps": 0 if refined is None else
                int(cfg.reconstruct.refine_steps), "refine_l1": refined and refined[1],
                "steps": int(trained.trainer.global_step), "train_s": trained.seconds,
-               "checkpoint": str(last), "latents": str(run_dir / "latents.pt"),
-               "edit_checkpoint": str(run_dir / "shapes.ckpt"), "resolution": res,
+               "checkpoint": str(last), "latents": str(workspace.latents(run_dir)),
+               "edit_checkpoint": str(workspace.shapes_checkpoint(run_dir)), "resolution": res,
                "outputs": OUTPUTS}
     picture = render_reconstruction(prepared, run_dir, up=cfg.viz.up)
     if picture is not None:
         metrics["picture"] = str(picture)
-    atomic_write_text(run_dir / "metrics.json", json.dumps(metrics, indent=2))
+    atomic_write_text(workspace.metrics(run_dir), json.dumps(metrics, indent=2))
     print_metrics(metrics)
     print(explain_outputs(run_dir))
     print(f"run directory: {run_dir}\ninterpolate toward a generated shape: python sample.py "
-          f"run=<diffusion run> mode=interpolate latents={run_dir / 'latents.pt'} "
+          f"run=<diffusion run> mode=interpolate latents={workspace.latents(run_dir)} "
           f"a={prepared[0].name} b=0")
     return metrics
 
@@ -249,8 +250,8 @@ def render_reconstruction(prepared, run_dir: Path, up="auto", limit: int = 8):
     from ngc_gen.viz import render_grid, render_or_warn
 
     rows = [[trimesh.Trimesh(s.mesh_vertices, s.mesh_faces, process=False),
-             trimesh.load(run_dir / "meshes" / f"{s.name}.ply", process=False)]
+             trimesh.load(workspace.mesh(run_dir, s.name), process=False)]
             for s in prepared[:limit]]
-    return render_or_warn(render_grid, run_dir / "reconstruct.png", rows,
+    return render_or_warn(render_grid, workspace.picture(run_dir, "reconstruct"), rows,
                           labels=[s.name for s in prepared[:limit]],
                           col_titles=["input", "reconstruction"], frame="row", up=up)

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from ngc_gen import workspace
 from ngc_gen.data.errors import DataError
 from ngc_gen.edit import BLEND_PARAMS, EditError, mix_weight
 from ngc_gen.generate.latents import latent_path
@@ -146,12 +147,12 @@ def run_sample(cfg) -> dict:
                       blend_params=params, geometry=c.get("geometry", "source"), **common)
     if c.get("picture", True) and mode == "condition":
         from .sample_condition import render_condition
-        picture = render_condition(summary, out_dir / "shapes.png", up=c["viz"]["up"])
+        picture = render_condition(summary, workspace.picture(out_dir, "sample"), up=c["viz"]["up"])
         if picture is not None:
             print(f"picture: {picture}")
     elif c.get("picture", True):
-        picture = render_shapes(summary, out_dir / "shapes.png", one_row=mode != "generate",
-                                up=c["viz"]["up"])
+        picture = render_shapes(summary, workspace.picture(out_dir, "sample"),
+                                one_row=mode != "generate", up=c["viz"]["up"])
         if picture is not None:
             print(f"picture: {picture}")
     return summary
