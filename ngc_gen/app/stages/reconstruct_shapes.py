@@ -27,11 +27,9 @@ from ngc_gen import workspace
 from ngc_gen.data.atomic import atomic_write, atomic_write_text
 from ngc_gen.data.errors import DataError
 
-from ..runtime.config import sparse_settings
-
-FIX = ("pass run=<dir or checkpoint> of a `train.py stage=fit` run (codes) or a "
-       "`train.py stage=shape_latent` run (latents)")
-
+from ..runtime.checks import RECONSTRUCT_RUN_FIX as FIX
+from ..runtime.config import instantiate, sparse_settings
+from .settings import ReconstructSettings
 
 # what a shape-latent reconstruction writes, as metrics.json's `outputs` and the run's printout
 OUTPUTS = {
@@ -71,15 +69,16 @@ def run_reconstruct(cfg: DictConfig) -> dict:
     if kind not in (FIT, SHAPE_LATENT):
         raise DataError(f"{path} is neither a fit nor a shape-latent checkpoint (kind {kind!r})",
                         field="run", fix=FIX)
+    recon = instantiate(cfg.reconstruct, "reconstruct")
     cfg = cfg.copy()
     with open_dict(cfg):
-        cfg.trainer.max_steps = int(cfg.reconstruct.max_steps)
+        cfg.trainer.max_steps = recon.max_steps
     if kind == FIT:
-        return _codes(cfg, path)
-    return _latents(cfg, path)
+        return _codes(cfg, path, recon)
+    return _latents(cfg, path, recon)
 
 
-def _codes(cfg: DictConfig, path: Path) -> dict:
+def _codes(cfg: DictConfig, path: Path, recon: ReconstructSettings) -> dict:
     import lightning as L
 
     from ngc_gen.data.datamodule import PreparedDataModule
@@ -97,7 +96,7 @@ def _codes(cfg: DictConfig, path: Path) -> dict:
     L.seed_everything(cfg.seed, workers=True, verbose=False)
     dm = PreparedDataModule(prepared, mode=kind, batch_size=cfg.batch_size, seed=cfg.seed)
     module = codes_only_autodecoder(fit, dm.n_codes, shapes_meta(prepared, kind),
-                                    code_lr=float(cfg.reconstruct.code_lr))
+                                    code_lr=recon.code_lr)
     trained = train(cfg, run_dir, module, datamodule=dm)
     if trained.trainer.global_rank != 0:
         return {}
@@ -114,7 +113,8 @@ def _codes(cfg: DictConfig, path: Path) -> dict:
     return metrics
 
 
-def _refine_codes(cfg: DictConfig, module, prepared, run_dir: Path, meta: dict):
+def _refine_codes(cfg: DictConfig, module, prepared, run_dir: Path, meta: dict,
+                  recon: ReconstructSettings):
     """reconstruct.refine_steps > 0: the per-GC codes the latents decode to, fitted further
     with every network weight frozen (run_dir/refine). Returns (N, K, C) codes or None."""
     import lightning as L
@@ -124,14 +124,14 @@ def _refine_codes(cfg: DictConfig, module, prepared, run_dir: Path, meta: dict):
 
     from ..runtime.training import train
 
-    steps = int(cfg.reconstruct.refine_steps or 0)
+    steps = recon.refine_steps
     if steps <= 0:
         return None
     cfg = cfg.copy()
     with open_dict(cfg):
         cfg.trainer.max_steps = steps
     refine = refine_codes_module(module, module.latents.weight.detach(), meta,
-                                 code_lr=float(cfg.reconstruct.code_lr))
+                                 code_lr=recon.code_lr)
     ids, coords, sdf, _ = training_rows(prepared, "ngc")
     pick = torch.randperm(len(ids), generator=torch.Generator().manual_seed(0))[:65536]
     rows = ids[pick], coords[pick], sdf[pick]
@@ -153,7 +153,7 @@ def _l1(field, rows) -> float:
     return float((field(ids, coords).reshape(-1) - sdf).abs().mean())
 
 
-def _latents(cfg: DictConfig, path: Path) -> dict:
+def _latents(cfg: DictConfig, path: Path, recon: ReconstructSettings) -> dict:
     import lightning as L
     import trimesh
 
@@ -170,11 +170,7 @@ def _latents(cfg: DictConfig, path: Path) -> dict:
     from .train_shape_latent import save_latents, template_and_targets
     from ..runtime.training import start_run, train
 
-    gcs_from = str(cfg.reconstruct.gcs)
-    if gcs_from not in ("input", "decoded"):
-        raise DataError(f"reconstruct.gcs must be input or decoded, got {gcs_from!r}",
-                        field="reconstruct.gcs", fix="pass reconstruct.gcs=input (the meshes' own "
-                        "GCs, default) or reconstruct.gcs=decoded (the latent's GCs)")
+    gcs_from = recon.gcs
     trained_model = ShapeLatentModule.from_checkpoint(path)
     run_dir = start_run(cfg)
     prepared = prepare_dataset(cfg)
@@ -188,8 +184,8 @@ def _latents(cfg: DictConfig, path: Path) -> dict:
     meta = {"dataset": str(cfg.data.name), "reconstructed_into": str(path),
             "shapes": [{"name": s.name, "annotation_yaml": s.annotation_yaml} for s in prepared]}
     module = latent_only_module(trained_model, vectors, meta,
-                                latent_lr=float(cfg.reconstruct.latent_lr),
-                                param_weight=cfg.reconstruct.param_weight)
+                                latent_lr=recon.latent_lr,
+                                param_weight=recon.param_weight)
     L.seed_everything(cfg.seed, workers=True, verbose=False)
     dm = PreparedDataModule(prepared, mode="ngc", batch_size=cfg.batch_size, seed=cfg.seed)
     trained = train(cfg, run_dir, module, datamodule=dm)
@@ -198,7 +194,8 @@ def _latents(cfg: DictConfig, path: Path) -> dict:
     module = module.cpu().eval()
     last = workspace.last_checkpoint(run_dir)
     save_latents(workspace.latents(run_dir), module, last)
-    refined = _refine_codes(cfg, module, prepared, run_dir, meta) if gcs_from == "input" else None
+    refined = (_refine_codes(cfg, module, prepared, run_dir, meta, recon)
+               if gcs_from == "input" else None)
     res = int(cfg.extract.resolution)
     settings = sparse_settings(cfg.extract.sparse)
     per, written = {}, []
@@ -225,7 +222,7 @@ def _latents(cfg: DictConfig, path: Path) -> dict:
     mean = {k: float(sum(p[k] for p in per.values()) / len(per)) for k in keys}
     metrics = {"shapes": per, "mean": mean, "into": str(path), "kind": "shape_latent",
                "gcs": gcs_from, "refine_steps": 0 if refined is None else
-               int(cfg.reconstruct.refine_steps), "refine_l1": refined and refined[1],
+               recon.refine_steps, "refine_l1": refined and refined[1],
                "steps": int(trained.trainer.global_step), "train_s": trained.seconds,
                "checkpoint": str(last), "latents": str(workspace.latents(run_dir)),
                "edit_checkpoint": str(workspace.shapes_checkpoint(run_dir)), "resolution": res,
