@@ -62,7 +62,7 @@ def _ours(path: Path) -> bool:
     return not path.exists() or path.read_text(encoding="utf-8", errors="replace").startswith(HEADER)
 
 
-GCS_CELL = (640, 560)  # <name>_gcs.png: two cells, 1280 x 560 (was 640 x 260: names overlapped)
+GCS_CELL = (640, 560)  # <name>_gcs.png: two cells, 1280 x 560 (room for the GC names)
 
 
 def _picture(ann: Annotation, path: Path, up="auto") -> Path | None:
