@@ -13,6 +13,8 @@ A run directory is what `train.py` (hydra.run.dir), `edit.py` and `sample.py` (o
     shapes.ckpt           shapes in the fit format, for edit.py (reconstruct, sample.py)
     summary.json          what a sample.py mode or the pipeline made
     edited.yaml           the edited GCs                        (edit.py)
+    deformed.ply, undeformed.ply, program.yaml   the edited and unedited meshes, the program
+                                                 as run (edit.py)
     <stage>.png           the run's picture: meshes.png (fit), reconstruct.png, edit.png,
                           shapes.png (sample.py), overview.png (pipeline)
     .lock                 the owner while a command works in it
@@ -31,6 +33,9 @@ LATENTS = "latents.pt"
 SHAPES_CHECKPOINT = "shapes.ckpt"
 SUMMARY = "summary.json"
 EDITED = "edited.yaml"
+DEFORMED = "deformed.ply"
+UNDEFORMED = "undeformed.ply"
+PROGRAM = "program.yaml"
 LOCK = ".lock"
 PICTURES = {"fit": "meshes.png", "reconstruct": "reconstruct.png", "edit": "edit.png",
             "sample": "shapes.png", "pipeline": "overview.png"}

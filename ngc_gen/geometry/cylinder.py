@@ -23,9 +23,9 @@ from .curves import Curve, curve_from_dict
 from .errors import GeometryError
 from .frames import FrameField
 from .interp import interp
-from .relative import (RelativeTables, coarse_convex, coarse_cover, coarse_indices,
-                       coarse_owned, coarse_reach, near_cover, relative_coordinates,
-                       segment_bulge, span_bounds)
+from .relative import near_cover, relative_coordinates
+from .relative_tables import (RelativeTables, coarse_convex, coarse_cover, coarse_indices,
+                              coarse_owned, coarse_reach, segment_bulge, span_bounds)
 
 GC_KEYS = {"name", "curve", "up", "keys", "caps", "reparam"}
 COVER_SAMPLES = 16   # radius samples per polyline segment when sizing the cover balls

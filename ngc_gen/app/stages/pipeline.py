@@ -183,7 +183,8 @@ def render_overview(run_dir: Path, done: list[str], per_row: int = 4, up="auto")
         labels.append("fitted")
         views.append(None)
     if "edit" in done:
-        rows.append(load([run_dir / "edit" / "undeformed.ply", run_dir / "edit" / "deformed.ply"]))
+        rows.append(load([run_dir / "edit" / workspace.UNDEFORMED,
+                          run_dir / "edit" / workspace.DEFORMED]))
         metrics = workspace.metrics(run_dir / "edit")
         program = json.loads(metrics.read_text()).get("program", "") if metrics.is_file() else ""
         labels.append(f"edit {program}: before, after")
@@ -214,7 +215,7 @@ def edit_row_view(run_dir: Path, meshes: list, up="auto"):
 
     edit = run_dir / "edit"
     try:
-        shape = yaml.safe_load((edit / "program.yaml").read_text())["shape"]
+        shape = yaml.safe_load((edit / workspace.PROGRAM).read_text())["shape"]
         before = load_shapes(run_dir / "fit")[shape].gcs
         after = load_annotation(workspace.edited(edit)).gcs
     except (OSError, KeyError, TypeError, ValueError):

@@ -155,15 +155,11 @@ def _l1(field, rows) -> float:
 
 def _latents(cfg: DictConfig, path: Path, recon: ReconstructSettings) -> dict:
     import lightning as L
-    import trimesh
 
     from ngc_gen.data.datamodule import PreparedDataModule
-    from ngc_gen.eval import reconstruction_metrics
-    from ngc_gen.generate.shapes import (auto_chunk, decode_shapes, normalise,
-                                         write_edit_checkpoint, write_shape)
+    from ngc_gen.generate.shapes import write_edit_checkpoint
     from ngc_gen.lit.reconstruct import latent_only_module
     from ngc_gen.lit.shape_latent import ShapeLatentModule
-    from ngc_gen.shape import recorded_gcs
 
     from .fit import print_metrics
     from .prepare_data import prepare_dataset
@@ -197,25 +193,7 @@ def _latents(cfg: DictConfig, path: Path, recon: ReconstructSettings) -> dict:
     refined = (_refine_codes(cfg, module, prepared, run_dir, meta, recon)
                if gcs_from == "input" else None)
     res = int(cfg.extract.resolution)
-    settings = sparse_settings(cfg.extract.sparse)
-    per, written = {}, []
-    with torch.no_grad():
-        shapes = decode_shapes(module, module.latents.weight, module.names)
-        if gcs_from == "input":  # the codes were fitted in the input's GC frames: keep them
-            shapes = [shape.replaced(gcs=recorded_gcs({"annotation_yaml": s.annotation_yaml}))
-                      for shape, s in zip(shapes, prepared)]
-        if refined is not None:
-            shapes = [shape.replaced(codes=c) for shape, c in zip(shapes, refined[0])]
-        for shape, s in zip(shapes, prepared):
-            mesh = shape.mesh(res, float(cfg.extract.bound), chunk=auto_chunk(res),
-                              settings=settings, progress=False).mesh
-            gt = trimesh.Trimesh(s.mesh_vertices, s.mesh_faces, process=False)
-            per[shape.name] = {k: v for k, v in reconstruction_metrics(
-                mesh, gt, seed=cfg.metrics_seed).items() if isinstance(v, (int, float, bool))}
-            atomic_write(workspace.mesh(run_dir, shape.name),
-                         lambda f, m=mesh: f.write(m.export(file_type="ply")))
-            m, gcs, _, _ = normalise(mesh, shape.gc_dicts())
-            written.append(write_shape(run_dir / "shapes", shape.name, m, gcs, shape.codes))
+    per, written = _mesh_reconstructions(cfg, module, prepared, run_dir, gcs_from, refined)
     write_edit_checkpoint(workspace.shapes_checkpoint(run_dir), module.ngc, written,
                           source=f"train.py stage=reconstruct run={path}")
     keys = [k for k, v in next(iter(per.values())).items() if not isinstance(v, bool)]
@@ -237,6 +215,40 @@ def _latents(cfg: DictConfig, path: Path, recon: ReconstructSettings) -> dict:
           f"run=<diffusion run> mode=interpolate latents={workspace.latents(run_dir)} "
           f"a={prepared[0].name} b=0")
     return metrics
+
+
+def _mesh_reconstructions(cfg: DictConfig, module, prepared, run_dir: Path, gcs_from: str,
+                          refined) -> tuple[dict, list]:
+    """Each reconstructed shape meshed (with the input's GCs or the decoded ones, the refined
+    codes if any), scored against its input mesh and written (meshes/, shapes/).
+    -> ({name: metrics}, written shapes)."""
+    import trimesh
+
+    from ngc_gen.eval import reconstruction_metrics
+    from ngc_gen.generate.shapes import auto_chunk, decode_shapes, normalise, write_shape
+    from ngc_gen.shape import recorded_gcs
+
+    res = int(cfg.extract.resolution)
+    settings = sparse_settings(cfg.extract.sparse)
+    per, written = {}, []
+    with torch.no_grad():
+        shapes = decode_shapes(module, module.latents.weight, module.names)
+        if gcs_from == "input":  # the codes were fitted in the input's GC frames: keep them
+            shapes = [shape.replaced(gcs=recorded_gcs({"annotation_yaml": s.annotation_yaml}))
+                      for shape, s in zip(shapes, prepared)]
+        if refined is not None:
+            shapes = [shape.replaced(codes=c) for shape, c in zip(shapes, refined[0])]
+        for shape, s in zip(shapes, prepared):
+            mesh = shape.mesh(res, float(cfg.extract.bound), chunk=auto_chunk(res),
+                              settings=settings, progress=False).mesh
+            gt = trimesh.Trimesh(s.mesh_vertices, s.mesh_faces, process=False)
+            per[shape.name] = {k: v for k, v in reconstruction_metrics(
+                mesh, gt, seed=cfg.metrics_seed).items() if isinstance(v, (int, float, bool))}
+            atomic_write(workspace.mesh(run_dir, shape.name),
+                         lambda f, m=mesh: f.write(m.export(file_type="ply")))
+            m, gcs, _, _ = normalise(mesh, shape.gc_dicts())
+            written.append(write_shape(run_dir / "shapes", shape.name, m, gcs, shape.codes))
+    return per, written
 
 
 def render_reconstruction(prepared, run_dir: Path, up="auto", limit: int = 8):
