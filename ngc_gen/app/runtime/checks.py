@@ -101,28 +101,15 @@ def check_threads(threads) -> int | str | None:
 
 
 # ---- what each entry point checks before torch loads ----------------------------------------
-SAMPLE_MODES = ("generate", "interpolate", "mix", "condition")
-
-
 def check_sample(cfg) -> None:
-    """sample.py's settings (conf/sample.yaml, conf/mode/): the mode, every number it reads,
-    the output folder and the run, in a second and before torch loads."""
-    mode = cfg.get("mode")
-    if mode not in SAMPLE_MODES:
-        raise ConfigError("unknown mode", key="mode", value=mode,
-                          fix=f"use one of mode={' | mode='.join(SAMPLE_MODES)}")
+    """sample.py's settings (conf/sample.yaml, conf/mode/): the mode and its settings
+    (`mode_settings`), every number it reads, the output folder and the run, in a second and
+    before torch loads."""
+    from ..stages.settings import mode_settings
+
+    mode_settings(cfg)
     check_extract(cfg)
     config_number(cfg, "seed", integer=True)
-    if mode in ("generate", "condition"):
-        config_number(cfg, "n", integer=True, minimum=1)
-    if mode == "interpolate":
-        config_number(cfg, "steps", integer=True, minimum=2)
-    if mode == "mix":
-        for key in ("t0", "t1", "w"):
-            config_number(cfg, key, optional=True)
-    if mode == "condition":
-        config_number(cfg, "condition.strength", minimum=0)
-        config_number(cfg, "condition.project_steps", integer=True, minimum=0)
     config_number(cfg, "sampler.steps", integer=True, minimum=1)
     for key in ("sampler.churn", "sampler.S_min", "sampler.S_noise"):
         config_number(cfg, key, minimum=0)
