@@ -32,10 +32,16 @@ def owned_dir(cfg) -> Path | None:
     """The directory a command writes its run into: train.py's `run_dir`, edit.py's and
     sample.py's `out_dir` when it is set (edit.py's default is a new dated folder, the editor
     writes only on save: nothing to share)."""
+    from omegaconf import OmegaConf
+
+    if not OmegaConf.is_config(cfg):
+        cfg = OmegaConf.create(cfg)
     if cfg.get("viewer"):
         return None
     for key in ("run_dir", "out_dir"):
-        value = cfg.get(key)
+        # None where it names Hydra's run directory outside a Hydra job (a config composed
+        # from Python): no command owns a directory then
+        value = OmegaConf.select(cfg, key, default=None, throw_on_resolution_failure=False)
         if value:
             return Path(str(value))
     return None
