@@ -12,6 +12,7 @@ A run directory is what `train.py` (hydra.run.dir), `edit.py` and `sample.py` (o
     latents.pt            one latent per shape                  (shape_latent, reconstruct, sample.py)
     shapes.ckpt           shapes in the fit format, for edit.py (reconstruct, sample.py)
     summary.json          what a sample.py mode or the pipeline made
+    condition.yaml        the GCs sample.py mode=condition was given, as read
     edited.yaml           the edited GCs                        (edit.py)
     deformed.ply, undeformed.ply, program.yaml   the edited and unedited meshes, the program
                                                  as run (edit.py)
@@ -32,6 +33,7 @@ MESHES = "meshes"
 LATENTS = "latents.pt"
 SHAPES_CHECKPOINT = "shapes.ckpt"
 SUMMARY = "summary.json"
+CONDITION = "condition.yaml"
 EDITED = "edited.yaml"
 DEFORMED = "deformed.ply"
 UNDEFORMED = "undeformed.ply"
@@ -80,6 +82,10 @@ def shapes_checkpoint(run) -> Path:
 
 def summary(run) -> Path:
     return Path(run) / SUMMARY
+
+
+def condition(run) -> Path:
+    return Path(run) / CONDITION
 
 
 def edited(run) -> Path:

@@ -9,8 +9,8 @@ from .helpers import ROOT, compose_config
 
 # the file names (the folders' names, "meshes" and "checkpoints", are ordinary words too)
 NAMES = {workspace.CONFIG, workspace.SEEDS, workspace.LAST, workspace.METRICS, workspace.LATENTS,
-         workspace.SHAPES_CHECKPOINT, workspace.SUMMARY, workspace.EDITED, workspace.DEFORMED,
-         workspace.UNDEFORMED, workspace.PROGRAM, workspace.LOCK,
+         workspace.SHAPES_CHECKPOINT, workspace.SUMMARY, workspace.CONDITION, workspace.EDITED,
+         workspace.DEFORMED, workspace.UNDEFORMED, workspace.PROGRAM, workspace.LOCK,
          *workspace.PICTURES.values()}
 
 
