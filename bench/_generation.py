@@ -95,7 +95,7 @@ def clouds(meshes, n_points: int, seed: int):
     import numpy as np
 
     from ngc_gen.eval import sample_point_clouds
-    from ngc_gen.eval.sampling import is_empty
+    from ngc_gen.eval.point_samples import is_empty
 
     out = np.zeros((len(meshes), n_points, 3))
     ok = [i for i, m in enumerate(meshes) if not is_empty(m)]

@@ -213,3 +213,15 @@ def test_the_transfer_section_shows_the_generators_spread_and_the_heldout_recons
     # at a glance: the generator gap, relative, as the line reads it
     assert "MMD-CD +12.6%, 1-NNA +1.5%" in transfer.headline(r)
     assert "generator" not in transfer.headline({**base, "generator": None})
+
+
+def test_the_cli_table_shows_the_malformed_mesh_files_when_measured():
+    from bench import cli
+
+    base = json.loads((ROOT / "bench/results/cli.json").read_text())
+    assert "Malformed" not in cli.table(base)                 # an older result still renders
+    r = {**base, "malformed_mesh_s": {"gltf_bad_json": 1.1, "off_no_faces": 2.4},
+         "malformed_mesh_slowest_s": 2.4,
+         "targets": {**base["targets"], "malformed_mesh_slowest_s": 2.0}}
+    assert ("exit 2 after 1.10-2.40 s, slowest 2.40 s; 1 of 2 within the 2 s target"
+            in cli.table(r))
