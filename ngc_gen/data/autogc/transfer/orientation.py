@@ -26,7 +26,8 @@ from .verify import verify
 
 SNAP_DEG = 10.0     # a detected frame this close to signed world axes is snapped to them
 PRIOR_SLACK = 0.5   # given axes stay unless a detected frame matches this much cheaper
-DISTINCT_DEG = 30.0  # the runner-up for the confidence: a frame at least this far away
+DISTINCT_DEG = 30.0  # the runner-up for the confidence: a frame at least this far away that
+                     # puts some name on another part
 REFINE_ROUNDS = 2  # a detected candidate is turned to its match's implied frame this many times
 LEAF_WEIGHT = 0.5   # a swinging limb's direction counts this much in the implied frame
 
@@ -46,7 +47,8 @@ class Trial:
 @dataclass
 class Choice:
     """The orientation chosen, its trial, how sure (0-1: 1 - its score over the best other
-    passing frame's) and warnings for the user (a prior overruled)."""
+    passing frame's that names the parts otherwise) and warnings for the user (a prior
+    overruled)."""
 
     trial: Trial
     confidence: float
@@ -111,6 +113,13 @@ def _try(ctx, o: Orientation, refine: bool) -> Trial:
     return best
 
 
+def _ends(trial: Trial) -> dict:
+    """Where each matched GC's path ends: two frames that put every name on the same parts
+    read the mesh alike, however far apart they are."""
+    return {n: int(p[-1]) for n, p in trial.found[0].items()} if isinstance(trial.found, tuple) \
+        else {}
+
+
 def choose(template: Template, tree, surface: np.ndarray, st, where, curves, volumes,
            up, front, override: Orientation | None) -> Choice:
     """The orientation for this mesh (module docstring)."""
@@ -149,7 +158,7 @@ def choose(template: Template, tree, surface: np.ndarray, st, where, curves, vol
                         path=where, field="annotate.template",
                         fix="give the mesh's frame (frame: {up: +y, front: -z} in its YAML or "
                             "the folder's frames.yaml), or annotate it by hand")
-    others = [t.score for t in passing if t is not best and
+    others = [t.score for t in passing if t is not best and _ends(t) != _ends(best) and
               angle_deg(t.orientation.matrix @ best.orientation.matrix.T) > DISTINCT_DEG]
     second = min(others) if others else st.max_match_cost
     confidence = float(np.clip(1.0 - best.score / max(second, 1e-9), 0.0, 1.0))
