@@ -212,7 +212,7 @@ def collections(animals: list[dict], workers: int, deb: str | None, limit: int |
     if out["zeroad"].get("n"):  # GCs that hug are not built: nothing to compare against
         out["zeroad"]["outside_volume_ratio_before"] = None
         picture(per_mesh["zeroad"], {r["name"]: r["species"] for r in zero},
-                ROOT / "bench/results/transfer.png")
+                ROOT / "bench/results/transfer_zeroad.png")
     for rows in per_mesh.values():
         for r in rows:
             r.pop("written", None)
@@ -221,7 +221,7 @@ def collections(animals: list[dict], workers: int, deb: str | None, limit: int |
 
 def picture(rows: list[dict], species: dict[str, str], path: Path, n: int = 8) -> None:
     """One matched 0 A.D. animal per species, as turned at random and written back in the
-    template's frame, each GC in its template colour (the README's transfer picture)."""
+    template's frame, each GC in its template colour (bench/results/transfer_zeroad.png)."""
     import trimesh
 
     from ngc_gen.data.autogc.frame import rotated_mesh
