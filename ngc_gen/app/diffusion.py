@@ -17,6 +17,7 @@ from torch.utils.data import RandomSampler, Sampler
 
 from ngc_gen.data.atomic import atomic_write_text
 
+from .next_hint import SAMPLE_KEYS, next_command
 from .shape_latent import with_stage_steps
 
 # settings of the `diffusion` group the stage reads itself (not LatentDiffusion arguments)
@@ -127,5 +128,6 @@ def run_diffusion(cfg: DictConfig) -> dict:
           f"{after:.3f} (EMA)")
     print(f"  nearest training latent (std units): samples {metrics['sample_to_train_median']:.2f}"
           f" median, training latents to each other {metrics['train_to_train_median']:.2f}")
-    print(f"run directory: {run_dir}\nnext: python sample.py run={run_dir} mode=generate n=16")
+    hint = next_command("sample.py", [f"run={run_dir}", "mode=generate", "n=16"], keep=SAMPLE_KEYS)
+    print(f"run directory: {run_dir}\nnext: {hint}")
     return metrics

@@ -24,6 +24,7 @@ from omegaconf import DictConfig, OmegaConf
 from ngc_gen.data.atomic import atomic_write_text
 from ngc_gen.data.errors import DataError
 
+from .next_hint import overrides_used
 from .stages import resolve, run_stage
 
 
@@ -48,6 +49,12 @@ def _fail(what: str, step: str | None = None, fix: str = "") -> DataError:
 def plan(cfg: DictConfig, run_dir: Path) -> list[tuple[str, DictConfig]]:
     """[(step, composed config)] in run order; DataError for an unknown step, a missing link or
     an override Hydra rejects, before anything runs."""
+    return [(step, composed) for step, composed, _ in planned_steps(cfg, run_dir)]
+
+
+def planned_steps(cfg: DictConfig, run_dir: Path) -> list[tuple[str, DictConfig, list[str]]]:
+    """`plan`'s steps with the overrides each was composed from (its `next:` hint repeats
+    them)."""
     from .config import compose_config
 
     p = cfg.get("pipeline")
@@ -91,17 +98,19 @@ def plan(cfg: DictConfig, run_dir: Path) -> list[tuple[str, DictConfig]]:
                         f"devices {trainer.get('devices')})", step,
                         fix=f"run it as its own command: python train.py stage={step} "
                             f"trainer=ddp ... (docs/scaling.md)")
-        out.append((step, composed))
+        out.append((step, composed, overrides))
     return out
 
 
-def run_step(step: str, cfg: DictConfig) -> dict:
+def run_step(step: str, cfg: DictConfig, overrides: list[str] | None = None) -> dict:
+    """Run one composed step; `overrides` (what it was composed from) go into its hints."""
     from .cli import set_threads
 
     set_threads(cfg.get("threads"))
-    if step in STEP_RUNNERS:
-        return resolve(STEP_RUNNERS[step])(cfg)
-    return run_stage(cfg)
+    with overrides_used(overrides if overrides is not None else []):
+        if step in STEP_RUNNERS:
+            return resolve(STEP_RUNNERS[step])(cfg)
+        return run_stage(cfg)
 
 
 def headline(step: str, result: dict) -> dict:
@@ -133,13 +142,13 @@ def run_pipeline(cfg: DictConfig) -> dict:
     summary.json lists as finished are kept, up to the first one that has to run; every step
     after that runs again, since it may read what changed."""
     run_dir = Path(cfg.run_dir).resolve()
-    steps = plan(cfg, run_dir)
+    steps = planned_steps(cfg, run_dir)
     done = finished_steps(run_dir) if cfg.pipeline.get("resume") else {}
     run_dir.mkdir(parents=True, exist_ok=True)
     atomic_write_text(run_dir / "config.yaml", OmegaConf.to_yaml(cfg.pipeline))
     summary = {"run_dir": str(run_dir), "steps": {}}
     rerun = False
-    for k, (step, step_cfg) in enumerate(steps, 1):
+    for k, (step, step_cfg, overrides) in enumerate(steps, 1):
         head = f"\n=== pipeline step {k}/{len(steps)}: {step} -> {run_dir / step}"
         if step in done and not rerun:
             print(f"{head} (finished earlier, kept)", flush=True)
@@ -148,7 +157,7 @@ def run_pipeline(cfg: DictConfig) -> dict:
         rerun = True
         print(head, flush=True)
         t0 = time.perf_counter()
-        result = run_step(step, step_cfg)
+        result = run_step(step, step_cfg, overrides)
         seconds = time.perf_counter() - t0
         summary["steps"][step] = {"dir": str(run_dir / step), "seconds": seconds,
                                   **headline(step, result)}

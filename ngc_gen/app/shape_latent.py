@@ -23,6 +23,7 @@ from ngc_gen.data.errors import DataError
 from ngc_gen.data.prepare import PreparedShape
 
 from .config import sparse_settings
+from .next_hint import next_command
 from .training import instantiate_group, start_run, train
 
 LATENTS_KIND = "ngc_gen.shape_latents"
@@ -186,6 +187,6 @@ def run_shape_latent(cfg: DictConfig) -> dict:
     print(f"  decoded GCs vs annotated: control points {p['point_mean']:.4f} mean / "
           f"{p['point_max']:.4f} max, radii {100 * p['radius_rel']:.2f}%, caps "
           f"{100 * p['cap_rel']:.2f}%, twist {p['twist_deg']:.2f} deg")
-    print(f"run directory: {run_dir}\nnext: python train.py stage=diffusion "
-          f"shape_latent_run={run_dir}")
+    hint = next_command("train.py", ["stage=diffusion", f"shape_latent_run={run_dir}"])
+    print(f"run directory: {run_dir}\nnext: {hint}")
     return metrics
