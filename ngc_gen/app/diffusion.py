@@ -95,7 +95,7 @@ def run_diffusion(cfg: DictConfig) -> dict:
     module = instantiate_group(
         cfg.diffusion, RUNNER_KEYS, dim=latents.shape[1],
         meta={"shape_latent_checkpoint": str(ckpt), "names": shape_latent.names,
-              "n_latents": n_shapes})
+              "n_latents": n_shapes, "frame": (shape_latent.hparams.meta or {}).get("frame")})
     module.fit_standardisation(latents)
     before = module.evaluate_loss(latents, seed=EVAL_SEED, repeats=8)
     dataset = TensorDataset(latents)
@@ -117,6 +117,7 @@ def run_diffusion(cfg: DictConfig) -> dict:
                else None,
                "edm_loss_untrained": before, "edm_loss_ema": after,
                **nearest_neighbour_stats(samples, latents, module.latent_std),
+               "frame": (shape_latent.hparams.meta or {}).get("frame"),
                "checkpoint": str(run_dir / "checkpoints" / "last.ckpt"),
                "shape_latent_checkpoint": str(ckpt)}
     atomic_write_text(run_dir / "metrics.json", json.dumps(metrics, indent=2))

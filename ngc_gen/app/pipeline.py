@@ -180,36 +180,62 @@ def print_summary(summary: dict) -> None:
 
 
 def render_overview(run_dir: Path, done: list[str], per_row: int = 4, up="auto") -> None:
-    """overview.png: one row per step that made meshes (fitted / edited / generated), `up`:
-    `viz.up`. A failed render (no off-screen OpenGL) is reported, not fatal."""
+    """overview.png: one row per step that made meshes (fitted / edited / generated /
+    interpolated), `up`: `viz.up`; a row of shapes that record their body frame (a model
+    trained on a collection written in one) stands on it (`viz.camera.frame_up`). A failed
+    render (no off-screen OpenGL) is reported, not fatal."""
     import trimesh
 
     from ngc_gen.viz import render_grid, render_or_warn
+    from ngc_gen.viz.camera import frame_up
 
     def load(paths):
         return [trimesh.load(p, process=False) for p in paths[:per_row] if p.is_file()]
 
-    rows, labels, views = [], [], []
+    def recorded_frame(step):
+        f = run_dir / step / "summary.json"
+        return json.loads(f.read_text()).get("frame") if f.is_file() else None
+
+    rows, labels, views, ups = [], [], [], []
     if "fit" in done:
         rows.append(load(sorted((run_dir / "fit" / "meshes").glob("*.ply"))))
         labels.append("fitted")
         views.append(None)
+        ups.append(up)
     if "edit" in done:
         rows.append(load([run_dir / "edit" / "undeformed.ply", run_dir / "edit" / "deformed.ply"]))
         metrics = run_dir / "edit" / "metrics.json"
         program = json.loads(metrics.read_text()).get("program", "") if metrics.is_file() else ""
         labels.append(f"edit {program}: before, after")
-        views.append(edit_row_view(run_dir, rows[-1], up))
-    if "sample" in done:
-        rows.append(load(sorted((run_dir / "sample").glob("*.ply"))))
-        labels.append("generated")
-        views.append(None)
-    kept = [(r, lab, v) for r, lab, v in zip(rows, labels, views) if r]
+        ups.append(frame_up(up, edited_frame(run_dir)))
+        views.append(edit_row_view(run_dir, rows[-1], ups[-1]))
+    for step, label in (("sample", "generated"), ("interpolate", "interpolated")):
+        if step in done:
+            shapes = sorted((run_dir / step).glob("*.ply"))
+            if step == "interpolate" and len(shapes) > per_row:  # the ends and between
+                idx = [round(k * (len(shapes) - 1) / (per_row - 1)) for k in range(per_row)]
+                shapes = [shapes[k] for k in idx]
+            rows.append(load(shapes))
+            labels.append(label)
+            views.append(None)
+            ups.append(frame_up(up, recorded_frame(step)))
+    kept = [(r, lab, v, u) for r, lab, v, u in zip(rows, labels, views, ups) if r]
     if not kept:
         return
-    render_or_warn(render_grid, run_dir / "overview.png", [r for r, _, _ in kept],
-                   labels=[lab for _, lab, _ in kept], frame="row", up=up,
-                   view=[v for _, _, v in kept])
+    render_or_warn(render_grid, run_dir / "overview.png", [k[0] for k in kept],
+                   labels=[k[1] for k in kept], frame="row", up=[k[3] for k in kept],
+                   view=[k[2] for k in kept])
+
+
+def edited_frame(run_dir: Path) -> dict | None:
+    """The body frame edit/edited.yaml records (None: none, or no such file)."""
+    from ngc_gen.data.annotations import load_annotation
+    from ngc_gen.data.errors import DataError
+
+    try:
+        return load_annotation(run_dir / "edit" / "edited.yaml").frame
+    except (DataError, OSError):
+        return None
 
 
 def edit_row_view(run_dir: Path, meshes: list, up="auto"):

@@ -85,7 +85,8 @@ def _codes(cfg: DictConfig, path: Path) -> dict:
     from ngc_gen.lit.checkpoint import load_autodecoder
     from ngc_gen.lit.reconstruct import codes_only_autodecoder
 
-    from .fit import named_gcs, print_metrics, render_comparison, score_fit, shapes_meta
+    from .fit import (named_gcs, prepared_up, print_metrics, render_comparison, score_fit,
+                      shapes_meta)
     from .prepare import prepare_dataset
     from .training import start_run, train
 
@@ -106,7 +107,7 @@ def _codes(cfg: DictConfig, path: Path) -> dict:
                    checkpoint=str(run_dir / "checkpoints" / "last.ckpt"))
     atomic_write_text(run_dir / "metrics.json", json.dumps(metrics, indent=2))
     render_comparison(gt, run_dir, gcs=named_gcs(prepared) if kind == "ngc" else None,
-                      up=cfg.viz.up)
+                      up=prepared_up(cfg.viz.up, prepared))
     print_metrics(metrics)
     print(f"run directory: {run_dir}\nedit one: python edit.py run={run_dir} "
           f"shape={prepared[0].name} edit=<program>")
@@ -164,7 +165,7 @@ def _latents(cfg: DictConfig, path: Path) -> dict:
     from ngc_gen.lit.shape_latent import ShapeLatentModule
     from ngc_gen.shape import recorded_gcs
 
-    from .fit import print_metrics
+    from .fit import prepared_up, print_metrics
     from .prepare import prepare_dataset
     from .shape_latent import save_latents, template_and_targets
     from .training import start_run, train
@@ -184,7 +185,8 @@ def _latents(cfg: DictConfig, path: Path) -> dict:
                         "and keys)", field="data",
                         fix="annotate the meshes with the model's template (e.g. held-out "
                             "creatures), or reconstruct into a fit run instead")
-    meta = {"dataset": str(cfg.data.name), "reconstructed_into": str(path),
+    frame = (trained_model.hparams.meta or {}).get("frame")  # the model's body frame
+    meta = {"dataset": str(cfg.data.name), "reconstructed_into": str(path), "frame": frame,
             "shapes": [{"name": s.name, "annotation_yaml": s.annotation_yaml} for s in prepared]}
     module = latent_only_module(trained_model, vectors, meta,
                                 latent_lr=float(cfg.reconstruct.latent_lr),
@@ -217,7 +219,8 @@ def _latents(cfg: DictConfig, path: Path) -> dict:
             atomic_write(run_dir / "meshes" / f"{shape.name}.ply",
                          lambda f, m=mesh: f.write(m.export(file_type="ply")))
             m, gcs, _, _ = normalise(mesh, shape.gc_dicts())
-            written.append(write_shape(run_dir / "shapes", shape.name, m, gcs, shape.codes))
+            written.append(write_shape(run_dir / "shapes", shape.name, m, gcs, shape.codes,
+                                       body=frame))
     write_edit_checkpoint(run_dir / "shapes.ckpt", module.ngc, written,
                           source=f"train.py stage=reconstruct run={path}")
     keys = [k for k, v in next(iter(per.values())).items() if not isinstance(v, bool)]
@@ -229,7 +232,7 @@ def _latents(cfg: DictConfig, path: Path) -> dict:
                "checkpoint": str(last), "latents": str(run_dir / "latents.pt"),
                "edit_checkpoint": str(run_dir / "shapes.ckpt"), "resolution": res,
                "outputs": OUTPUTS}
-    picture = render_reconstruction(prepared, run_dir, up=cfg.viz.up)
+    picture = render_reconstruction(prepared, run_dir, up=prepared_up(cfg.viz.up, prepared))
     if picture is not None:
         metrics["picture"] = str(picture)
     atomic_write_text(run_dir / "metrics.json", json.dumps(metrics, indent=2))

@@ -17,6 +17,7 @@ from ngc_gen.edit import BLEND_PARAMS, EditError, mix_weight
 from ngc_gen.generate.latents import latent_path
 from ngc_gen.generate.model import ShapeGenerator
 from ngc_gen.generate.shapes import decode_shapes
+from ngc_gen.viz.camera import frame_up
 
 from .checks import check_sample
 from .config import sparse_settings
@@ -144,14 +145,15 @@ def run_sample(cfg) -> dict:
         params = {k: c[k] for k in BLEND_PARAMS.get(c["blend"], ()) if c.get(k) is not None}
         summary = mix(gen, out_dir, a=c["a"], b=c["b"], part=c["part"], blend=c["blend"],
                       blend_params=params, geometry=c.get("geometry", "source"), **common)
+    up = frame_up(c["viz"]["up"], gen.frame)  # upright in the collection's body frame
     if c.get("picture", True) and mode == "condition":
         from .condition import render_condition
-        picture = render_condition(summary, out_dir / "shapes.png", up=c["viz"]["up"])
+        picture = render_condition(summary, out_dir / "shapes.png", up=up)
         if picture is not None:
             print(f"picture: {picture}")
     elif c.get("picture", True):
         picture = render_shapes(summary, out_dir / "shapes.png", one_row=mode != "generate",
-                                up=c["viz"]["up"])
+                                up=up)
         if picture is not None:
             print(f"picture: {picture}")
     return summary

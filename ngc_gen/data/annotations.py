@@ -22,13 +22,15 @@ import yaml
 
 from ngc_gen.data.annotation_file import read_annotation_yaml
 from ngc_gen.data.atomic import atomic_write_text
+from ngc_gen.data.body_frame import frame_dict, read_frame
 from ngc_gen.data.errors import DataError
 from ngc_gen.data.mesh.io import is_resource, resolve_mesh_path
 from ngc_gen.geometry import GeneralizedCylinder, GeometryError
 from ngc_gen.values import NumberError, is_number, read_number
 
-# decoder_frame: written by sample.py beside re-centred GCs (read by conditioning, not by fits)
-TOP_KEYS = {"name", "mesh", "normalize", "gcs", "decoder_frame"}
+# decoder_frame: written by sample.py beside re-centred GCs (read by conditioning, not by fits);
+# frame: the body frame the shape is written in (ngc_gen.data.body_frame)
+TOP_KEYS = {"name", "mesh", "normalize", "gcs", "decoder_frame", "frame"}
 NORMALIZE_KEYS = {"bound"}
 DEFAULT_BOUND = 0.8
 
@@ -58,6 +60,7 @@ class Annotation:
     gcs: list[GeneralizedCylinder]
     bound: float | None = DEFAULT_BOUND  # None: `normalize: false`, the mesh as it is
     source: Path | None = field(default=None, compare=False)
+    frame: dict | None = None  # {up, front[, from_mesh, source]}: `body_frame.read_frame`
 
     @property
     def mesh_path(self) -> Path:
@@ -82,12 +85,15 @@ class Annotation:
                 rel = None
             mesh = rel if rel is not None and Path(rel).parts[:1] != ("..",) \
                 else os.path.abspath(mesh)
-        return {
+        d = {
             "name": self.name,
             "mesh": Path(mesh).as_posix() if not is_resource(mesh) else mesh,
             "normalize": False if self.bound is None else {"bound": float(self.bound)},
             "gcs": [gc.to_dict() for gc in self.gcs],
         }
+        if self.frame is not None:
+            d["frame"] = frame_dict(self.frame)
+        return d
 
     def to_yaml(self, relative_to: str | os.PathLike | None = None) -> str:
         """YAML text of ``to_dict``; short lists inline so control points stay readable."""
@@ -238,7 +244,8 @@ def annotation_from_dict(d, source: str | os.PathLike | None = None) -> Annotati
         raise DataError(f"GC names {dupes} appear more than once", path=path, gc=dupes[0], field="name",
                         fix="give every GC a unique name")
     return Annotation(name=name, mesh=mesh, gcs=parsed,
-                      bound=None if bound is None else float(bound), source=path)
+                      bound=None if bound is None else float(bound), source=path,
+                      frame=read_frame(d.get("frame"), path))
 
 
 def load_annotation(path: str | os.PathLike) -> Annotation:
