@@ -1,13 +1,17 @@
 """Stage `pipeline`: the whole job, step after step, in one command.
 
     python train.py experiment=demo    # `make demo`: fit, edit, shape_latent, diffusion, sample
+    python train.py experiment=collection data.path=DIR annotate.template=T   # your meshes:
+        # annotate, shape_latent, diffusion, sample, interpolate (app/collection.py)
 
 Each step is an ordinary run of `train.py`, `edit.py` or `sample.py`, composed from its own
 config with the overrides listed under `pipeline.<step>` (what you would type after that
 command) and written to `<run>/<step>/`, exactly as the single command would write it. A step
 that reads an earlier one gets the link filled in (edit: `run=<run>/fit`,
-diffusion: `shape_latent_run=<run>/shape_latent`, sample: `run=<run>/diffusion`) unless its
-overrides set it. Every step's config is composed
+diffusion: `shape_latent_run=<run>/shape_latent`, sample and interpolate: `run=<run>/diffusion`,
+shape_latent after annotate: `data.path=<run>/annotate`) unless its overrides set it; an
+interpolation without `a` and `b` runs between two training shapes (the first and the one
+farthest from it). Every step's config is composed
 before the first one runs, so a typo fails in seconds, not after the fit. At the end the run
 directory holds `summary.json` (per step: directory, seconds, headline numbers) and
 `overview.png` (fitted, edited and generated shapes). After a failure, rerun with
@@ -24,22 +28,29 @@ from omegaconf import DictConfig, OmegaConf
 from ngc_gen.data.atomic import atomic_write_text
 from ngc_gen.data.errors import DataError
 
+from .collection import check_annotated, interpolation_pair
 from .next_hint import overrides_used
 from .stages import resolve, run_stage
 
 
 # step -> (config name, the key that holds its output directory)
-STEPS = {"fit": ("train", "run_dir"), "edit": ("edit", "out_dir"),
-         "shape_latent": ("train", "run_dir"), "diffusion": ("train", "run_dir"),
-         "sample": ("sample", "out_dir")}
+STEPS = {"annotate": ("train", "run_dir"), "fit": ("train", "run_dir"),
+         "edit": ("edit", "out_dir"), "shape_latent": ("train", "run_dir"),
+         "diffusion": ("train", "run_dir"), "sample": ("sample", "out_dir"),
+         "interpolate": ("sample", "out_dir")}
 # step -> (the step it reads, the override that points at it)
 LINKS = {"edit": ("fit", "run={}"),
          "diffusion": ("shape_latent", "shape_latent_run={}"),
-         "sample": ("diffusion", "run={}")}
+         "sample": ("diffusion", "run={}"),
+         "interpolate": ("diffusion", "run={}")}
+# links taken only when the step they read runs before (else the step reads its own data)
+OPTIONAL_LINKS = {"shape_latent": ("annotate", "data.path={}")}
 
 
 # the pipeline's steps that are not train.py stages (those go through `run_stage`)
-STEP_RUNNERS = {"edit": "ngc_gen.app.edit:run_edit", "sample": "ngc_gen.app.sample:run_sample"}
+STEP_RUNNERS = {"edit": "ngc_gen.app.edit:run_edit", "sample": "ngc_gen.app.sample:run_sample",
+                "interpolate": "ngc_gen.app.sample:run_sample"}
+TRAIN_STAGES = {"annotate", "fit", "shape_latent", "diffusion"}
 
 
 def _fail(what: str, step: str | None = None, fix: str = "") -> DataError:
@@ -83,8 +94,11 @@ def planned_steps(cfg: DictConfig, run_dir: Path) -> list[tuple[str, DictConfig,
                             step, fix=f"run {source!r} first, or give {template.format('<dir>')} "
                                       f"in pipeline.{step}")
             overrides.append(template.format(run_dir / source))
+        if step in OPTIONAL_LINKS and OPTIONAL_LINKS[step][0] in order[:i] \
+                and OPTIONAL_LINKS[step][1].split("=", 1)[0] not in keys:
+            overrides.append(OPTIONAL_LINKS[step][1].format(run_dir / OPTIONAL_LINKS[step][0]))
         overrides.append(f"{out_key}={run_dir / step}")
-        if config_name == "train":
+        if step in TRAIN_STAGES:
             overrides.append(f"stage={step}")
         try:
             composed = compose_config(config_name, overrides)
@@ -113,6 +127,16 @@ def run_step(step: str, cfg: DictConfig, overrides: list[str] | None = None) -> 
         return run_stage(cfg)
 
 
+def with_pair(cfg: DictConfig, overrides: list[str], run_dir: Path):
+    """The interpolate step's config and overrides with `a` and `b` set to two of the training
+    shapes (`collection.interpolation_pair`)."""
+    a, b = interpolation_pair(run_dir / "shape_latent")
+    cfg = cfg.copy()
+    cfg.a, cfg.b = a, b
+    print(f"interpolating {a} -> {b}", flush=True)
+    return cfg, [*overrides, f"a={a}", f"b={b}"]
+
+
 def headline(step: str, result: dict) -> dict:
     """The few numbers a person looks at first, per step."""
     r = result or {}
@@ -121,8 +145,13 @@ def headline(step: str, result: dict) -> dict:
         return {k: m.get(k) for k in ("cd", "hd", "fscore", "watertight")}
     if step == "edit":
         return {k: r.get(k) for k in ("program", "shape", "eps_v", "eps_a")}
+    if step == "annotate":
+        rows = r if isinstance(r, list) else []
+        return {"meshes": len(rows), "matched": sum("error" not in x for x in rows)}
     if step == "shape_latent":
         return {k: r.get(k) for k in ("l1", "param", "steps")}
+    if step == "interpolate":
+        return {k: r.get(k) for k in ("a", "b", "mesh_s_per_shape")}
     if step == "diffusion":
         return {k: r.get(k) for k in ("edm_loss_untrained", "edm_loss_ema", "steps")}
     return {k: r.get(k) for k in ("n", "latent_s_per_shape", "mesh_s_per_shape")}
@@ -157,7 +186,11 @@ def run_pipeline(cfg: DictConfig) -> dict:
         rerun = True
         print(head, flush=True)
         t0 = time.perf_counter()
+        if step == "interpolate" and not {"a", "b"} & {o.split("=", 1)[0] for o in overrides}:
+            step_cfg, overrides = with_pair(step_cfg, overrides, run_dir)
         result = run_step(step, step_cfg, overrides)
+        if step == "annotate":
+            check_annotated(result, step_cfg.data.path)
         seconds = time.perf_counter() - t0
         summary["steps"][step] = {"dir": str(run_dir / step), "seconds": seconds,
                                   **headline(step, result)}
@@ -189,6 +222,8 @@ def render_overview(run_dir: Path, done: list[str], per_row: int = 4, up="auto")
     from ngc_gen.viz import render_grid, render_or_warn
     from ngc_gen.viz.camera import frame_up
 
+    from .collection import collection_row
+
     def load(paths):
         return [trimesh.load(p, process=False) for p in paths[:per_row] if p.is_file()]
 
@@ -197,6 +232,12 @@ def render_overview(run_dir: Path, done: list[str], per_row: int = 4, up="auto")
         return json.loads(f.read_text()).get("frame") if f.is_file() else None
 
     rows, labels, views, ups = [], [], [], []
+    if "annotate" in done:
+        meshes, frame_up_vec = collection_row(run_dir / "annotate", per_row)
+        rows.append(meshes)
+        labels.append("your meshes")
+        views.append(None)
+        ups.append(frame_up(up, None if frame_up_vec is None else {"up": frame_up_vec}))
     if "fit" in done:
         rows.append(load(sorted((run_dir / "fit" / "meshes").glob("*.ply"))))
         labels.append("fitted")

@@ -151,6 +151,16 @@ def check_inputs(cfg: DictConfig) -> None:
         from ngc_gen.data.preflight import check_data
 
         check_data(OmegaConf.to_container(data, resolve=True, throw_on_missing=True))
+    if cfg.stage == "shape_latent" and data is not None:
+        from omegaconf import OmegaConf
+
+        from ngc_gen.data.preflight import check_frames
+
+        check_frames(OmegaConf.to_container(data, resolve=True, throw_on_missing=True))
+    if cfg.stage == "pipeline" and cfg.get("pipeline") is not None:
+        from .collection import check_collection
+
+        check_collection(cfg)
 
 
 def run_stage(cfg: DictConfig):

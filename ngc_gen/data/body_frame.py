@@ -10,11 +10,11 @@ the rotation R taking the mesh file's own coordinates to the written ones, befor
 up x front. Normalisation is a similarity without rotation, so a frame holds before and after
 it. A collection trains one generator only when all its shapes share up and front
 (`collection_frame`); the generator then records that frame and every picture, edit and sample
-of it uses it. Torch-free: checked before heavy imports.
+of it uses it. Torch-free: checked before heavy imports (numpy loads only to read a frame).
 """
 from __future__ import annotations
 
-import numpy as np
+import math
 
 from ngc_gen.data.errors import DataError
 
@@ -25,6 +25,8 @@ SAME_FRAME_DEGREES = 1.0
 
 
 def _unit(v, path, fld: str) -> tuple[float, float, float]:
+    import numpy as np
+
     try:
         a = np.asarray(v, dtype=np.float64)
     except (TypeError, ValueError):
@@ -40,6 +42,8 @@ def _unit(v, path, fld: str) -> tuple[float, float, float]:
 def read_frame(f, path=None) -> dict | None:
     """An annotation's `frame` value checked: {up, front} unit and orthogonal, `from_mesh` a
     rotation, `source` one of SOURCES. None stays None. DataError naming the file and field."""
+    import numpy as np
+
     if f is None:
         return None
     if not isinstance(f, dict) or not {"up", "front"} <= set(f) or set(f) - set(FRAME_KEYS):
@@ -80,18 +84,28 @@ def frame_dict(frame: dict | None) -> dict | None:
 
 def body_axes(frame: dict) -> dict[str, np.ndarray]:
     """{forward, up, left} unit (3,) float64 vectors of a frame (left = up x front)."""
+    import numpy as np
+
     up = np.asarray(frame["up"], dtype=np.float64)
     front = np.asarray(frame["front"], dtype=np.float64)
     return {"forward": front, "up": up, "left": np.cross(up, front)}
 
 
 def _angle(a, b) -> float:
-    return float(np.degrees(np.arccos(np.clip(np.dot(a, b), -1.0, 1.0))))
+    """Degrees between two 3-vectors (pure Python: the preflight runs before numpy loads)."""
+    na, nb = math.sqrt(sum(x * x for x in a)), math.sqrt(sum(x * x for x in b))
+    c = sum(x * y for x, y in zip(a, b)) / max(na * nb, 1e-300)
+    return math.degrees(math.acos(max(-1.0, min(1.0, c))))
+
+
+def _rounded(v) -> list[float]:
+    n = math.sqrt(sum(x * x for x in v)) or 1.0
+    return [round(x / n, 3) + 0.0 for x in v]
 
 
 def collection_frame(frames: list[tuple[str, dict | None]]) -> dict | None:
     """The one frame of a collection: {up, front} shared by every shape, or None when no shape
-    records one. DataError naming two shapes when they differ, or when some record a frame and
+    records one (frames as `read_frame` gives them, or raw {up, front} of an annotation file). DataError naming two shapes when they differ, or when some record a frame and
     others do not (a folder mixing annotated and unannotated orientations)."""
     given = [(n, f) for n, f in frames if f is not None]
     if not given:
@@ -108,11 +122,11 @@ def collection_frame(frames: list[tuple[str, dict | None]]) -> dict | None:
     for n, f in given[1:]:
         if _angle(f["up"], f0["up"]) > SAME_FRAME_DEGREES or \
                 _angle(f["front"], f0["front"]) > SAME_FRAME_DEGREES:
-            raise DataError(f"{n} is written facing {list(np.round(f['front'], 3))}, up "
-                            f"{list(np.round(f['up'], 3))}, but {name0} facing "
-                            f"{list(np.round(f0['front'], 3))}, up {list(np.round(f0['up'], 3))}:"
-                            f" one generator needs one body frame", field="frame", fix=fix)
-    return {"up": list(f0["up"]), "front": list(f0["front"])}
+            raise DataError(f"{n} is written facing {_rounded(f['front'])}, up "
+                            f"{_rounded(f['up'])}, but {name0} facing {_rounded(f0['front'])}, "
+                            f"up {_rounded(f0['up'])}, with no rotation recorded between them: "
+                            f"one generator needs one body frame", field="frame", fix=fix)
+    return {"up": [float(x) for x in f0["up"]], "front": [float(x) for x in f0["front"]]}
 
 
 def shared_frame(frames: list[dict | None]) -> dict | None:

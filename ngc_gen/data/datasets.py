@@ -10,7 +10,7 @@ from pathlib import Path
 from ngc_gen.data.annotations import Annotation, load_annotation
 from ngc_gen.data.autogc.auto import AutoGCSettings, auto_annotation
 from ngc_gen.data.errors import DataError
-from ngc_gen.data.mesh_folder import mesh_files
+from ngc_gen.data.mesh_folder import annotation_files, mesh_files
 
 
 
@@ -66,10 +66,12 @@ class MeshFolder:
         self.settings = AutoGCSettings.from_config(annotate) if annotate is not None else AutoGCSettings()
 
     def mesh_files(self) -> list[Path]:
-        """The folder's mesh files, sorted by name."""
-        return mesh_files(self.path)
+        """The folder's mesh files, sorted by name ([] for an annotate run's folder)."""
+        return mesh_files(self.path, annotated_run=True)
 
     def shapes(self) -> list[Annotation]:
+        if not self.mesh_files():  # an annotate run's folder: its annotations
+            return [load_annotation(y) for y in annotation_files(self.path)]
         out = []
         for mesh in self.mesh_files():
             yml = mesh.with_suffix(".yaml")

@@ -11,7 +11,7 @@ from pathlib import Path
 from ngc_gen.data.annotation_file import read_annotation_yaml
 from ngc_gen.data.errors import DataError
 from ngc_gen.data.mesh.header import check_mesh_file
-from ngc_gen.data.mesh_folder import mesh_files
+from ngc_gen.data.mesh_folder import annotation_files, mesh_files
 
 RESOURCE_PREFIXES = ("pyvista:",)  # shipped meshes (`mesh.io.RESOURCE_SCHEMES`): read later
 
@@ -60,7 +60,9 @@ def check_data(node) -> None:
         for a in node.get("annotations") or []:
             check_annotation_file(a)
     elif target == "MeshFolder":
-        for mesh in mesh_files(node["path"]):
+        for yml in annotation_files(node["path"]):  # an annotate run's folder
+            check_annotation_file(yml)
+        for mesh in mesh_files(node["path"], annotated_run=True):
             yml = mesh.with_suffix(".yaml")
             if yml.exists():
                 check_annotation_file(yml)
@@ -70,3 +72,31 @@ def check_data(node) -> None:
         check_data(node.get("parts"))
     elif target == "SingleGC":
         check_data(node.get("base"))
+
+
+def check_frames(node) -> None:
+    """The annotation files a MeshFolder or AnnotatedShapes config reads share one body frame
+    (`body_frame.collection_frame` on their `frame` keys, YAML only): what a generator needs,
+    refused in a second instead of after the meshes are read. A mesh without a YAML has no
+    frame of its own and does not count."""
+    from ngc_gen.data.body_frame import collection_frame
+
+    if not isinstance(node, dict):
+        return
+    target = str(node.get("_target_", "")).rsplit(".", 1)[-1]
+    if target == "AnnotatedShapes":
+        files = [Path(a) for a in node.get("annotations") or []]
+    elif target == "MeshFolder":
+        files = annotation_files(node["path"]) or [
+            m.with_suffix(".yaml") for m in mesh_files(node["path"])
+            if m.with_suffix(".yaml").exists()]
+    else:
+        return
+    frames = []
+    for f in files:
+        d = read_annotation_yaml(f)
+        frame = d.get("frame") if isinstance(d, dict) else None
+        ok = isinstance(frame, dict) and all(
+            isinstance(frame.get(k), list) and len(frame[k]) == 3 for k in ("up", "front"))
+        frames.append((f.stem, frame if ok else None))
+    collection_frame(frames)
