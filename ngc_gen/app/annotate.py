@@ -29,6 +29,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from ngc_gen.data.annotations import Annotation
 from ngc_gen.data.atomic import atomic_write_text
+from ngc_gen.data.body_frame import read_frame
 from ngc_gen.data.autogc.auto import AutoGCSettings, auto_annotation
 from ngc_gen.data.autogc.calibrate import calibrate_ends
 from ngc_gen.data.autogc.coverage import coverage_stats
@@ -186,7 +187,11 @@ def run_transfer(cfg: DictConfig, run_dir: Path, conf: dict) -> list[dict]:
             print(f"{name}: {e}")
             continue
         seconds = time.perf_counter() - t0
-        ann = Annotation(name=name, mesh=str(Path(mesh_file).resolve()), gcs=tr.gcs, bound=bound)
+        o = tr.orientation  # the frame the GCs are written in (the mesh's own coordinates)
+        ann = Annotation(name=name, mesh=str(Path(mesh_file).resolve()), gcs=tr.gcs, bound=bound,
+                         frame=read_frame({"up": o.up.tolist(), "front": o.front.tolist(),
+                                           "source": "given" if "given" in o.source
+                                           else "detected"}))
         points = _surface(mesh, st.seed)
         stats = coverage_stats(ann.gcs, points)
         _write_yaml(ann, run_dir / f"{name}.yaml")
