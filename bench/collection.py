@@ -17,7 +17,8 @@ template GC holds >= 0.2% of 5000 surface samples), copy (squared Chamfer, 2048 
 way, to its nearest training mesh below half the median nearest-neighbour Chamfer among the
 training meshes; all in the normalised frame, longest side 1.6). Shares over the samples.
 `minutes_demo_collection`: `make demo-collection`'s summary.json (--demo-run), else the last
-recorded value. Writes bench/results/collection.json.
+recorded value. Writes bench/results/collection.json and collection.png (training animals and
+each recipe's first samples).
 """
 from __future__ import annotations
 
@@ -147,6 +148,26 @@ def score_samples(summary: dict, train_pts: dict, copy_below: float) -> dict:
             "copies": sum(r["copy"] for r in rows.values()) / n, "per_sample": rows}
 
 
+def render(args, path: Path, per_row: int = 6) -> None:
+    """collection.png: training animals, then the samples of each recipe, upright in the
+    collection's frame."""
+    import trimesh
+    from hydra.utils import instantiate
+
+    from ngc_gen.app.config import compose_config
+    from ngc_gen.data.mesh.io import load_mesh, normalize
+    from ngc_gen.viz import render_grid, render_or_warn
+
+    data = instantiate(compose_config("train", [*data_overrides(args), "run_dir=."]).data)
+    train = [normalize(load_mesh(a.mesh_path), a.bound)[0] for a in data.shapes()][:per_row]
+    rows, labels = [train], ["training animals"]
+    for recipe in ("small", "small_default"):
+        files = sorted((RUNS / f"samples_{recipe}").glob("sample_*.ply"))[:per_row]
+        rows.append([trimesh.load(f, process=False) for f in files])
+        labels.append(f"generated: {recipe}")
+    render_or_warn(render_grid, path, rows, labels=labels, frame="row", up=list(data.frame["up"]))
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--species", nargs="+", default=SPECIES)
@@ -156,8 +177,22 @@ def main():
     ap.add_argument("--resolution", type=int, default=96)
     ap.add_argument("--demo-run", type=Path, default=None,
                     help="a `make demo-collection` run directory (its summary.json's minutes)")
+    ap.add_argument("--demo-only", action="store_true",
+                    help="only record --demo-run's minutes in the existing results")
+    ap.add_argument("--picture-only", action="store_true",
+                    help="only draw bench/results/collection.png from the bench's runs")
     args = ap.parse_args()
     bench = Bench("collection")
+    if args.picture_only:
+        render(args, bench.results / "collection.png")
+        return
+    if args.demo_only:
+        old = json.loads(bench.path.read_text()) if bench.path.is_file() else {}
+        old.pop("machine", None)
+        minutes = json.loads((args.demo_run / "summary.json").read_text())["total_s"] / 60
+        print(f"make demo-collection: {minutes:.1f} min")
+        print(f"wrote {bench.write({**old, 'minutes_demo_collection': minutes})}")
+        return
     from ngc_gen.app.cli import set_threads
     from ngc_gen.app.sample import generate
     from ngc_gen.generate import load_generator
@@ -194,6 +229,7 @@ def main():
                            "all_gcs": f"every GC holds >= {GC_SHARE} of the surface samples"},
               "train_s": trained["train_s"]}
     print(f"wrote {bench.write(result)}")
+    render(args, bench.results / "collection.png")
 
 
 if __name__ == "__main__":

@@ -86,11 +86,10 @@ def collection_row(annotate_dir: Path, limit: int = 4):
 
     from ngc_gen.data.annotations import load_annotation
     from ngc_gen.data.mesh.io import load_mesh
+    from ngc_gen.data.mesh_folder import annotation_files
 
     meshes, up = [], None
-    for y in sorted(Path(annotate_dir).glob("*.yaml"))[:limit]:
-        if y.name == "config.yaml":
-            continue
+    for y in annotation_files(annotate_dir)[:limit]:
         try:
             ann = load_annotation(y)
             mesh = load_mesh(ann.mesh_path)
