@@ -43,7 +43,7 @@ WHOLE, GC_SHARE, N_POINTS = 0.99, 0.002, 2048
 def recipe_steps(step: str) -> list[str]:
     """The collection recipe's overrides of one step (conf/experiment/collection.yaml), without
     the links and the data the pipeline fills in."""
-    from ngc_gen.app.config import compose_config
+    from ngc_gen.app.runtime.config import compose_config
 
     cfg = compose_config("train", ["experiment=collection", "data.path=.",
                                    f"annotate.template={TEMPLATE}", "run_dir=."])
@@ -64,8 +64,8 @@ def data_overrides(args) -> list[str]:
 def train(args) -> dict:
     """The shape-latent run and the two diffusion runs (reused when their directory holds a
     finished run of the same steps)."""
-    from ngc_gen.app.config import compose_config
-    from ngc_gen.app.stages import run_stage
+    from ngc_gen.app.runtime.config import compose_config
+    from ngc_gen.app.stages.registry import run_stage
 
     runs = {"shape_latent": RUNS / "shape_latent", "small": RUNS / "small",
             "small_default": RUNS / "small_default"}
@@ -108,7 +108,7 @@ def training_points(args) -> dict[str, np.ndarray]:
     """The training meshes' surface points in the normalised frame."""
     from hydra.utils import instantiate
 
-    from ngc_gen.app.config import compose_config
+    from ngc_gen.app.runtime.config import compose_config
     from ngc_gen.data.mesh.io import load_mesh, normalize
 
     data = instantiate(compose_config("train", [*data_overrides(args), "run_dir=."]).data)
@@ -154,7 +154,7 @@ def render(args, path: Path, per_row: int = 6) -> None:
     import trimesh
     from hydra.utils import instantiate
 
-    from ngc_gen.app.config import compose_config
+    from ngc_gen.app.runtime.config import compose_config
     from ngc_gen.data.mesh.io import load_mesh, normalize
     from ngc_gen.viz import render_grid, render_or_warn
 
@@ -193,8 +193,8 @@ def main():
         print(f"make demo-collection: {minutes:.1f} min")
         print(f"wrote {bench.write({**old, 'minutes_demo_collection': minutes})}")
         return
-    from ngc_gen.app.cli import set_threads
-    from ngc_gen.app.sample import generate
+    from ngc_gen.app.runtime.cli import set_threads
+    from ngc_gen.app.stages.sample import generate
     from ngc_gen.generate import load_generator
 
     set_threads(1)

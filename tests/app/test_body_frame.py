@@ -6,7 +6,7 @@ import pytest
 import torch
 import trimesh
 
-from ngc_gen.app.shape_latent import check_layouts
+from ngc_gen.app.stages.train_shape_latent import check_layouts
 from ngc_gen.data.annotations import Annotation, load_annotation
 from ngc_gen.data.body_frame import body_axes, collection_frame, read_frame
 from ngc_gen.data.errors import DataError
@@ -66,7 +66,7 @@ def test_generated_shapes_carry_the_frame_to_edits_and_pictures(tmp_path, gc_dic
 
 
 def test_the_animals_record_their_frame():
-    from ngc_gen.app.config import compose_config
+    from ngc_gen.app.runtime.config import compose_config
     from hydra.utils import instantiate
 
     data = instantiate(compose_config("train", ["data=animals", "run_dir=x"]).data)

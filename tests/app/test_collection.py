@@ -11,8 +11,8 @@ import torch
 import trimesh
 import yaml
 
-from ngc_gen.app.collection import check_annotated, interpolation_pair
-from ngc_gen.app.pipeline import planned_steps
+from ngc_gen.app.stages.collection import check_annotated, interpolation_pair
+from ngc_gen.app.stages.pipeline import planned_steps
 from ngc_gen.data.errors import DataError
 
 from ..conftest import straight_gc
@@ -92,8 +92,8 @@ def test_the_interpolation_runs_between_two_of_the_users_meshes(tmp_path):
 
 CHECK = """
 import sys
-from ngc_gen.app.config import compose_config
-from ngc_gen.app.stages import check_inputs
+from ngc_gen.app.runtime.config import compose_config
+from ngc_gen.app.stages.registry import check_inputs
 from ngc_gen.data.errors import DataError
 cfg = compose_config("train", sys.argv[1:])
 try:

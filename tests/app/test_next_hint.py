@@ -1,8 +1,8 @@
 """The `next:` hint repeats the recipe's overrides, so the printed command continues it."""
 import shlex
 
-from ngc_gen.app.config import compose_config
-from ngc_gen.app.next_hint import SAMPLE_KEYS, next_command, overrides_used
+from ngc_gen.app.runtime.config import compose_config
+from ngc_gen.app.runtime.next_hint import SAMPLE_KEYS, next_command, overrides_used
 
 
 GIVEN = ["experiment=generate", "data=folder", "data.path=/tmp/my meshes",

@@ -2,7 +2,7 @@
 
     python train.py experiment=demo    # `make demo`: fit, edit, shape_latent, diffusion, sample
     python train.py experiment=collection data.path=DIR annotate.template=T   # your meshes:
-        # annotate, shape_latent, diffusion, sample, interpolate (app/collection.py)
+        # annotate, shape_latent, diffusion, sample, interpolate (stages/collection.py)
 
 Each step is an ordinary run of `train.py`, `edit.py` or `sample.py`, composed from its own
 config with the overrides listed under `pipeline.<step>` (what you would type after that
@@ -28,9 +28,9 @@ from omegaconf import DictConfig, OmegaConf
 from ngc_gen.data.atomic import atomic_write_text
 from ngc_gen.data.errors import DataError
 
+from ..runtime.next_hint import overrides_used
 from .collection import check_annotated, interpolation_pair
-from .next_hint import overrides_used
-from .stages import resolve, run_stage
+from .registry import COMMANDS, run_stage
 
 
 # step -> (config name, the key that holds its output directory)
@@ -47,10 +47,8 @@ LINKS = {"edit": ("fit", "run={}"),
 OPTIONAL_LINKS = {"shape_latent": ("annotate", "data.path={}")}
 
 
-# the pipeline's steps that are not train.py stages (those go through `run_stage`)
-STEP_RUNNERS = {"edit": "ngc_gen.app.edit:run_edit", "sample": "ngc_gen.app.sample:run_sample",
-                "interpolate": "ngc_gen.app.sample:run_sample"}
-TRAIN_STAGES = {"annotate", "fit", "shape_latent", "diffusion"}
+# the pipeline's steps that are commands (edit.py, sample.py), not train.py stages
+STEP_COMMANDS = {"edit": "edit", "sample": "sample", "interpolate": "sample"}
 
 
 def _fail(what: str, step: str | None = None, fix: str = "") -> DataError:
@@ -66,7 +64,7 @@ def plan(cfg: DictConfig, run_dir: Path) -> list[tuple[str, DictConfig]]:
 def planned_steps(cfg: DictConfig, run_dir: Path) -> list[tuple[str, DictConfig, list[str]]]:
     """`plan`'s steps with the overrides each was composed from (its `next:` hint repeats
     them)."""
-    from .config import compose_config
+    from ..runtime.config import compose_config
 
     p = cfg.get("pipeline")
     if not p or not p.get("steps"):
@@ -98,7 +96,7 @@ def planned_steps(cfg: DictConfig, run_dir: Path) -> list[tuple[str, DictConfig,
                 and OPTIONAL_LINKS[step][1].split("=", 1)[0] not in keys:
             overrides.append(OPTIONAL_LINKS[step][1].format(run_dir / OPTIONAL_LINKS[step][0]))
         overrides.append(f"{out_key}={run_dir / step}")
-        if step in TRAIN_STAGES:
+        if step not in STEP_COMMANDS:
             overrides.append(f"stage={step}")
         try:
             composed = compose_config(config_name, overrides)
@@ -118,12 +116,12 @@ def planned_steps(cfg: DictConfig, run_dir: Path) -> list[tuple[str, DictConfig,
 
 def run_step(step: str, cfg: DictConfig, overrides: list[str] | None = None) -> dict:
     """Run one composed step; `overrides` (what it was composed from) go into its hints."""
-    from .cli import set_threads
+    from ..runtime.cli import set_threads
 
     set_threads(cfg.get("threads"))
     with overrides_used(overrides if overrides is not None else []):
-        if step in STEP_RUNNERS:
-            return resolve(STEP_RUNNERS[step])(cfg)
+        if step in STEP_COMMANDS:  # edit, sample, interpolate; the others are train.py stages
+            return COMMANDS[STEP_COMMANDS[step]].run(cfg)
         return run_stage(cfg)
 
 
