@@ -24,7 +24,7 @@ SOURCES = ("detected", "given", "override", "dataset", "model")
 SAME_FRAME_DEGREES = 1.0
 
 
-def _unit(v, path, fld: str) -> tuple[float, float, float]:
+def _unit(v, path, fld: str) -> list[float]:
     import numpy as np
 
     try:
@@ -36,7 +36,7 @@ def _unit(v, path, fld: str) -> tuple[float, float, float]:
                         path=path, field=f"frame.{fld}", fix="e.g. frame: {up: [0, 1, 0], "
                         "front: [0, 0, 1]}")
     a = a / np.linalg.norm(a)
-    return tuple(float(x) for x in a)
+    return [float(x) for x in a]
 
 
 def read_frame(f, path=None) -> dict | None:

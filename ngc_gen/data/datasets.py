@@ -10,7 +10,7 @@ from pathlib import Path
 from ngc_gen.data.annotations import Annotation, load_annotation
 from ngc_gen.data.autogc.auto import AutoGCSettings, auto_annotation
 from ngc_gen.data.errors import DataError
-from ngc_gen.data.mesh_folder import annotation_files, mesh_files
+from ngc_gen.data.mesh_folder import mesh_files, run_annotations
 
 
 
@@ -56,7 +56,9 @@ class Combined:
 
 class MeshFolder:
     """Any directory of meshes; `<name>.yaml` beside a mesh annotates it, else automatic GCs
-    made with `annotate` (the `annotate` config group; default: one GC per limb or part)."""
+    made with `annotate` (the `annotate` config group; default: one GC per limb or part). A
+    folder with annotations and no meshes (a `stage=annotate` run directory) is its
+    annotations."""
 
     def __init__(self, name: str, path: str, bound: float = 0.8, annotate=None):
         self.name = name
@@ -66,12 +68,13 @@ class MeshFolder:
         self.settings = AutoGCSettings.from_config(annotate) if annotate is not None else AutoGCSettings()
 
     def mesh_files(self) -> list[Path]:
-        """The folder's mesh files, sorted by name ([] for an annotate run's folder)."""
-        return mesh_files(self.path, annotated_run=True)
+        """The folder's mesh files, sorted by name."""
+        return mesh_files(self.path)
 
     def shapes(self) -> list[Annotation]:
-        if not self.mesh_files():  # an annotate run's folder: its annotations
-            return [load_annotation(y) for y in annotation_files(self.path)]
+        annotated = run_annotations(self.path)  # a stage=annotate run directory
+        if annotated:
+            return [load_annotation(a) for a in annotated]
         out = []
         for mesh in self.mesh_files():
             yml = mesh.with_suffix(".yaml")

@@ -11,7 +11,7 @@ from pathlib import Path
 from ngc_gen.data.annotation_file import read_annotation_yaml
 from ngc_gen.data.errors import DataError
 from ngc_gen.data.mesh.header import check_mesh_file
-from ngc_gen.data.mesh_folder import annotation_files, mesh_files
+from ngc_gen.data.mesh_folder import mesh_files, run_annotations
 
 RESOURCE_PREFIXES = ("pyvista:",)  # shipped meshes (`mesh.io.RESOURCE_SCHEMES`): read later
 
@@ -59,10 +59,11 @@ def check_data(node) -> None:
     if target == "AnnotatedShapes":
         for a in node.get("annotations") or []:
             check_annotation_file(a)
+    elif target == "MeshFolder" and run_annotations(node["path"]):
+        for a in run_annotations(node["path"]):
+            check_annotation_file(a)
     elif target == "MeshFolder":
-        for yml in annotation_files(node["path"]):  # an annotate run's folder
-            check_annotation_file(yml)
-        for mesh in mesh_files(node["path"], annotated_run=True):
+        for mesh in mesh_files(node["path"]):
             yml = mesh.with_suffix(".yaml")
             if yml.exists():
                 check_annotation_file(yml)
@@ -87,7 +88,7 @@ def check_frames(node) -> None:
     if target == "AnnotatedShapes":
         files = [Path(a) for a in node.get("annotations") or []]
     elif target == "MeshFolder":
-        files = annotation_files(node["path"]) or [
+        files = run_annotations(node["path"]) or [
             m.with_suffix(".yaml") for m in mesh_files(node["path"])
             if m.with_suffix(".yaml").exists()]
     else:

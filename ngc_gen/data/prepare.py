@@ -27,7 +27,7 @@ import yaml
 from ngc_gen.data.annotations import Annotation, annotation_from_dict, load_annotation
 from ngc_gen.data.atomic import atomic_write
 from ngc_gen.data.errors import DataError
-from ngc_gen.data.mesh.io import load_mesh, normalize
+from ngc_gen.data.mesh.io import load_mesh
 from ngc_gen.data.mesh.sampling import gc_membership, sample_surface, sample_volume
 from ngc_gen.data.mesh.sdf import signed_distance
 from ngc_gen.geometry import GeneralizedCylinder
@@ -243,7 +243,7 @@ def compute_prepared(ann: Annotation, settings: PrepareSettings, key: str = "") 
     """Sample one shape (no cache involved); raises DataError on bad data or low coverage."""
     rng = np.random.default_rng(settings.seed)
     try:
-        mesh, center, scale = normalize(load_mesh(ann.mesh_path), ann.bound)
+        mesh, center, scale = ann.load_mesh()
         V, F = np.asarray(mesh.vertices), np.asarray(mesh.faces)
         exact, _ = sample_surface(V, F, settings.coverage_samples, rng)
     except DataError as e:

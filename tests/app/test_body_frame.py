@@ -39,7 +39,7 @@ def test_a_collection_has_one_frame_or_is_refused(gc_dict):
 
 def test_a_bad_frame_names_the_field(write_yaml, sphere_file, gc_dict):
     d = {"name": "s", "mesh": sphere_file.name, "gcs": [gc_dict("body", -0.3, 0.3)]}
-    assert load_annotation(write_yaml({**d, "frame": Y_UP})).frame["up"] == (0.0, 1.0, 0.0)
+    assert load_annotation(write_yaml({**d, "frame": Y_UP})).frame["up"] == [0.0, 1.0, 0.0]
     with pytest.raises(DataError, match="frame.up"):
         load_annotation(write_yaml({**d, "frame": {"up": [0, 0, 0], "front": [1, 0, 0]}}))
     with pytest.raises(DataError, match="not perpendicular"):
@@ -54,7 +54,7 @@ def test_generated_shapes_carry_the_frame_to_edits_and_pictures(tmp_path, gc_dic
     assert not np.allclose(resolve_up("auto", [mesh]), [0, 1, 0])  # ...turned, it says z
     gc = gc_dict("torso", -0.3, 0.3)
     written = write_shape(tmp_path, "sample_000", mesh, [gc], torch.zeros(1, 8), body=Y_UP)
-    assert load_annotation(written.annotation).frame["up"] == (0.0, 1.0, 0.0)
+    assert load_annotation(written.annotation).frame["up"] == [0.0, 1.0, 0.0]
     ngc = NGCDecoder(8, 8, 8, 1, 8, 1, 1)
     write_edit_checkpoint(tmp_path / "shapes.ckpt", ngc, [written])
     shape = load_shapes(tmp_path / "shapes.ckpt")["sample_000"]
@@ -70,6 +70,6 @@ def test_the_animals_record_their_frame():
     from hydra.utils import instantiate
 
     data = instantiate(compose_config("train", ["data=animals", "run_dir=x"]).data)
-    assert data.frame["up"] == (0.0, 1.0, 0.0) and data.frame["front"] == (0.0, 0.0, 1.0)
+    assert data.frame["up"] == [0.0, 1.0, 0.0] and data.frame["front"] == [0.0, 0.0, 1.0]
     assert collection_frame([("a", data.frame)]) == {"up": [0.0, 1.0, 0.0],
                                                      "front": [0.0, 0.0, 1.0]}

@@ -81,25 +81,16 @@ def interpolation_pair(shape_latent_dir: Path) -> tuple[str, str]:
 
 def collection_row(annotate_dir: Path, limit: int = 4):
     """(meshes, up) of the overview's first row: the first annotated meshes as written (in the
-    template's frame: their recorded rotation applied), and that frame's up (None: none)."""
-    import numpy as np
-
+    template's frame: `Annotation.load_mesh` turns them), and that frame's up (None: none)."""
     from ngc_gen.data.annotations import load_annotation
-    from ngc_gen.data.mesh.io import load_mesh
-    from ngc_gen.data.mesh_folder import annotation_files
+    from ngc_gen.data.mesh_folder import run_annotations
 
     meshes, up = [], None
-    for y in annotation_files(annotate_dir)[:limit]:
+    for y in run_annotations(annotate_dir)[:limit]:
         try:
             ann = load_annotation(y)
-            mesh = load_mesh(ann.mesh_path)
+            meshes.append(ann.load_mesh()[0])
         except (DataError, OSError):
             continue
-        frame = ann.frame or {}
-        if frame.get("from_mesh") is not None:
-            R = np.eye(4)
-            R[:3, :3] = np.asarray(frame["from_mesh"])
-            mesh.apply_transform(R)
-        up = up or (list(frame["up"]) if frame else None)
-        meshes.append(mesh)
+        up = up or (list(ann.frame["up"]) if ann.frame else None)
     return meshes, up

@@ -50,7 +50,9 @@ from scipy.spatial import cKDTree
 
 from ngc_gen.data.autogc.branches import branch_graph, junction_key
 from ngc_gen.data.autogc.coverage import grow_to_cover, rho_matrix
-from ngc_gen.data.autogc.orient import Orientation, detect_orientation, parse_axis
+from ngc_gen.data.autogc.choose_frame import choose
+from ngc_gen.data.autogc.frame import to_template
+from ngc_gen.data.autogc.orient import Orientation, parse_axis
 from ngc_gen.data.autogc.skeleton import BACKENDS, local_thickness, proxy_skeleton
 from ngc_gen.data.autogc.template import AT_KEYS, Template, TemplateGC
 from ngc_gen.data.errors import DataError
@@ -130,6 +132,10 @@ class Transfer:
     cost: float
     orientation: Orientation
     coverage: float
+    rotation: np.ndarray   # (3, 3): the template's frame = rotation @ this mesh's (frame.py)
+    confidence: float      # choose_frame.Choice.confidence
+    warnings: list[str]    # a given axis overruled
+    source: str            # the frame: detected | given | override
 
 
 # ---- the body frame ------------------------------------------------------------------------
@@ -685,9 +691,12 @@ def _curve_points(gc: GeneralizedCylinder, n: int = 64) -> np.ndarray:
 
 
 def transfer_template(mesh: trimesh.Trimesh, template: Template,
-                      settings: TransferSettings | None = None, where: str | None = None) -> Transfer:
-    """The template's GCs on a (normalised) mesh (module docstring). DataError naming `where`
-    when the mesh does not match the template."""
+                      settings: TransferSettings | None = None, where: str | None = None,
+                      override: Orientation | None = None) -> Transfer:
+    """The template's GCs on a (normalised) mesh (module docstring), in the mesh's coordinates;
+    `rotation` turns them into the template's frame (``written``). override: the user's frame
+    for this mesh (frame.read_override). DataError naming `where` when the mesh does not match
+    the template in any orientation."""
     st = settings or TransferSettings()
     if not template.placed:
         lacking = [g.name for g in template.gcs if g.place is None][:3]
@@ -710,11 +719,12 @@ def transfer_template(mesh: trimesh.Trimesh, template: Template,
     volumes = [float(np.linalg.norm(np.diff(c, axis=0), axis=1).sum()) * tree.branch_r[b] ** 2
                for c, b in zip(curves, branch_ids)]
     up, front = parse_axis(st.up, "annotate.up"), parse_axis(st.front, "annotate.front")
-    orientation = detect_orientation(curves, volumes, None, up, front, surface)
-    body = BodyFrame.of(surface, orientation)
-    # the template's up vectors turned into the collection's frame: with the axes given, the
-    # same for every mesh of the folder (one shape-latent layout), also for a mesh retried below
+    choice = choose(template, tree, surface, st, where, curves, volumes, up, front, override)
+    orientation, body, found = choice.trial.orientation, choice.trial.body, choice.trial.found
+    # the template's up vectors turned into this mesh's frame: written in the template's frame
+    # (rotation R below) every mesh's are the template's own (one shape-latent layout)
     M = template_rotation(template, orientation)
+
     def attempt(on: Tree, frame: BodyFrame):
         """correspond's match, or the DataError that refuses it."""
         try:
@@ -722,22 +732,6 @@ def transfer_template(mesh: trimesh.Trimesh, template: Template,
         except DataError as e:
             return e
 
-    found = attempt(tree, body)
-    if isinstance(found, DataError) and up is None:
-        raise found
-    if up is not None and (isinstance(found, DataError) or found[2]):
-        # the collection's up, given, does not hold for this mesh (an animal lying on its
-        # side: refused, or parts missing): once more with its own up detected, the given
-        # front kept; the better match (fewer parts missing, then the lower cost) stays
-        own = detect_orientation(curves, volumes, None, None, front, surface)
-        own_body = BodyFrame.of(surface, own)
-        again = attempt(tree, own_body)
-        if isinstance(again, DataError):
-            if isinstance(found, DataError):
-                raise again
-        elif isinstance(found, DataError) or \
-                (len(again[2]), again[3]) < (len(found[2]), found[3]):
-            orientation, body, found = own, own_body, again
     paths, labels, missing, cost = found
     if missing:  # a stubby part (a short tail) pruned with the spurs: once more with finer ones
         fine = skeleton_tree(sk, thick, FINER * st.min_branch_length, st.max_gcs)
@@ -836,7 +830,11 @@ def transfer_template(mesh: trimesh.Trimesh, template: Template,
     pp, _, _ = gc_membership(surface, ordered)
     coverage = float((np.bincount(pp, minlength=len(surface)) > 0).mean())
     return Transfer(gcs=ordered, matched=matched, missing=missing, cost=cost,
-                    orientation=orientation, coverage=coverage)
+                    orientation=orientation, coverage=coverage,
+                    rotation=to_template(orientation, Orientation(template.up, template.front)),
+                    confidence=choice.confidence, warnings=choice.warnings,
+                    source="override" if override is not None else
+                    "given" if "given" in orientation.source else "detected")
 
 
 # ---- templates from annotated meshes -------------------------------------------------------
