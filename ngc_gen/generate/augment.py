@@ -9,7 +9,8 @@ learns a neighbourhood around each, and between them.
 
 `edited_latents` draws `copies` edits of every training shape, each of every GC at once:
 - swing: every GC but the root turns about its start by an angle in [-swing, swing] degrees
-  about a random axis normal to its chord; the GCs attached to it turn with it;
+  about a random axis normal to its chord; the GCs attached to it turn with it (a GC much
+  shorter than the root, an ear, only turns with its parent);
 - stretch: every GC's control points scale about its start by a factor in `stretch`; the GCs
   attached to it move with the point they sit at;
 - scale: every GC's radii by a factor in `scale`; twist: every key's twist by an angle in
@@ -42,12 +43,16 @@ def _random_rotations(axes_normal_to: np.ndarray, degrees: np.ndarray,
 
 def edit_parameters(theta: np.ndarray, pt: PoseTransfer, rng: np.random.Generator,
                     swing: float = 20.0, stretch=(0.9, 1.1), scale=(0.9, 1.1),
-                    twist: float = 0.0) -> np.ndarray:
+                    twist: float = 0.0, swing_min_length: float = 0.25) -> np.ndarray:
     """(N, P) raw GC parameters -> (N, P) each randomly edited (module docstring); `pt` gives
-    the template's layout and parent tree."""
+    the template's layout and parent tree. A GC whose chord is shorter than
+    `swing_min_length` times the root's (an ear, an antler) only follows its parent: swung
+    about its start it sinks into the part it sits on."""
     theta = np.asarray(theta, np.float64)
     out, n = theta.copy(), len(theta)
     rows = np.arange(n)
+    root = pt.points(theta, pt.root)
+    root_len = np.linalg.norm(root[:, -1] - root[:, 0], axis=1)
     moved = {}   # GC -> (old points, new points): where its children's starts go
     turn = {}    # GC -> (N, 3, 3) rotation its children inherit
     for g in pt.order:
@@ -60,7 +65,9 @@ def edit_parameters(theta: np.ndarray, pt: PoseTransfer, rng: np.random.Generato
             k = ((old_par - P[:, :1]) ** 2).sum(-1).argmin(1)       # the point it sits at
             start = new_par[rows, k] + np.einsum("nij,nj->ni", turn[par],
                                                  P[:, 0] - old_par[rows, k])
-            own = _random_rotations(P[:, -1] - P[:, 0], rng.uniform(-swing, swing, n), rng)
+            long = np.linalg.norm(P[:, -1] - P[:, 0], axis=1) >= swing_min_length * root_len
+            own = _random_rotations(P[:, -1] - P[:, 0],
+                                    rng.uniform(-swing, swing, n) * long, rng)
             Rg = own @ turn[par]
         f = rng.uniform(stretch[0], stretch[1], n)[:, None, None]
         new = start[:, None] + f * np.einsum("nij,nmj->nmi", Rg, P - P[:, :1])

@@ -93,7 +93,8 @@ def augmented_latents(shape_latent, settings, annotate=None) -> torch.Tensor:
     if copies == 0:
         print(f"augment: {n} shapes, at least {s.get('min_latents', 256)}: no GC edits", flush=True)
         return torch.zeros(0, shape_latent.latents.weight.shape[1])
-    ranges = {k: s[k] for k in ("swing", "stretch", "scale", "twist") if s.get(k) is not None}
+    ranges = {k: s[k] for k in ("swing", "stretch", "scale", "twist", "swing_min_length")
+              if s.get(k) is not None}
     out = [edited_latents(shape_latent, parents, copies, int(s.get("seed", 0)), **ranges)]
     if s.get("transfer", True) and n > 1:
         out.append(transferred_latents(shape_latent, parents))
