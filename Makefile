@@ -10,7 +10,7 @@ BIN := $(VENV)/bin
 BENCHES := geometry up-axis fit fit-ablation deform extract autogc sparse-settings editor \
 	generate condition reconstruct ddp demo cli animals transfer
 
-.PHONY: setup chromium test test-all bench bench-report $(addprefix bench-,$(BENCHES)) bench-up \
+.PHONY: setup chromium test test-all bench bench-report $(addprefix bench-,$(BENCHES)) \
 	demo demo-animals demo-collection clean
 
 $(BIN)/activate:
@@ -135,8 +135,6 @@ bench-demo:  # make demo on a fresh clone of HEAD, timed (stdlib only: the clone
 
 bench-up-axis: setup  # the pictures' up-axis rule on the ant, airplane and creatures
 	$(BIN)/python bench/up_axis.py
-
-bench-up: bench-up-axis  # its former name
 
 bench-ddp: setup  # one training process against two (gloo) on CPU
 	$(BIN)/python bench/ddp.py

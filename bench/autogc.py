@@ -195,7 +195,7 @@ def cd_noise_floor(name: str, seed: int = 0, n: int = 30000) -> float:
     same ground-truth surface: what the fit's cd reads for a perfect fit. A ratio cd_x / cd_axis
     cannot go below cd_noise_floor / cd_axis, whatever GCs x are."""
     from ngc_gen.eval.fitting import chamfer
-    from ngc_gen.eval.sampling import sample_surface
+    from ngc_gen.eval.point_samples import sample_surface
 
     mesh = ground_truth(name, seed=seed)
     return chamfer(sample_surface(mesh, n, 0)[0], sample_surface(mesh, n, 1)[0])

@@ -53,7 +53,7 @@ TARGET_R = 256
 
 def chamfer(a, b, n: int = 30000, seed: int = 0, seed_b: int | None = None) -> float:
     from ngc_gen.eval.fitting import chamfer as cd
-    from ngc_gen.eval.sampling import sample_surface
+    from ngc_gen.eval.point_samples import sample_surface
 
     return float(cd(sample_surface(a, n, seed)[0],
                     sample_surface(b, n, seed if seed_b is None else seed_b)[0]))

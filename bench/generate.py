@@ -116,7 +116,7 @@ def mesh_set(gen, latents, names, out_dir, resolution):
 def clouds(meshes, n_points: int, seed: int):
     """(k, n, 3) surface clouds; an empty mesh counts as a cloud collapsed at the origin."""
     from ngc_gen.eval import sample_point_clouds
-    from ngc_gen.eval.sampling import is_empty
+    from ngc_gen.eval.point_samples import is_empty
 
     out = np.zeros((len(meshes), n_points, 3))
     ok = [i for i, m in enumerate(meshes) if not is_empty(m)]

@@ -53,7 +53,7 @@ def test_annotated_folders_train_and_mixed_frames_are_refused(tmp_path):
     """data=folder on an annotate run's directory reads its YAMLs; YAMLs of two frames stop
     stage=shape_latent before anything is prepared."""
     from ngc_gen.data.datasets import MeshFolder
-    from ngc_gen.data.preflight import check_frames
+    from ngc_gen.app.runtime.checks import check_frames
 
     mesh = tmp_path / "ball.ply"
     trimesh.creation.icosphere(1).export(mesh)

@@ -52,7 +52,7 @@ def test_a_changed_result_changes_its_table(tmp_path):
 
 
 def test_the_fit_table_lists_the_junctions_when_measured(tmp_path):
-    """bench/fit.py's `junctions` entries (issue 32) get a table and a targets line."""
+    """bench/fit.py's `junctions` entries get a table and a targets line."""
     shutil.copytree(ROOT / "bench/results", tmp_path / "results")
     path = tmp_path / "results/fit.json"
     res = json.loads(path.read_text())

@@ -15,6 +15,7 @@ import torch
 from omegaconf import DictConfig
 from torch.utils.data import RandomSampler, Sampler
 
+from ngc_gen import workspace
 from ngc_gen.data.atomic import atomic_write_text
 
 from ..runtime.next_hint import SAMPLE_KEYS, next_command
@@ -111,7 +112,8 @@ def run_diffusion(cfg: DictConfig) -> dict:
     from ngc_gen.lit.checkpoint import resolve_checkpoint
     from ngc_gen.lit.shape_latent import FIX, ShapeLatentModule
 
-    from ..runtime.training import instantiate_group, start_run, train
+    from ..runtime.config import instantiate_group
+    from ..runtime.training import start_run, train
 
     cfg = with_stage_steps(cfg, "diffusion")
     ckpt = resolve_checkpoint(cfg.shape_latent_run, FIX, "shape-latent run").resolve()
@@ -155,9 +157,9 @@ def run_diffusion(cfg: DictConfig) -> dict:
                "edm_loss_untrained": before, "edm_loss_ema": after,
                **nearest_neighbour_stats(samples, latents, module.latent_std),
                "frame": (shape_latent.hparams.meta or {}).get("frame"),
-               "checkpoint": str(run_dir / "checkpoints" / "last.ckpt"),
+               "checkpoint": str(workspace.last_checkpoint(run_dir)),
                "shape_latent_checkpoint": str(ckpt)}
-    atomic_write_text(run_dir / "metrics.json", json.dumps(metrics, indent=2))
+    atomic_write_text(workspace.metrics(run_dir), json.dumps(metrics, indent=2))
     rest = ", the others from the nearest latent" if metrics["pca_complete"] == "nearest" else ""
     space = f" ({module.space_dim} principal axes{rest})" if metrics["pca_complete"] else ""
     moved = (f" + {n_transferred} pose-transferred" if n_transferred else "") + (
