@@ -23,7 +23,6 @@ LONG_FUNCTIONS = {
     "ngc_gen/data/autogc/transfer.py:transfer_template",
     "ngc_gen/data/autogc/template.py:template_from_dict",
     "ngc_gen/data/rigs/gltf.py:load_gltf_rig",
-    "ngc_gen/data/rigs/rig_gcs.py:pose_shape",
 }
 # settings whose group has a YAML but which still carry defaults: the template-transfer work's
 # (TransferSettings reads conf/annotate without _target_, RigGCSettings and AutoGCSettings are
