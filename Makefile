@@ -8,7 +8,7 @@ BIN := $(VENV)/bin
 # the benches, in the order `make bench` runs them (sparse-settings reads deform's and autogc's
 # fits; condition and reconstruct reuse generate's; fit-ablation reads fit's ceiling)
 BENCHES := geometry up-axis fit fit-ablation deform extract autogc sparse-settings editor \
-	generate condition reconstruct ddp demo cli animals transfer
+	generate condition reconstruct ddp demo cli animals transfer collection
 
 .PHONY: setup chromium test test-all bench bench-report $(addprefix bench-,$(BENCHES)) \
 	demo demo-animals demo-collection clean
@@ -109,6 +109,9 @@ bench-generate: setup
 	$(BIN)/python bench/generate.py
 
 .PHONY: bench-transfer
+bench-collection: setup  # small collections: the collection recipe vs the default diffusion on 8 species
+	$(BIN)/python bench/collection.py
+
 bench-transfer: setup  # the quadruped template on the posed animals (rig withheld), creatures, chair/torus/sphere
 	$(BIN)/python bench/transfer.py
 
