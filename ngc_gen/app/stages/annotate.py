@@ -10,7 +10,7 @@ and each mesh's GC names (what edit programs refer to).
 
 With `annotate.template=T` (a template YAML with `place`, e.g.
 datasets/animals/quadruped_transfer.yaml, or any annotated mesh's YAML) every mesh gets T's GCs
-instead (ngc_gen/data/autogc/transfer.py): the same names, order, degrees and keys, so one
+instead (ngc_gen/data/autogc/transfer/): the same names, order, degrees and keys, so one
 shape-latent layout and one edit program for the folder. A mesh that does not match is one
 line of the table and the rest are still annotated; the folder gets `transfer.png` (a colour
 per template GC across the meshes) and `transfer.json` (the table). `annotate.export_template=

@@ -18,8 +18,11 @@ import numpy as np
 from ngc_gen.data.autogc.frame import angle_deg, distinct, orientation_of, pca_candidates, wahba
 from ngc_gen.data.autogc.orient import Orientation, axis_name, detect_orientation
 from ngc_gen.data.autogc.template import Template
-from ngc_gen.data.autogc.verify import verify
 from ngc_gen.data.errors import DataError
+
+from .match import _tips, correspond
+from .tree import BodyFrame
+from .verify import verify
 
 SNAP_DEG = 10.0     # a detected frame this close to signed world axes is snapped to them
 PRIOR_SLACK = 0.5   # given axes stay unless a detected frame matches this much cheaper
@@ -86,8 +89,6 @@ def _implied(template: Template, tree, body, paths: dict, leaves: set) -> np.nda
 
 
 def _try(ctx, o: Orientation, refine: bool) -> Trial:
-    from ngc_gen.data.autogc.transfer import BodyFrame, correspond
-
     template, tree, surface, st, where, T, leaves = ctx
     for step in range(1 + REFINE_ROUNDS if refine else 1):
         body = BodyFrame.of(surface, o)
@@ -104,8 +105,6 @@ def _try(ctx, o: Orientation, refine: bool) -> Trial:
 def choose(template: Template, tree, surface: np.ndarray, st, where, curves, volumes,
            up, front, override: Orientation | None) -> Choice:
     """The orientation for this mesh (module docstring)."""
-    from ngc_gen.data.autogc.transfer import _tips
-
     tips = _tips(template)[0]
     ctx = (template, tree, surface, st, where, len(tips), set(tips))
     if override is not None:
