@@ -50,23 +50,26 @@ def _key(override: str) -> str:
     return override.split("=", 1)[0].lstrip("+~")
 
 
-def recipe_overrides(overrides: list[str], keep: set[str] | None = None) -> list[str]:
-    """`overrides` without the ones naming this run (RUN_KEYS, hydra.*); with `keep`, only
-    those whose top key is in it."""
+def recipe_overrides(overrides: list[str], keep: set[str] | None = None,
+                     drop: tuple[str, ...] = ()) -> list[str]:
+    """`overrides` without the ones naming this run (RUN_KEYS, hydra.*) or a key in `drop`
+    (the key itself and the keys under it); with `keep`, only those whose top key is in it."""
     out = []
     for o in overrides:
         key = _key(o)
         top = key.split(".", 1)[0]
-        if top in RUN_KEYS or top == "hydra" or (keep is not None and top not in keep):
+        if top in RUN_KEYS or top == "hydra" or (keep is not None and top not in keep) \
+                or any(key == d or key.startswith(d + ".") for d in drop):
             continue
         out.append(o)
     return out
 
 
 def next_command(entry: str, links: list[str], keep: set[str] | None = None,
-                 overrides: list[str] | None = None) -> str:
+                 overrides: list[str] | None = None, drop: tuple[str, ...] = ()) -> str:
     """`python <entry> <recipe overrides> <links>`, each word quoted for a POSIX shell.
-    overrides: the command's (default `command_overrides()`)."""
+    overrides: the command's (default `command_overrides()`); drop: keys that no longer hold
+    for the next command (`recipe_overrides`)."""
     given = command_overrides() if overrides is None else overrides
-    words = recipe_overrides(given, keep) + list(links)
+    words = recipe_overrides(given, keep, drop) + list(links)
     return " ".join(["python", entry, *(shlex.quote(w) for w in words)])
