@@ -185,6 +185,12 @@ class ZeroADMesh:
     rig: Rig
     joint_map: JointMap
 
+    def frame_time(self, clip: str, frame: int, frames: int) -> float:
+        """Seconds of frame `frame` of `frames` of `clip`: start + (frame + 0.5) / frames x
+        duration, as the animals dataset poses its clips."""
+        c = self.rig.clip(clip)
+        return c.start + (frame + 0.5) / frames * c.duration
+
     def pose(self, template, clip: str | None = None, time: float = 0.0,
              settings: RigGCSettings | None = None) -> PosedShape:
         """The rig GCs (ground truth) of `template` (a loaded quadruped template) on the mesh at
