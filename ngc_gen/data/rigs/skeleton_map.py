@@ -60,6 +60,16 @@ class JointMap:
     def left(self) -> np.ndarray:
         return np.cross(self.up, self.front)
 
+    def for_template(self, template: Template, rig: Rig) -> "JointMap":
+        """This map keyed by `template`'s GCs (carved ones need no joints); a refusal naming
+        the GC when a chain GC of the template is not in it."""
+        out = {}
+        for g in template.gcs:
+            if g.carve is None and g.name not in self.resolved:
+                raise _refuse(rig, f"the joint map ({self.source}) has no GC {g.name!r}")
+            out[g.name] = self.resolved.get(g.name, {"chain": [], "skinned": []})
+        return JointMap(out, self.up, self.front, self.source)
+
     def names(self, rig: Rig) -> dict:
         """The map as a map file holds it: {gc: {joints: [...], skinned: [...]}, frame: ...}."""
         jn = rig.joint_names
@@ -379,10 +389,10 @@ def _assemble(rig, template, P, par, active, load, up, axis, legs, pairs, size) 
     return JointMap({g: resolved.get(g, {"chain": [], "skinned": []}) for g in names}, up, axis)
 
 
-def load_joint_map(path: str | os.PathLike, rig: Rig, template: Template) -> JointMap:
+def load_joint_map(path: str | os.PathLike, rig: Rig, template: Template | None = None) -> JointMap:
     """A map file: {<template GC>: [bone, ...] or {joints: [...], skinned: [...]}, frame: {up:
-    [x, y, z], front: [x, y, z]}} (frame optional: the template's). Every chain GC must be
-    there; joints carrying skin and named by no GC go to the first GC (the root's)."""
+    [x, y, z], front: [x, y, z]}} (frame optional: the template's, or y up and +z front
+    without one). Every chain GC of the template (None: the ROLES) must be there."""
     p = Path(path)
     try:
         d = yaml.safe_load(p.read_text(encoding="utf-8"))
@@ -402,18 +412,21 @@ def load_joint_map(path: str | os.PathLike, rig: Rig, template: Template) -> Joi
         return [names.index(b) for b in bones]
 
     resolved = {}
-    for g in template.gcs:
-        entry = d.get(g.name)
-        if g.carve is not None:
-            resolved[g.name] = {"chain": [], "skinned": []}
+    gcs = [(r, False) for r in ROLES] if template is None else \
+        [(g.name, g.carve is not None) for g in template.gcs]
+    for name, carved in gcs:
+        entry = d.get(name)
+        if carved:
+            resolved[name] = {"chain": [], "skinned": []}
             continue
         if entry is None:
-            raise DataError("the joint map has no entry for this GC", path=p, gc=g.name,
-                            fix=f"add '{g.name}: [bone, ...]'")
-        chain = idx(entry.get("joints") if isinstance(entry, dict) else entry, g.name, "joints")
-        skinned = idx(entry["skinned"], g.name, "skinned") if isinstance(entry, dict) \
+            raise DataError("the joint map has no entry for this GC", path=p, gc=name,
+                            fix=f"add '{name}: [bone, ...]'")
+        chain = idx(entry.get("joints") if isinstance(entry, dict) else entry, name, "joints")
+        skinned = idx(entry["skinned"], name, "skinned") if isinstance(entry, dict) \
             and "skinned" in entry else chain
-        resolved[g.name] = {"chain": chain, "skinned": skinned}
-    frame = d.get("frame") or {"up": template.up, "front": template.front}
+        resolved[name] = {"chain": chain, "skinned": skinned}
+    frame = d.get("frame") or ({"up": template.up, "front": template.front} if template
+                               else {"up": (0.0, 1.0, 0.0), "front": (0.0, 0.0, 1.0)})
     up, front = (np.asarray(frame[k], np.float64) for k in ("up", "front"))
     return JointMap(resolved, up / np.linalg.norm(up), front / np.linalg.norm(front), str(p))

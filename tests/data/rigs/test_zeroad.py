@@ -209,6 +209,16 @@ def test_builder_streams_the_package_keeps_quadrupeds_and_never_deletes_a_users_
                     "manifest.json"]
     deb.unlink()  # built once: the cache answers without the package
     assert [m.name for m in zeroad_quadrupeds(tmp_path / "cache", download=False)] == ["tiny_horse"]
+    # a user's map file for the skeleton replaces the structure's map
+    import yaml
+
+    d = m.joint_map.names(m.rig)
+    d["tail"] = {"joints": ["tail"], "skinned": ["tail", "tail_tip"]}
+    (tmp_path / "maps").mkdir()
+    (tmp_path / "maps/Tiny.yaml").write_text(yaml.safe_dump(d))
+    m2 = zeroad_quadrupeds(tmp_path / "cache", download=False, maps=tmp_path / "maps")[0]
+    assert _names(m2.rig, m2.joint_map)["tail"] == ["tail"]
+    assert m2.joint_map.source.endswith("Tiny.yaml")
 
 
 def test_no_package_and_no_download_says_what_to_run(tmp_path, monkeypatch):
