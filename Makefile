@@ -101,6 +101,10 @@ bench-generate: setup
 bench-transfer: setup  # the quadruped template on the posed animals (rig withheld), creatures, chair/torus/sphere
 	$(BIN)/python bench/transfer.py
 
+.PHONY: bench-zeroad
+bench-zeroad: setup  # 0 A.D. quadrupeds (needs 0ad-data: ZEROAD_DEB=path or apt-get download) and the structural joint map
+	$(BIN)/python bench/zeroad_collection.py
+
 bench-animals: setup  # rigged animals: GCs from the rig, rest-pose fits, generation vs held-out clips / species
 	$(BIN)/python bench/animals.py
 
