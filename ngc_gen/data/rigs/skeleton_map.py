@@ -5,20 +5,23 @@ At the rest pose, over the joints that move skin (a joint whose subtree carries 
 is not part of the body; a second root, an IK foot or a detached leg, is hung from the nearest
 joint of the main tree):
 - legs: the chains whose ends reach the ground (within GROUND x the mesh's height of its lowest
-  point); exactly four, else the skeleton is refused. A leg is its path from where it leaves
-  the others (its deepest ancestor shared with another foot) to the foot; joints of it nearer
-  the mid-plane than MIDLINE x its foot are its root inside the body: skinned to the leg, not
-  on its curve;
+  point; the four lowest when more do: a trunk or a tail can hang there too); fewer than four
+  and the skeleton is refused. A leg is its path from where it leaves the others (its deepest
+  ancestor shared with another foot) to the foot; its leading joints whose bone runs more
+  across the body than down, or that sit nearer the mid-plane than MIDLINE x its foot, are its
+  root inside the body: skinned to the leg, not on its curve;
 - the body frame: up (given, or the axis along which four feet lie lowest), front along the
   line from one pair of feet to the other, left = up x front;
 - the joints left over hang off the body in pieces; the pieces that reach past the front or the
   back legs' tops sit at an end. The end whose biggest piece carries more skin is the front:
-  that piece is neck + head (the head: the deepest joint of its main path, into the heaviest
-  child each time, whose subtree still carries HEAD_SHARE of the piece's skin: a jaw or a trunk
-  carries less), its joints behind the front legs' tops are the torso's; the piece that
-  reaches farthest past the other end is the tail (its first joint, where it sits on the spine,
-  moves the rump: the torso's). The spine from the back legs' branch to the front legs', with
-  what the neck gave it, is the torso's curve; every other joint is skinned to the torso.
+  that piece is neck + head. Along its main path (into the child with the most skin below it
+  each time; a side branch, ears or horns, goes with the main-path joint nearest to where it
+  starts) the head is the deepest joint past the front legs' tops that, with what follows it,
+  carries HEAD_SHARE of the skin past them (a jaw or a trunk carries less); its joints behind
+  the front legs' tops are the torso's. The piece that reaches farthest past the other end is
+  the tail (its first joint, where it sits on the spine, moves the rump: the torso's). The
+  spine from the back legs' branch to the front legs', with what the neck gave it, is the
+  torso's curve; every other joint is skinned to the torso.
 
 A per-skeleton map file (`load_joint_map`) is the fallback a user writes where this is wrong.
 Template GCs are found by their names (torso, neck, head, tail, leg_fl, leg_fr, leg_bl, leg_br;
@@ -40,8 +43,8 @@ from .rig import Rig
 
 ROLES = ("torso", "neck", "head", "tail", "leg_fl", "leg_fr", "leg_bl", "leg_br")
 GROUND = 0.1    # a foot ends within this share of the mesh's height of its lowest point
-MIDLINE = 0.5   # leg joints nearer the mid-plane than this x their foot sit inside the body
-HEAD_SHARE = 0.5  # the head's subtree carries at least this share of the neck + head's skin
+MIDLINE = 0.5   # leading leg joints nearer the mid-plane than this x their foot sit in the body
+HEAD_SHARE = 0.5  # the head and what follows it carry this share of the skin past the front legs
 SAME = 0.01     # joints nearer than this x the skeleton's size sit at the same place
 AXES = np.vstack([np.eye(3), -np.eye(3)])
 
@@ -157,7 +160,7 @@ def _feet(P, par, active, V, up) -> list[int]:
 
 
 def _detect_up(P, par, active, V) -> np.ndarray:
-    """The axis direction along which exactly four feet lie lowest, the one whose fifth lowest
+    """The axis direction along which four feet reach the ground, the one whose fifth lowest
     leaf stands farthest above them (ValueError when none has four)."""
     best, score = None, -np.inf
     kids = np.bincount(par[par >= 0], minlength=len(par))
