@@ -17,7 +17,7 @@ joint of the main tree):
   that piece is neck + head. Along its main path (into the child with the most skin below it
   each time; a side branch, ears or horns, goes with the main-path joint nearest to where it
   starts) the head is the deepest joint past the front legs' tops that, with what follows it,
-  carries HEAD_SHARE of the skin past them (a jaw or a trunk carries less); its joints behind
+  carries HEAD_SHARE of the piece's skin (a jaw or a trunk carries less); its joints behind
   the front legs' tops are the torso's. The piece that reaches farthest past the other end is
   the tail (its first joint, where it sits on the spine, moves the rump: the torso's). The
   spine from the back legs' branch to the front legs', with what the neck gave it, is the
@@ -44,7 +44,7 @@ from .rig import Rig
 ROLES = ("torso", "neck", "head", "tail", "leg_fl", "leg_fr", "leg_bl", "leg_br")
 GROUND = 0.1    # a foot ends within this share of the mesh's height of its lowest point
 MIDLINE = 0.5   # leading leg joints nearer the mid-plane than this x their foot sit in the body
-HEAD_SHARE = 0.5  # the head and what follows it carry this share of the skin past the front legs
+HEAD_SHARE = 0.5  # the head and what follows it carry this share of the neck + head's skin
 SAME = 0.01     # joints nearer than this x the skeleton's size sit at the same place
 AXES = np.vstack([np.eye(3), -np.eye(3)])
 
@@ -274,8 +274,8 @@ def _neck_head(par, piece, P, load, axis, top):
     torso's curve; they and their side branches are skinned to the torso), neck chain, head
     joint) of the piece at the front. A side branch goes with the main-path joint nearest to
     where it starts (ears hung from the last neck joint are the head's); the head is the
-    deepest joint past `top` that, with what follows it, carries HEAD_SHARE of the skin past
-    `top` (a jaw or a trunk carries less)."""
+    deepest joint past `top` that, with what follows it, carries HEAD_SHARE of the piece's
+    skin (a jaw or a trunk carries less)."""
     path = _main_path(par, piece, load)
     k = 0
     while k < len(path) - 1 and float(P[path[k]] @ axis) <= top:
@@ -291,7 +291,7 @@ def _neck_head(par, piece, P, load, axis, top):
     group = np.zeros(len(path))
     np.add.at(group, [at[j] for j in piece], load[piece])
     after = np.cumsum(group[::-1])[::-1]  # skin of joint i and all that follows it
-    h = max(i for i in range(k, len(path)) if after[i] >= HEAD_SHARE * after[k])
+    h = max((i for i in range(k, len(path)) if after[i] >= HEAD_SHARE * after[0]), default=k)
     head = path[h]
     neck_chain = path[k: h + 1]
     if len(neck_chain) < 2:
