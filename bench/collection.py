@@ -34,6 +34,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 from bench._harness import Bench  # noqa: E402
+from bench._tables import pct, rows_table  # noqa: E402
 
 RUNS = ROOT / "bench/runs/collection"
 SPECIES = ["alpaca", "bull", "cow", "deer", "donkey", "fox", "horse", "wolf"]
@@ -176,6 +177,24 @@ def render(args, path: Path, per_row: int = 6) -> None:
         rows.append([trimesh.load(f, process=False) for f in files])
         labels.append(f"generated: {recipe}")
     render_or_warn(render_grid, path, rows, labels=labels, frame="row", up=list(data.frame["up"]))
+
+
+def table(r: dict) -> str:
+    """bench/README.md's table: both recipes on the same training animals."""
+    rows = [[f"`{k}`", r[k]["n_train"], r[k]["n_samples"], pct(r[k]["whole"], 0),
+             pct(r[k]["all_gcs"], 0), pct(r[k]["copies"], 0)] for k in ("small", "small_default")]
+    minutes = r.get("minutes_demo_collection")
+    rows.append(["`make demo-collection`", "", "", "", "",
+                 "not run" if minutes is None else f"{minutes:.1f} min"])
+    return "\n".join(rows_table(["recipe", "training", "samples", "whole", "all GCs", "copies"],
+                                 rows))
+
+
+def headline(r: dict) -> str:
+    s, d = r["small"], r["small_default"]
+    return (f"8 training animals, 32 samples: whole {pct(s['whole'], 0)} (default recipe "
+            f"{pct(d['whole'], 0)}), copies {pct(s['copies'], 0)}, all GCs "
+            f"{pct(s['all_gcs'], 0)} ({pct(d['all_gcs'], 0)})")
 
 
 def main():
