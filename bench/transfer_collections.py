@@ -147,6 +147,15 @@ def outside_volume_ratio(gcs, mesh, n: int = VOLUME_SAMPLES, seed: int = 0) -> f
     return float((in_gc & ~inside).sum() / max(inside.sum(), 1))
 
 
+def _finite(x):
+    """x with every NaN (a GC without truth samples) as None: JSON has no NaN."""
+    if isinstance(x, dict):
+        return {k: _finite(v) for k, v in x.items()}
+    if isinstance(x, list):
+        return [_finite(v) for v in x]
+    return None if isinstance(x, float) and x != x else x
+
+
 def summary(rows: list[dict], names: list[str]) -> dict:
     """The collection's figures (module docstring) from per-mesh rows of `one`."""
     import numpy as np
@@ -166,7 +175,7 @@ def summary(rows: list[dict], names: list[str]) -> dict:
             "outside_volume_ratio": float(np.median([r["outside_volume_ratio"] for r in ok]))
             if ok else None,
             "s_per_mesh": float(np.median([r["seconds"] for r in ok])) if ok else None,
-            "purity_per_gc": {n: round(float(p), 4) for n, p in zip(names, per_gc)}}
+            "purity_per_gc": _finite({n: round(float(p), 4) for n, p in zip(names, per_gc)})}
 
 
 def collections(animals: list[dict], workers: int, deb: str | None, limit: int | None) -> dict:
@@ -193,7 +202,11 @@ def collections(animals: list[dict], workers: int, deb: str | None, limit: int |
         t0 = time.perf_counter()
         rows = list(map_shapes(one, tasks, workers, min_items=4)) if tasks else []
         out[key] = summary(rows, names) if rows else {"n": 0, "note": runs_note}
-        per_mesh[key] = rows
+        per_mesh[key] = [_finite(r) for r in rows]
+        for r in rows:
+            print(f"  {key} {r['mesh']}: " + (f"refused: {r['error']}" if "error" in r else
+                  f"{r['orientation_err_deg']:.0f} deg off, purity min {np.nanmin(r['purity']):.2f}"),
+                  flush=True)
         print(f"{key}: {len(rows)} meshes, {time.perf_counter() - t0:.0f} s: "
               f"{ {k: v for k, v in out[key].items() if k != 'purity_per_gc'} }", flush=True)
     if out["zeroad"].get("n"):  # GCs that hug are not built: nothing to compare against
@@ -203,7 +216,7 @@ def collections(animals: list[dict], workers: int, deb: str | None, limit: int |
     for rows in per_mesh.values():
         for r in rows:
             r.pop("written", None)
-    return {**out, "per_mesh": per_mesh}
+    return _finite({**out, "per_mesh": per_mesh})
 
 
 def picture(rows: list[dict], species: dict[str, str], path: Path, n: int = 8) -> None:

@@ -1,7 +1,8 @@
 """Template transfer: one named GC template on a mesh without a rig (docs/transfer.md).
 
 Pinocchio's two steps (a discrete embedding, then a continuous refinement) on our skeleton:
-1. Orientation (``orient``): the mesh's up and front, given or detected; every position below
+1. Orientation (``orientation``): the mesh's up and front, found in any rotation and checked
+   (``verify``); every position below
    is read in the body frame (front, left, up) of the surface's bounding box, divided by its
    half extents, as the template's `place` is.
 2. Skeleton tree: closed proxy -> curve skeleton -> branch graph (``skeleton_gcs``' steps), as
@@ -18,11 +19,13 @@ Pinocchio's two steps (a discrete embedding, then a continuous refinement) on ou
    head, galloping legs) the free ends left over that lie within their reach: at the limb
    chain's length from where it attaches, on its own side. Still missing: matched once more
    on a finer tree (spurs ``FINER`` x as long kept: a short tail). Tree-consistent by
-   construction: a leaf's path toward the template root's place is its own up to where it meets another matched leaf's path (its junction); a chain
+   construction: a leaf's path toward the template root's place is its own up to where it
+   meets another matched leaf's path (its junction); a chain
    of template GCs above one leaf (neck, head) shares that path by the template's lengths; a
    GC above several matched leaves (a torso) is the longest tree path between its children's
    junctions. Every other skeleton node (ears, antlers) goes to the GC nearest along the tree.
-   Too few matched leaves, or a mean cost of the matched ones above ``max_match_cost``: the mesh does not match.
+   Too few matched leaves, or a mean cost of the matched ones above ``max_match_cost``: the
+   mesh does not match.
 4. GCs: each surface sample belongs to its nearest skeleton node's GC; a GC is the template's
    degree of Bezier through its path (free ends extended to the surface), radii and caps from
    its own samples (``rig_gcs.template_gc``, as for a rig), the template's `up` turned into the

@@ -89,17 +89,26 @@ def _implied(template: Template, tree, body, paths: dict, leaves: set) -> np.nda
 
 
 def _try(ctx, o: Orientation, refine: bool) -> Trial:
+    """The orientation matched and checked; refined: turned to its match's implied frame
+    REFINE_ROUNDS times, the best of the rounds kept (passing first, then the lower score: a
+    round may turn a frame that matched into one that does not)."""
     template, tree, surface, st, where, T, leaves = ctx
+    best = None
     for step in range(1 + REFINE_ROUNDS if refine else 1):
         body = BodyFrame.of(surface, o)
         try:
             found = correspond(template, tree, body, st, where)
         except DataError as e:
-            return Trial(o, body, e, str(e.what), float("inf"))
-        if refine and step < REFINE_ROUNDS:
-            o = _snap(orientation_of(_implied(template, tree, body, found[0], leaves), o.source))
-    verdict = verify(template, found[0], body.to_body(tree.nodes), tree.radius)
-    return Trial(o, body, found, verdict.failed, _score(found, T, st.missing_cost))
+            trial = Trial(o, body, e, str(e.what), float("inf"))
+        else:
+            verdict = verify(template, found[0], body.to_body(tree.nodes), tree.radius)
+            trial = Trial(o, body, found, verdict.failed, _score(found, T, st.missing_cost))
+        if best is None or (trial.failed is None, -trial.score) > (best.failed is None, -best.score):
+            best = trial
+        if not isinstance(trial.found, tuple) or step == REFINE_ROUNDS or not refine:
+            break
+        o = _snap(orientation_of(_implied(template, tree, body, found[0], leaves), o.source))
+    return best
 
 
 def choose(template: Template, tree, surface: np.ndarray, st, where, curves, volumes,
@@ -143,4 +152,12 @@ def choose(template: Template, tree, surface: np.ndarray, st, where, curves, vol
     others = [t.score for t in passing if t is not best and
               angle_deg(t.orientation.matrix @ best.orientation.matrix.T) > DISTINCT_DEG]
     second = min(others) if others else st.max_match_cost
-    return Choice(best, float(np.clip(1.0 - best.score / max(second, 1e-9), 0.0, 1.0)), warnings)
+    confidence = float(np.clip(1.0 - best.score / max(second, 1e-9), 0.0, 1.0))
+    if confidence < st.min_confidence and best is not prior:
+        raise DataError(f"does not match template {template.name} ({template.source}) in one "
+                        f"way: two frames {DISTINCT_DEG:.0f}+ degrees apart fit alike (confidence "
+                        f"{confidence:.2f}, need {st.min_confidence})", path=where,
+                        field="annotate.template",
+                        fix="give the mesh's frame (frame: {up: +y, front: -z} in its YAML or the "
+                            "folder's frames.yaml), or annotate it by hand")
+    return Choice(best, confidence, warnings)
