@@ -1,7 +1,7 @@
 """Small collections: does the recipe of `experiment=collection` give whole, complete and varied
 shapes from 8 training animals where the default recipe does not?
 
-    python bench/collection.py [--species alpaca bull ...] [--shape-latent-steps 3000]
+    python -m bench.collection [--species alpaca bull ...] [--shape-latent-steps 3000]
         [--diffusion-steps 3000] [--samples 32] [--resolution 96] [--demo-run DIR]
 
 Training set: one animal per species at rest (data=animals split=rest, the rig's GCs, 8
@@ -25,16 +25,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 import time
 from pathlib import Path
 
-import numpy as np
+from bench._harness import Bench
+from bench._tables import pct, rows_table
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-from bench._harness import Bench  # noqa: E402
-from bench._tables import pct, rows_table  # noqa: E402
 
 RUNS = ROOT / "bench/runs/collection"
 SPECIES = ["alpaca", "bull", "cow", "deer", "donkey", "fox", "horse", "wolf"]
@@ -92,21 +89,23 @@ def train(args) -> dict:
             "recipes": {"shape_latent": sl, **diffs}}
 
 
-def surface_points(mesh, n: int, seed: int = 0) -> np.ndarray:
+def surface_points(mesh, n: int, seed: int = 0):
+    """(n, 3) surface samples of a mesh."""
+    import numpy as np
     import trimesh
 
     pts, _ = trimesh.sample.sample_surface(mesh, n, seed=seed)
     return np.asarray(pts)
 
 
-def chamfer(a: np.ndarray, b: np.ndarray) -> float:
+def chamfer(a, b) -> float:
     """Squared Chamfer (DeepSDF convention: mean squared distance each way, summed)."""
     from scipy.spatial import cKDTree
 
     return float((cKDTree(b).query(a)[0] ** 2).mean() + (cKDTree(a).query(b)[0] ** 2).mean())
 
 
-def training_points(args) -> tuple[dict[str, np.ndarray], dict[str, float]]:
+def training_points(args) -> tuple[dict, dict[str, float]]:
     """The training meshes' surface points in the normalised frame, and per GC the least share
     of a training mesh's surface samples it holds (the training set's own floor)."""
     from hydra.utils import instantiate
@@ -126,12 +125,15 @@ def training_points(args) -> tuple[dict[str, np.ndarray], dict[str, float]]:
 
 def gc_shares(mesh, gcs) -> dict[str, float]:
     """Per GC, the share of 5000 surface samples inside it."""
+    import numpy as np
+
     pts = surface_points(mesh, 5000, seed=1)
     return {g.name: float(np.mean(g.contains(pts))) for g in gcs}
 
 
 def score_samples(summary: dict, train_pts: dict, copy_below: float, floor: dict) -> dict:
     """whole, all_gcs and copy per sample of a sample.py summary, and their shares."""
+    import numpy as np
     import trimesh
 
     from ngc_gen.data.annotations import load_annotation
@@ -225,6 +227,8 @@ def main():
     from ngc_gen.app.runtime.cli import set_threads
     from ngc_gen.app.stages.sample import generate
     from ngc_gen.generate import load_generator
+
+    import numpy as np
 
     set_threads(1)
     trained = train(args)
