@@ -396,8 +396,8 @@ def check_data(node) -> None:
     if target == "AnnotatedShapes":
         for a in node.get("annotations") or []:
             check_annotation_file(a)
-    elif target == "MeshFolder" and run_annotations(node["path"]):
-        for a in run_annotations(node["path"]):  # a stage=annotate run directory
+    elif target == "MeshFolder" and run_annotations(node["path"]):  # an annotate run directory
+        for a in run_annotations(node["path"]):
             check_annotation_file(a)
     elif target == "MeshFolder":
         for mesh in mesh_files(node["path"]):

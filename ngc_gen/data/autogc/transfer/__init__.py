@@ -38,15 +38,15 @@ Pinocchio's two steps (a discrete embedding, then a continuous refinement) on ou
    are not mirror images); then radii and caps are refitted to
    the refined curves and coverage is repaired (``coverage.grow_to_cover``) as for a rig.
 
-Modules: settings (TransferSettings, Transfer), tree (body frame, skeleton tree), orientation
-(which way the mesh faces), match (correspondence, paths), verify (the template's checks),
-refine (torch refinement), assemble (the whole transfer), export (templates from annotated
-meshes).
+Modules: transfer_settings (TransferSettings, Transfer), tree (body frame, skeleton tree),
+orientation (which way the mesh faces), match (correspondence, paths), verify (the template's
+checks), refine (torch refinement), assemble (the whole transfer), export (templates from
+annotated meshes).
 """
 from .assemble import START_REACH, _moved_ends, _reach_back, transfer_template
 from .export import _attachment, _inferred_tree, export_template
 from .match import _front_to_back, correspond, match_cost
-from .settings import Transfer, TransferSettings
+from .transfer_settings import Transfer, TransferSettings
 from .tree import BodyFrame, Tree, skeleton_tree, template_rotation
 
 __all__ = ["BodyFrame", "START_REACH", "Transfer", "TransferSettings", "Tree", "_attachment",

@@ -23,7 +23,7 @@ from ngc_gen.geometry import GeneralizedCylinder, bernstein_basis
 from .match import correspond
 from .orientation import choose
 from .refine import refine
-from .settings import Transfer, TransferSettings
+from .transfer_settings import Transfer, TransferSettings
 from .tree import BodyFrame, Tree, _curve_points, skeleton_tree, template_rotation
 
 MISSING_REACH = 1.5  # a missing part reaches the surface nearest its place's end within this x

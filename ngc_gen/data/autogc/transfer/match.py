@@ -10,7 +10,7 @@ from scipy.spatial import cKDTree
 from ngc_gen.data.autogc.template import Template
 from ngc_gen.data.errors import DataError
 
-from .settings import TransferSettings
+from .transfer_settings import TransferSettings
 from .tree import BodyFrame, Tree
 
 SIGMA_TIP = 0.3    # tip position error (body units) that costs 1
