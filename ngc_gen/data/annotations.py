@@ -26,16 +26,16 @@ import yaml
 
 from ngc_gen.data.annotation_file import read_annotation_yaml
 from ngc_gen.data.atomic import atomic_write_text
+from ngc_gen.data.body_frame import frame_dict, read_frame
 from ngc_gen.data.errors import DataError
 from ngc_gen.data.mesh.io import is_resource, resolve_mesh_path
 from ngc_gen.geometry import GeneralizedCylinder, GeometryError
 from ngc_gen.values import NumberError, is_number, read_number
 
-# decoder_frame: written by sample.py beside re-centred GCs (read by conditioning, not by fits)
-# frame: the rotation that writes the mesh in its template's body frame (docs/gcs.md)
+# decoder_frame: written by sample.py beside re-centred GCs (read by conditioning, not by fits);
+# frame: the body frame the shape is written in, and the rotation that writes the mesh in it
+# (ngc_gen.data.body_frame, docs/gcs.md)
 TOP_KEYS = {"name", "mesh", "normalize", "gcs", "decoder_frame", "frame"}
-FRAME_KEYS = {"up", "front", "from_mesh", "source"}
-FRAME_SOURCES = ("detected", "given", "override")
 NORMALIZE_KEYS = {"bound"}
 DEFAULT_BOUND = 0.8
 
@@ -65,18 +65,18 @@ class Annotation:
     gcs: list[GeneralizedCylinder]
     bound: float | None = DEFAULT_BOUND  # None: `normalize: false`, the mesh as it is
     source: Path | None = field(default=None, compare=False)
-    frame: dict | None = None  # {up, front, from_mesh, source}: the mesh turned by from_mesh
+    frame: dict | None = None  # {up, front[, from_mesh, source]}: `body_frame.read_frame`
 
     def load_mesh(self):
-        """(mesh, center, scale): the mesh in the GCs' frame (turned by `frame.from_mesh`, then
-        normalised), with normalised = (turned - center) * scale."""
+        """(mesh, center, scale): the mesh in the GCs' frame (turned by `frame.from_mesh` when
+        the frame records one, then normalised), with normalised = (turned - center) * scale."""
         import numpy as np
         import trimesh
 
         from ngc_gen.data.mesh.io import load_mesh, normalize
 
         mesh = load_mesh(self.mesh_path)
-        if self.frame is not None:
+        if self.frame is not None and self.frame.get("from_mesh") is not None:
             R = np.asarray(self.frame["from_mesh"], np.float64)
             mesh = trimesh.Trimesh(np.asarray(mesh.vertices, np.float64) @ R.T,
                                    np.asarray(mesh.faces), process=False)
@@ -105,13 +105,15 @@ class Annotation:
                 rel = None
             mesh = rel if rel is not None and Path(rel).parts[:1] != ("..",) \
                 else os.path.abspath(mesh)
-        return {
+        d = {
             "name": self.name,
             "mesh": Path(mesh).as_posix() if not is_resource(mesh) else mesh,
             "normalize": False if self.bound is None else {"bound": float(self.bound)},
             "gcs": [gc.to_dict() for gc in self.gcs],
-            **({"frame": self.frame} if self.frame is not None else {}),
         }
+        if self.frame is not None:
+            d["frame"] = frame_dict(self.frame)
+        return d
 
     def to_yaml(self, relative_to: str | os.PathLike | None = None) -> str:
         """YAML text of ``to_dict``; short lists inline so control points stay readable."""
@@ -263,38 +265,7 @@ def annotation_from_dict(d, source: str | os.PathLike | None = None) -> Annotati
                         fix="give every GC a unique name")
     return Annotation(name=name, mesh=mesh, gcs=parsed,
                       bound=None if bound is None else float(bound), source=path,
-                      frame=_frame(d.get("frame"), path))
-
-
-def _frame(f, path) -> dict | None:
-    """The `frame` key checked: unit up and front, perpendicular; from_mesh a rotation."""
-    import numpy as np
-
-    if f is None:
-        return None
-    fix = ("write frame: {up: [0, 1, 0], front: [0, 0, 1], from_mesh: [[1, 0, 0], [0, 1, 0], "
-           "[0, 0, 1]], source: detected} (from_mesh: a rotation), or leave it out")
-    if not isinstance(f, dict) or set(f) != FRAME_KEYS:
-        raise DataError(f"frame must have exactly the keys {sorted(FRAME_KEYS)}, got "
-                        f"{sorted(f) if isinstance(f, dict) else f!r} (a frame override "
-                        "{up, front} is read by stage=annotate, not by training)",
-                        path=path, field="frame", fix=fix)
-    try:
-        up, front = (np.asarray(f[k], dtype=np.float64) for k in ("up", "front"))
-        R = np.asarray(f["from_mesh"], dtype=np.float64)
-    except (TypeError, ValueError):
-        raise DataError("frame's up, front and from_mesh must be numbers", path=path,
-                        field="frame", fix=fix) from None
-    ok = up.shape == front.shape == (3,) and R.shape == (3, 3) and np.isfinite(R).all() \
-        and np.isfinite(up).all() and np.isfinite(front).all()
-    ok = ok and abs(np.linalg.norm(up) - 1) < 1e-4 and abs(np.linalg.norm(front) - 1) < 1e-4 \
-        and abs(up @ front) < 1e-4 and np.abs(R @ R.T - np.eye(3)).max() < 1e-4 \
-        and np.linalg.det(R) > 0
-    if not ok or f["source"] not in FRAME_SOURCES:
-        raise DataError(f"frame needs unit perpendicular up and front, a rotation from_mesh and "
-                        f"source in {list(FRAME_SOURCES)}", path=path, field="frame", fix=fix)
-    return {"up": up.tolist(), "front": front.tolist(), "from_mesh": R.tolist(),
-            "source": f["source"]}
+                      frame=read_frame(d.get("frame"), path))
 
 
 def load_annotation(path: str | os.PathLike) -> Annotation:

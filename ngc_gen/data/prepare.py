@@ -128,9 +128,14 @@ _SCALARS = {"name": str, "key": str, "annotation_yaml": str, "coverage": float, 
 
 def cache_key(mesh_bytes: bytes, annotation: Annotation, settings: PrepareSettings) -> str:
     """sha256 over the mesh file bytes, the annotation content (not its mesh path, so moving a
-    dataset keeps its cache) and the settings."""
+    dataset keeps its cache; of its body frame only the rotation from the mesh's coordinates,
+    which moves the samples: up and front name directions, they move nothing) and the
+    settings."""
     content = annotation.to_dict()
     content.pop("mesh")
+    rotation = (content.pop("frame", None) or {}).get("from_mesh")
+    if rotation is not None:
+        content["from_mesh"] = rotation
     h = hashlib.sha256()
     h.update(f"ngc-gen-prepare-v{CACHE_VERSION}".encode())
     h.update(hashlib.sha256(mesh_bytes).digest())
@@ -303,6 +308,7 @@ def prepare_shape(annotation: Annotation | str | os.PathLike, settings: PrepareS
     if path is not None and _stored_key(path) == key:
         shape = load_prepared(path)
         shape.from_cache = True
+        shape.annotation_yaml = ann.to_yaml()  # the frame as the annotation records it now
         log.info("%s: cached %s (coverage %.4f%%)", ann.name, path, 100 * shape.coverage)
         return shape
     start = time.perf_counter()

@@ -40,6 +40,7 @@ from ngc_gen.data.mesh.io import load_mesh, normalize
 from ngc_gen.data.mesh.sampling import sample_surface
 
 from ..runtime.config import instantiate
+from ..runtime.next_hint import next_command
 from ..runtime.training import start_run
 
 HEADER = "# written by `train.py stage=annotate` (automatic GCs); edit freely, or delete to redo\n"
@@ -250,25 +251,13 @@ def run_transfer(cfg: DictConfig, run_dir: Path, conf: dict) -> list[dict]:
     print_transfer_table(rows, template)
     _transfer_outputs(run_dir, rows, cells, shapes, template, conf)
     print(f"run directory: {run_dir}")
-    print(f"next: python train.py stage=shape_latent data=folder data.path={run_dir}"
-          + "".join(f" {o}" for o in _next_overrides()))
+    print("next: " + next_command("train.py", ["stage=shape_latent", "data=folder",
+                                               f"data.path={run_dir}"],
+                                  drop=("data", "annotate")))
     if bad:
         raise DataError(f"{len(bad)} mesh(es) not annotated, their frame override is wrong; first: "
                         f"{bad[0].what}", path=bad[0].path, field=bad[0].field, fix=bad[0].fix)
     return rows
-
-
-def _next_overrides() -> list[str]:
-    """The command line's overrides that still hold for training (not stage, data.path or
-    annotate.*)."""
-    try:
-        from hydra.core.hydra_config import HydraConfig
-
-        task = list(HydraConfig.get().overrides.task)
-    except (ImportError, ValueError):
-        return []
-    skip = ("stage=", "data.path=", "data=", "annotate.", "run_dir=", "hydra.")
-    return [o for o in task if not o.lstrip("+~").startswith(skip)]
 
 
 def _transfer_outputs(run_dir: Path, rows, cells, shapes, template: Template, conf: dict) -> None:

@@ -383,7 +383,8 @@ def _carved_gcs(template: Template, resolved: dict, ps: _Posed, chain_gc):
         if tgc.carve is not None:
             src = names.index(tgc.carve["from"])
             j0 = resolved[names[src]]["chain"][0]
-            side = None if tgc.carve["side"] is None else ps.skin_m[j0] @ np.asarray(tgc.carve["side"])
+            side = None if tgc.carve["side"] is None \
+                else ps.skin_m[j0] @ np.asarray(tgc.carve["side"])
             carved.append((g, src, None if side is None else side / np.linalg.norm(side),
                            ps.joints[j0]))
     core = {}
@@ -391,7 +392,8 @@ def _carved_gcs(template: Template, resolved: dict, ps: _Posed, chain_gc):
         keep = ps.owner == src
         for _ in range(2):  # the first fit still holds the part
             core[src] = chain_gc(src, ps.fit_pts[keep], CORE_TRIM)
-            keep = carve_owner(core, [c for c in carved if c[1] == src], ps.fit_pts, ps.owner) == src
+            mine = [c for c in carved if c[1] == src]
+            keep = carve_owner(core, mine, ps.fit_pts, ps.owner) == src
     carved_owner = carve_owner(core, carved, ps.fit_pts, ps.owner)
     # a part with too few samples is absent on this rig: its samples stay with the source
     present = [c for c in carved if (carved_owner == c[0]).sum() >= CARVE_MIN]
@@ -447,8 +449,8 @@ def pose_shape(rig: Rig, template: Template, clip: str | None = None, time: floa
 
     def chain_gc(g, own, trim=(0.5, OUTLIER)):
         tgc, chain = template.gcs[g], resolved[template.gcs[g].name]["chain"]
-        poly = chain_polyline(ps.joints[chain], own, tgc.extend,
-                              ps.axes[chain[0]] if ps.axes is not None and len(chain) == 1 else None)
+        axis = ps.axes[chain[0]] if ps.axes is not None and len(chain) == 1 else None
+        poly = chain_polyline(ps.joints[chain], own, tgc.extend, axis)
         return template_gc(tgc, poly, own, st.margin, floor, where, trim)
 
     carved, core, present, owner = _carved_gcs(template, resolved, ps, chain_gc)

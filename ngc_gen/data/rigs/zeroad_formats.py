@@ -79,7 +79,7 @@ class _Reader:
 
     def fail(self, what: str) -> DataError:
         return DataError(f"not a valid {self.kind} file: {what}", path=self.source,
-                         fix=f"re-export it, or remove it from the folder")
+                         fix="re-export it, or remove it from the folder")
 
     def take(self, dtype, count: int, what: str) -> np.ndarray:
         dtype = np.dtype(dtype)
@@ -166,7 +166,8 @@ def read_skeletons(src: str | os.PathLike | bytes, name: str | None = None) -> l
         root = ET.fromstring(data)
     except ET.ParseError as e:
         raise DataError(f"not a valid skeleton XML file ({e})", path=source,
-                        fix="give a 0 A.D. skeleton file (<skeletons><standard_skeleton ...>)") from None
+                        fix="give a 0 A.D. skeleton file (<skeletons><standard_skeleton ...>)"
+                        ) from None
     out = []
     for std in root.iter("standard_skeleton"):
         names, parent = [], []

@@ -209,6 +209,16 @@ def test_builder_streams_the_package_keeps_quadrupeds_and_never_deletes_a_users_
                     "manifest.json"]
     deb.unlink()  # built once: the cache answers without the package
     assert [m.name for m in zeroad_quadrupeds(tmp_path / "cache", download=False)] == ["tiny_horse"]
+    # a user's map file for the skeleton replaces the structure's map
+    import yaml
+
+    d = m.joint_map.names(m.rig)
+    d["tail"] = {"joints": ["tail"], "skinned": ["tail", "tail_tip"]}
+    (tmp_path / "maps").mkdir()
+    (tmp_path / "maps/Tiny.yaml").write_text(yaml.safe_dump(d))
+    m2 = zeroad_quadrupeds(tmp_path / "cache", download=False, maps=tmp_path / "maps")[0]
+    assert _names(m2.rig, m2.joint_map)["tail"] == ["tail"]
+    assert m2.joint_map.source.endswith("Tiny.yaml")
 
 
 def test_no_package_and_no_download_says_what_to_run(tmp_path, monkeypatch):
@@ -217,3 +227,21 @@ def test_no_package_and_no_download_says_what_to_run(tmp_path, monkeypatch):
     monkeypatch.delenv(DEB_ENV, raising=False)
     with pytest.raises(DataError, match="apt-get download 0ad-data"):
         zeroad_quadrupeds(tmp_path, download=False)
+
+
+def test_rig_gcs_of_a_zeroad_mesh_follow_its_structure_in_its_own_frame(rig):
+    from ngc_gen.data.autogc.template import load_template
+    from ngc_gen.data.rigs.rig_gcs import RigGCSettings
+    from ngc_gen.data.rigs.zeroad import UP, ZeroADMesh
+
+    template = load_template(Path(__file__).parents[3] / "datasets/animals/quadruped_transfer.yaml")
+    mesh = ZeroADMesh("tiny", "tiny", "Tiny", rig, structure_map(rig, None, UP))
+    ps = mesh.pose(template, settings=RigGCSettings(resolution=48, samples=2000,
+                                                    check_samples=4000))
+    assert ps.coverage >= 0.999 and [g["name"] for g in ps.gcs] == template.names
+    ends = {g["name"]: np.asarray(g["curve"]["points"])[[0, -1]] for g in ps.gcs}
+    assert ends["leg_fl"][:, 0].mean() < 0 < ends["leg_fr"][:, 0].mean()  # its left is -x
+    assert ends["head"][:, 2].mean() < ends["torso"][:, 2].mean() < ends["tail"][:, 2].mean()
+    # the template's frame (y up, +z front) turned into the rig's (y up, -z front)
+    up = {g["name"]: np.asarray(g["up"]) for g in ps.gcs}
+    assert np.allclose(up["leg_fl"], [0, 0, -1]) and np.allclose(up["torso"], [0, 1, 0])
