@@ -3,7 +3,8 @@ coordinates there, the network only at points inside the GC) or of the whole box
 network at every grid point for every GC, masked by the same inside test afterwards).
 
 Both fold each GC's values into one flat (R^3,) float32 grid in GC order (min or smooth-min),
-+inf where no GC holds a point; walking slabs keeps the coordinates' memory bounded. They are
+or sum them weighted by `fade_weight` and divide once at the end (the blended union), +inf
+where no GC holds a point; walking slabs keeps the coordinates' memory bounded. They are
 what the sparse path must reproduce, and the world-space extractor's grid.
 """
 from __future__ import annotations
@@ -13,7 +14,7 @@ import time
 import numpy as np
 from tqdm.auto import tqdm
 
-from ngc_gen.geometry import GeneralizedCylinder
+from ngc_gen.geometry import GeneralizedCylinder, fade_weight
 from ngc_gen.geometry.smooth import smooth_min
 
 from .grid import Grid, lattice_points, n_slabs, restrict, slabs
@@ -34,11 +35,21 @@ def fold_into(acc: np.ndarray, flat: np.ndarray, v: np.ndarray, smooth: float) -
 
 def evaluate_grid(gcs: list[GeneralizedCylinder], grid: Grid, queue_args: dict, stats: dict,
                   smooth: float, prefilter: bool, slab_points: int = 1 << 18,
-                  progress: bool | None = None) -> np.ndarray:
-    """-> (R^3,) float32 values, C order, +inf outside every GC."""
+                  progress: bool | None = None, blend: float = 0.0) -> np.ndarray:
+    """-> (R^3,) float32 values, C order, +inf outside every GC. blend > 0: the blended union
+    of that width (`ngc_gen.geometry.union`) instead of the min / smooth-min."""
     acc = np.full(grid.n_points, np.inf, dtype=np.float32)
+    den = np.zeros(grid.n_points, dtype=np.float64) if blend > 0 else None
+    num = np.zeros(grid.n_points, dtype=np.float64) if blend > 0 else None
 
-    def sink(gc_index, flat, v):
+    def sink(gc_index, payload, v):
+        if den is not None:                    # payload: (n, 2) [flat, weight]
+            flat, w = payload[:, 0].astype(np.int64), payload[:, 1]
+            keep = flat >= 0
+            np.add.at(num, flat[keep], w[keep] * v[keep])
+            np.add.at(den, flat[keep], w[keep])
+            return
+        flat = payload
         keep = flat >= 0                       # dense path: rows outside their GC
         gc_index, flat, v = gc_index[keep], flat[keep], v[keep]
         # rows come in push order: runs of one GC, folded one after another
@@ -62,14 +73,18 @@ def evaluate_grid(gcs: list[GeneralizedCylinder], grid: Grid, queue_args: dict, 
                 if prefilter:
                     rel, m = gc.relative_inside(pts)
                     inside = m <= 1.0
-                    rel, flat = rel[inside], flat[inside]
+                    rel, flat, m = rel[inside], flat[inside], m[inside]
                 else:  # every point to the network; points outside the GC dropped afterwards
                     rel, m = gc.relative_inside(pts, cull=False)
                     flat = np.where(m <= 1.0, flat, -1)
                 stats["n_relative"] += len(pts)
                 stats["seconds_geometry"] += time.perf_counter() - t0
-                queue.push(j, rel, flat)
+                payload = flat if den is None else np.stack(
+                    [flat.astype(np.float64), fade_weight(m.astype(np.float32), blend)], 1)
+                queue.push(j, rel, payload)
                 bar.update(1)
         queue.flush()
+    if den is not None:
+        held = den > 0
+        acc[held] = (num[held] / den[held]).astype(np.float32)
     return acc
-

@@ -51,6 +51,7 @@ from numba import njit, prange
 
 from ngc_gen.geometry import GeneralizedCylinder
 from ngc_gen.geometry.smooth import smooth_min
+from ngc_gen.geometry.union import fade_weight
 
 from . import settle
 from .grid import Grid
@@ -410,9 +411,21 @@ def finest_cells(field_: SparseField, states: list[GCState], parents: list, lips
     return n_cells
 
 
-def fold(values: list[np.ndarray], inside: list[np.ndarray], smooth: float) -> np.ndarray:
+def fold(values: list[np.ndarray], inside: list[np.ndarray], smooth: float,
+         blend: float = 0.0, measures: list[np.ndarray] | None = None) -> np.ndarray:
     """Min (smooth = 0) or smooth-min of width `smooth` over the GCs holding each point, in GC
-    order (the same fold as the dense path); +inf where no GC holds the point."""
+    order (the same fold as the dense path), or with blend > 0 the blended union (weights from
+    the points' `measures` in each GC, summed in GC order as the dense path does); +inf where
+    no GC holds the point."""
+    if blend > 0:
+        num = np.zeros(len(values[0]), dtype=np.float64)
+        den = np.zeros(len(values[0]), dtype=np.float64)
+        for v, ins, m in zip(values, inside, measures):
+            w = np.where(ins, fade_weight(m.astype(np.float32), blend), 0.0).astype(np.float64)
+            num += w * np.where(ins, v, 0.0).astype(np.float64)
+            den += w
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.where(den > 0, num / den, np.inf).astype(np.float32)
     acc = None
     for v, ins in zip(values, inside):
         v = np.where(ins, v, np.float32(np.inf)).astype(np.float32)
@@ -430,8 +443,10 @@ def fold(values: list[np.ndarray], inside: list[np.ndarray], smooth: float) -> n
 
 def extract_sparse(gcs: list[GeneralizedCylinder], grid: Grid, stores: list[PointStore],
                    queue_args: dict, stats: dict, smooth: float, background: float,
-                   settings: SparseSettings, keep_values: bool = False):
-    """-> (mesh, values or None). stats gain per-level counts."""
+                   settings: SparseSettings, keep_values: bool = False, blend: float = 0.0):
+    """-> (mesh, values or None). stats gain per-level counts. blend > 0: the blended union,
+    whose value in a block another GC finds deep may still be positive (a weighted mean, not a
+    minimum), so no GC drops another's blocks there."""
     keys = Keys(grid.resolution)
     field_ = SparseField(grid, keys, queue_args, stats)
     counts = overlap_counts(gcs)
@@ -444,6 +459,8 @@ def extract_sparse(gcs: list[GeneralizedCylinder], grid: Grid, stores: list[Poin
     deep: dict[int, list[np.ndarray]] = {}     # blocks inside some N_i with f_i < 0
 
     def drop_deep(parents=None):   # another GC's deep block: the field is negative there
+        if blend > 0:
+            return
         merged = {S: sorted_unique(np.concatenate(D)) for S, D in deep.items()}
         for n, st in enumerate(states):
             ok = ~inside_deep(st.blocks, merged, keys)
@@ -499,13 +516,13 @@ def extract_sparse(gcs: list[GeneralizedCylinder], grid: Grid, stores: list[Poin
     cells = sorted_unique(np.concatenate([st.blocks for st in states]
                                          + [np.zeros(0, dtype=np.int64)]))
     points = sorted_unique(np.concatenate(keys.corner_runs(cells, 1)))
-    F = field_values(field_, states, points, smooth, background)
+    F = field_values(field_, states, points, smooth, background, blend)
     stats.update(completion_network_evals=stats["n_network_evals"] - evals0,
                  seconds_completion=time.perf_counter() - t0)
     t0 = time.perf_counter()
     evals0 = stats["n_network_evals"]
     cells, points, F, rounds = close_surface(field_, states, cells, points, F, smooth,
-                                             background)
+                                             background, blend)
     stats.update(repair_rounds=rounds, repair_network_evals=stats["n_network_evals"] - evals0,
                  seconds_repair=time.perf_counter() - t0)
     corner_vals = F[positions(points, keys.corner_runs(cells, 1))]
@@ -524,7 +541,7 @@ def extract_sparse(gcs: list[GeneralizedCylinder], grid: Grid, stores: list[Poin
 
 
 def field_values(field_: SparseField, states: list[GCState], points: np.ndarray, smooth: float,
-                 background: float) -> np.ndarray:
+                 background: float, blend: float = 0.0) -> np.ndarray:
     """F at sorted unique point keys: every GC whose box holds a point, folded in GC order;
     the background where no GC holds it."""
     grid, keys = field_.grid, field_.keys
@@ -537,15 +554,19 @@ def field_values(field_: SparseField, states: list[GCState], points: np.ndarray,
     want = np.empty((len(states), len(points)), dtype=bool)
     _in_boxes(np.ascontiguousarray(points, dtype=np.int64), keys.Q, lo, hi, want)
     got = field_.ensure(states, [points[sel] for sel in want])
-    vals, ins = [], []
+    vals, ins, ms = [], [], []
     for sel, (f, m) in zip(want, got):
         v = np.full(len(points), np.inf, dtype=np.float32)
         v[sel] = f
         i = np.zeros(len(points), dtype=bool)
         i[sel] = m <= 1.0
+        mm = np.full(len(points), np.inf, dtype=np.float32)
+        mm[sel] = m
         vals.append(v)
         ins.append(i)
-    F = fold(vals, ins, smooth) if states else np.full(len(points), np.inf, np.float32)
+        ms.append(mm)
+    F = (fold(vals, ins, smooth, blend, ms) if states
+         else np.full(len(points), np.inf, np.float32))
     return np.where(np.isfinite(F), F, np.float32(background)).astype(np.float32)
 
 
@@ -565,7 +586,8 @@ FACES = [(a, side, np.flatnonzero(CORNERS[:, a] == side)) for a in range(3) for 
 
 
 def close_surface(field_: SparseField, states: list[GCState], cells: np.ndarray,
-                  points: np.ndarray, F: np.ndarray, smooth: float, background: float):
+                  points: np.ndarray, F: np.ndarray, smooth: float, background: float,
+                  blend: float = 0.0):
     """Grow the active cells until the surface is closed: a crossing cell whose face has
     corners of both signs shares that face's crossing edges with the cell across it, which
     therefore holds surface too. A learned SDF is not exactly Lipschitz, so refinement can drop
@@ -598,7 +620,7 @@ def close_surface(field_: SparseField, states: list[GCState], cells: np.ndarray,
         pos = np.minimum(np.searchsorted(points, corner_pts), len(points) - 1)
         fresh = corner_pts[points[pos] != corner_pts]
         if len(fresh):
-            Fn = field_values(field_, states, fresh, smooth, background)
+            Fn = field_values(field_, states, fresh, smooth, background, blend)
             order = np.argsort(np.concatenate([points, fresh]), kind="stable")
             points = np.concatenate([points, fresh])[order]
             F = np.concatenate([F, Fn])[order]

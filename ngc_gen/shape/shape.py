@@ -1,8 +1,9 @@
 """`Shape`: GCs + per-GC codes + decoder, and the one NGC sdf function.
 
-The field of a shape at a world point q is, over the GCs j that contain q, the minimum (or the
-smooth minimum of width `smooth`) of decoder(code_j, rel_j(q)); a point no GC contains is outside
-(positive background). Shapes are values: edits return new shapes (`replaced`, `with_part`,
+The field of a shape at a world point q is, over the GCs j that contain q, the blend of
+decoder(code_j, rel_j(q)) weighted by where q lies in each GC (`blend`: the width of the fade,
+`ngc_gen.geometry.union`), or their minimum (blend 0; the smooth minimum of width `smooth`); a
+point no GC contains is outside (positive background). Shapes are values: edits return new shapes (`replaced`, `with_part`,
 `edited`), so a before/after pair shares the decoder and differs only where it was edited.
 """
 from __future__ import annotations
@@ -14,7 +15,7 @@ import numpy as np
 import torch
 
 from ngc_gen.extract import FieldCache, extract_mesh
-from ngc_gen.geometry import GeneralizedCylinder, smooth_min
+from ngc_gen.geometry import GeneralizedCylinder, fade_weight, smooth_min
 
 from .features import PartFeatures, blend_features
 
@@ -24,11 +25,12 @@ OUTSIDE = 1.0
 
 class Shape:
     """gcs: K GeneralizedCylinders; codes: (K, code_dim); decoder: an NGCDecoder (features,
-    sdf_from_features); mixes: {gc index: PartFeatures}; smooth: smooth-union width (0: min)."""
+    sdf_from_features); mixes: {gc index: PartFeatures}; smooth: smooth-union width (0: min);
+    blend: blended-union width (0: the min / smooth min; the fit's recorded union)."""
 
     def __init__(self, gcs: Iterable[GeneralizedCylinder], codes: torch.Tensor, decoder, *,
                  name: str = "shape", mixes: dict[int, PartFeatures] | None = None,
-                 smooth: float = 0.0, info: dict | None = None,
+                 smooth: float = 0.0, blend: float = 0.0, info: dict | None = None,
                  cache: FieldCache | None = None):
         self.gcs = list(gcs)
         self.codes = torch.as_tensor(codes).detach().float()
@@ -36,6 +38,7 @@ class Shape:
         self.name = str(name)
         self.mixes = dict(mixes or {})
         self.smooth = float(smooth)
+        self.blend = float(blend)
         self.info = dict(info or {})
         # per-GC field values of this shape and every shape edited from it (`replaced` passes
         # it on): after an edit only GCs with a new `key` are evaluated again
@@ -45,6 +48,9 @@ class Shape:
                              f"shape {tuple(self.codes.shape)}")
         if not self.smooth >= 0.0:
             raise ValueError(f"smooth-union width must be >= 0, got {smooth}")
+        if self.blend and self.smooth:
+            raise ValueError(f"a shape has one union: a smooth min (smooth={smooth}) or a blend "
+                             f"(blend={blend}), not both")
         for j, m in self.mixes.items():
             if not 0 <= j < len(self.gcs):
                 raise ValueError(f"a part mix targets GC index {j}; the shape has "
@@ -112,19 +118,30 @@ class Shape:
             return out
 
     def sdf(self, points) -> torch.Tensor:
-        """World points (N, 3) -> (N,) float32: min (or smooth min) over the GCs containing each
-        point; `OUTSIDE` where none does."""
+        """World points (N, 3) -> (N,) float32: the blend (or min, smooth min) over the GCs
+        containing each point; `OUTSIDE` where none does."""
         q = torch.as_tensor(np.asarray(points) if not isinstance(points, torch.Tensor) else points,
                             dtype=torch.float64)
         out = torch.full((len(q),), float("inf"), dtype=torch.float32)
+        num = torch.zeros(len(q), dtype=torch.float64)
+        den = torch.zeros(len(q), dtype=torch.float64)
         for j, gc in enumerate(self.gcs):  # a loop over the K GCs, never over points
             rel, measure = gc.relative_inside(q)  # one closest-point solve per point and GC
             idx = torch.from_numpy(np.flatnonzero(measure <= 1.0))
             if len(idx) == 0:
                 continue
             v = self.gc_sdf(j, rel[idx].float()).float()
+            if self.blend:
+                w = fade_weight(np.asarray(measure[idx.numpy()], dtype=np.float32), self.blend)
+                w = torch.from_numpy(np.asarray(w, dtype=np.float64))
+                num[idx] += w * v.double()
+                den[idx] += w
+                continue
             cur = out[idx]
             out[idx] = torch.where(torch.isinf(cur), v, smooth_min(cur, v, self.smooth))
+        if self.blend:
+            held = den > 0
+            out[held] = (num[held] / den[held]).float()
         return out.masked_fill_(torch.isinf(out), OUTSIDE)
 
     # ---- meshes ---------------------------------------------------------------------------------
@@ -141,20 +158,21 @@ class Shape:
     def mesh(self, resolution: int = 256, bound: float = 1.0, method: str = "sparse",
              incremental: bool = True, **kwargs):
         """ExtractionResult (mesh, stats) of the shape's zero level set on a resolution^3 grid
-        over [-bound, bound]^3 (`ngc_gen.extract.extract_mesh`, min or smooth min of width
-        `smooth` over the GCs). method "sparse" (default) keeps per-GC values in `self.cache`
+        over [-bound, bound]^3 (`ngc_gen.extract.extract_mesh`, the shape's union: blend of
+        width `blend`, or min / smooth min of width `smooth` over the GCs). method "sparse" (default) keeps per-GC values in `self.cache`
         unless incremental=False; "prefiltered" / "dense" are the exact references; kwargs go
         to extract_mesh (chunk, fixed_batch, keep_values, progress, ...)."""
         if method == "sparse" and incremental:
             kwargs.update(cache=self.cache, gc_keys=[self.key(j) for j in range(len(self.gcs))])
         return extract_mesh(self.gcs, self.rows, int(resolution), float(bound), method=method,
-                            smooth=self.smooth, **kwargs)
+                            smooth=self.smooth, blend=self.blend, **kwargs)
 
     # ---- edits (new shapes) ---------------------------------------------------------------------
     def replaced(self, **changes) -> "Shape":
-        """A copy with some of gcs, codes, decoder, name, mixes, smooth, info replaced."""
+        """A copy with some of gcs, codes, decoder, name, mixes, smooth, blend, info replaced."""
         kw = dict(gcs=self.gcs, codes=self.codes, decoder=self.decoder, name=self.name,
-                  mixes=self.mixes, smooth=self.smooth, info=self.info, cache=self.cache)
+                  mixes=self.mixes, smooth=self.smooth, blend=self.blend, info=self.info,
+                  cache=self.cache)
         kw.update(changes)
         return Shape(kw.pop("gcs"), kw.pop("codes"), kw.pop("decoder"), **kw)
 

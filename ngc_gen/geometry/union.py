@@ -1,0 +1,46 @@
+"""The blended union of GCs: a partition of unity over the GCs that hold a point.
+
+The min over GCs (the paper's union) has two seams: where GCs overlap it takes the smaller of
+two estimates of one SDF, and where a GC's boundary lies inside another GC the min stops seeing
+that GC at once. The blend weighs each GC by where the point lies in it instead:
+
+    w_j = FLOOR + (1 - FLOOR) smoothstep((1 - rho_j) / width),   F = sum_j w_j f_j / sum_j w_j
+
+over the GCs j that hold the point, rho_j its relative radius in GC j (sqrt of
+`GeneralizedCylinder.relative_measure`: the radii across the tube, the cap lengths past an end,
+so the weight fades toward the ends too). w_j is 1 deeper than 1 - width and falls smoothly to
+FLOOR on the boundary, so a GC's field fades out before its boundary wherever another GC holds
+the point, and a point only one GC holds keeps that GC's value (the weights cancel). FLOOR keeps
+the sum positive on a boundary; the step it leaves where a GC ends is FLOOR x the two fields'
+difference. The weight depends only on the point's relative coordinates in one GC, so a
+changed GC changes only its own terms (per-GC value caches stay valid).
+"""
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from .errors import GeometryError
+
+#: weight on a GC's boundary: the sum over the GCs holding a point stays positive
+FLOOR = 1e-6
+
+
+def check_width(width: float) -> float:
+    """A blend width (relative radius), > 0 and <= 1."""
+    width = float(width)
+    if not 0.0 < width <= 1.0:
+        raise GeometryError(f"blend width must be in (0, 1] (a relative radius), got {width}",
+                            field="union.width")
+    return width
+
+
+def fade_weight(measure, width: float):
+    """Blend weight of a GC at points of relative measure rho^2 (numpy or torch (N,)) -> (N,):
+    1 deeper than rho = 1 - width, a smoothstep down to FLOOR at rho = 1 (and beyond)."""
+    width = check_width(width)
+    if isinstance(measure, torch.Tensor):
+        s = ((1.0 - measure.clamp(min=0.0).sqrt()) / width).clamp(0.0, 1.0)
+    else:
+        s = np.clip((1.0 - np.sqrt(np.maximum(measure, 0.0))) / width, 0.0, 1.0)
+    return FLOOR + (1.0 - FLOOR) * (s * s * (3.0 - 2.0 * s))
