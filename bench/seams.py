@@ -1,0 +1,200 @@
+"""Seams benchmark: the min union (`before`) and the blended union (`after`, model.union=blend)
+fitted on the same meshes in the same run, each scored where GCs meet against its ceiling.
+
+    python -m bench.seams [--only ant creature_0000] [--steps 1500] [--resolution 256]
+                          [--fit-workers 2] [--no-picture]
+
+Shapes (`SHAPES`): pyvista's ant and airplane with their hand-annotated GCs, two procedural
+creatures with their parts, and the rest poses of four animals (deer, horse, fox, wolf) with
+their rig's GCs; each fitted on its own as a user fits one asset (train.py stage=fit, the
+default recipe but its union, one thread, `--steps`, meshed at `--resolution`). The meshes are
+staged by bench/_seams.py; fits go through the bench's fit cache (`FitCache("seams")`: rerun to
+fill in what is missing, a stopped run keeps what it fitted).
+
+Per shape and recipe, bench/results/seams.json `shapes` holds {name, recipe,
+junction_ratio_dist, junction_ratio_normal, ceiling_ratio_dist, ceiling_ratio_normal,
+excess_dist, excess_normal, extra_pieces, nc, fscore, ceiling_nc, ceiling_fscore,
+step_s, train_s, steps} (ngc_gen.eval.junctions; docs/metrics.md): the fit's error where GCs
+meet over its error elsewhere, the same figures of the mesh's exact SDF meshed at the same grid
+(the ceiling: what the grid allows), the fit's excess = its ratio over the ceiling's, loose
+pieces, NC and F@0.01, and training seconds per step. `edits`: the shipped edit programs on the
+ant and a creature (`EDITS`), each fit's junction ratios after the edit against the truth moved
+by the same edit (`edited_truth`), and their change from the unedited ratios. `step_time_ratio`:
+after / before training seconds per step, over the shapes with both; `minutes`: this run's
+wall time. bench/results/seams.png: per shape, its worst junction close up (truth, before,
+after).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import numpy as np
+
+from bench._harness import Bench, FitCache, config_recipe, file_identity, train_subprocess
+
+ROOT = Path(__file__).resolve().parents[1]
+#: (name, GCs) of every bench shape: the GCs the shape ships with (bench/_seams.py stages them)
+SHAPES = (("ant", "annotated"), ("airplane", "annotated"), ("creature_0000", "annotated"),
+          ("creature_0001", "annotated"), ("deer", "rig"), ("horse", "rig"), ("fox", "rig"),
+          ("wolf", "rig"))
+RECIPES = {"before": ["model.union.kind=min"], "after": ["model.union.kind=blend"]}
+#: shipped edit programs measured on the fitted shapes (ngc_gen/conf/edit)
+EDITS = {"ant": "posed_ant_leg", "creature_0000": "bent_tail"}
+CLOSEUP = 0.08   # radius of a close-up around the worst junction (normalised units)
+
+
+def staged(only: list[str] | None) -> list[tuple[str, str, Path]]:
+    """(name, gcs, folder) of the bench shapes (in `--only`, if given), staged once."""
+    from bench import _seams
+
+    want = {(n, g) for n, g in SHAPES if not only or n in only}
+    return [(n, g, f) for n, g, f in _seams.staged() if (n, g) in want]
+
+
+def overrides(folder: Path, recipe: str, steps: int, resolution: int) -> list[str]:
+    return ["stage=fit", "data=folder", f"data.path={folder}", f"trainer.max_steps={steps}",
+            f"extract.resolution={resolution}", "trainer.enable_progress_bar=false",
+            "logger=csv", *RECIPES[recipe],
+            f"prepare.cache_dir={ROOT}/.cache/prepared/seams/{folder.name}"]
+
+
+def prepare(folder: Path, steps: int, resolution: int) -> None:
+    """The shape's training samples, once for both recipes (they share the prepared cache)."""
+    from ngc_gen.app.config import compose_config
+    from ngc_gen.app.prepare import prepare_dataset
+
+    prepare_dataset(compose_config(overrides=overrides(folder, "before", steps, resolution)),
+                    verbose=False)
+
+
+def fit_one(cache: FitCache, name: str, folder: Path, recipe: str, steps: int,
+            resolution: int, refit: bool = False):
+    """One shape, one recipe: a cached train.py run in its own process (one thread)."""
+    from ngc_gen.app.config import compose_config
+
+    over = overrides(folder, recipe, steps, resolution)
+
+    def fit(run_dir: Path) -> dict:
+        wall = train_subprocess(over, run_dir, f"the fit of {name} ({recipe})")
+        return {"wall_s": wall, "label": f"{name}/{recipe}"}
+
+    f = cache.get({"stage": "seams_fit", "config": config_recipe(compose_config(overrides=over)),
+                   "data": file_identity([folder])}, fit, refit=refit)
+    print(f"{name} ({recipe}) {'cached' if f.reused else 'fitted'}: {f.run_dir}", flush=True)
+    return f
+
+
+def row(name: str, recipe: str, run_dir: Path, ceil: dict) -> dict:
+    """seams.json `shapes` entry of one fit run (its metrics.json) beside its ceiling."""
+    m = json.loads((run_dir / "metrics.json").read_text())
+    s = m["shapes"][name]
+    out = {"name": name, "recipe": recipe,
+           "junction_ratio_dist": s["junction_ratio_dist"],
+           "junction_ratio_normal": s["junction_ratio_normal"],
+           "ceiling_ratio_dist": ceil["junction_ratio_dist"],
+           "ceiling_ratio_normal": ceil["junction_ratio_normal"],
+           "extra_pieces": s["extra_pieces"], "nc": s["normal_consistency"],
+           "fscore": s["fscore"], "ceiling_nc": ceil["nc"], "ceiling_fscore": ceil["fscore"],
+           "train_s": m["train_s"], "steps": m["steps"],
+           "step_s": m["train_s"] / max(1, m["steps"] - m.get("start_step", 0))}
+    for k in ("dist", "normal"):
+        fit, top = out[f"junction_ratio_{k}"], out[f"ceiling_ratio_{k}"]
+        out[f"excess_{k}"] = fit / top if fit is not None and top else None
+    return out
+
+
+def meets_targets(r: dict) -> bool:
+    """The issue's bar for one fit: excess <= 1.15 on both ratios, no extra piece, NC and F at
+    least min(0.95, the ceiling's own - 0.01)."""
+    ok = all(r[f"excess_{k}"] is not None and r[f"excess_{k}"] <= 1.15
+             for k in ("dist", "normal"))
+    return (ok and r["extra_pieces"] == 0
+            and r["nc"] >= min(0.95, r["ceiling_nc"] - 0.01)
+            and r["fscore"] >= min(0.95, r["ceiling_fscore"] - 0.01))
+
+
+def table(rows: list[dict]) -> list[str]:
+    def f(x, p=2):
+        return "-" if x is None else f"{x:.{p}f}"
+
+    out = ["| shape | recipe | junction d / n | ceiling d / n | excess d / n | extra | NC | F "
+           "| ms/step | met |", "|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        out.append(f"| {r['name']} | {r['recipe']} | {f(r['junction_ratio_dist'])} / "
+                   f"{f(r['junction_ratio_normal'])} | {f(r['ceiling_ratio_dist'])} / "
+                   f"{f(r['ceiling_ratio_normal'])} | {f(r['excess_dist'])} / "
+                   f"{f(r['excess_normal'])} | {r['extra_pieces']} | {f(r['nc'], 3)} | "
+                   f"{f(r['fscore'], 3)} | {1e3 * r['step_s']:.1f} | "
+                   f"{'yes' if meets_targets(r) else 'no'} |")
+    return out
+
+
+def step_time_ratio(rows: list[dict]) -> float | None:
+    """after / before training seconds per step, summed over the shapes with both."""
+    by = {(r["name"], r["recipe"]): r["step_s"] for r in rows}
+    pairs = [(by[n, "before"], by[n, "after"]) for n, _ in SHAPES
+             if (n, "before") in by and (n, "after") in by]
+    if not pairs:
+        return None
+    return float(sum(a for _, a in pairs) / sum(b for b, _ in pairs))
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--only", nargs="*", default=None, help="only these shapes (names)")
+    ap.add_argument("--steps", type=int, default=1500)
+    ap.add_argument("--resolution", type=int, default=256)
+    ap.add_argument("--fit-workers", type=int, default=2, help="fits side by side")
+    ap.add_argument("--no-picture", action="store_true")
+    ap.add_argument("--refit", nargs="*", default=[], choices=list(RECIPES),
+                    help="fit these recipes again (the cache keys the config, not the code)")
+    args = ap.parse_args()
+    names = [n for n, _ in SHAPES]
+    bad = [n for n in args.only or [] if n not in names]
+    if bad:
+        raise SystemExit(f"--only: {bad} not among the bench shapes {names}")
+    bench = Bench("seams")
+    t0 = time.perf_counter()
+    from bench import _seams_close as close
+
+    shapes = staged(args.only)
+    for _, _, folder in shapes:
+        prepare(folder, args.steps, args.resolution)
+    cache = FitCache("seams")
+    jobs = [(n, folder, r) for n, _, folder in shapes for r in RECIPES]
+    with ThreadPoolExecutor(max(1, args.fit_workers)) as pool:
+        fits = list(pool.map(lambda j: fit_one(cache, *j, args.steps, args.resolution,
+                                               j[2] in args.refit), jobs))
+    runs = {(n, r): f.run_dir for (n, _, r), f in zip(jobs, fits)}
+    rows = []
+    for n, _, _ in shapes:
+        ceil = _ceiling(runs[n, "before"], n, args.resolution)
+        rows += [row(n, r, runs[n, r], ceil) for r in RECIPES]
+    edits = close.edit_rows({n: p for n, p in EDITS.items() if (n, "before") in runs}, runs,
+                            rows, args.resolution)
+    res = {"shapes": rows, "edits": edits, "step_time_ratio": step_time_ratio(rows),
+           "steps": args.steps, "resolution": args.resolution,
+           "minutes": (time.perf_counter() - t0) / 60.0}
+    bench.write(res)
+    if not args.no_picture:
+        close.picture(rows, runs, bench.path.parent / "seams.png", CLOSEUP)
+    print("\n".join(table(rows)))
+    for e in edits:
+        print(f"edit {e['program']} on {e['name']} ({e['recipe']}): junction "
+              f"{e['junction_ratio_dist']:.2f} / {e['junction_ratio_normal']:.2f}, change "
+              f"{e['change_dist']:+.1%} / {e['change_normal']:+.1%}")
+    print(f"after / before seconds per step: {res['step_time_ratio']}; {res['minutes']:.1f} min")
+
+
+def _ceiling(run_dir: Path, name: str, resolution: int) -> dict:
+    from bench import _seams
+
+    return _seams.ceiling(run_dir, name, resolution)
+
+
+if __name__ == "__main__":
+    main()
