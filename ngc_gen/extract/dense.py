@@ -15,22 +15,10 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from ngc_gen.geometry import GeneralizedCylinder, fade_weight
-from ngc_gen.geometry.smooth import smooth_min
 
+from .fold import fold_into
 from .grid import Grid, lattice_points, n_slabs, restrict, slabs
 from .rows import RowQueue
-
-
-def fold_into(acc: np.ndarray, flat: np.ndarray, v: np.ndarray, smooth: float) -> None:
-    """acc[flat] <- fold(acc[flat], v) in place (flat unique): min, or smooth-min where both
-    are finite (the first GC holding a point just sets it)."""
-    a = acc[flat]
-    if smooth == 0.0:
-        acc[flat] = np.minimum(a, v)
-        return
-    with np.errstate(invalid="ignore"):
-        both = np.isfinite(a)
-        acc[flat] = np.where(both, smooth_min(a, v, smooth), v).astype(np.float32)
 
 
 def evaluate_grid(gcs: list[GeneralizedCylinder], grid: Grid, queue_args: dict, stats: dict,

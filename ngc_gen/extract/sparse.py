@@ -50,10 +50,9 @@ import numpy as np
 from numba import njit, prange
 
 from ngc_gen.geometry import GeneralizedCylinder
-from ngc_gen.geometry.smooth import smooth_min
-from ngc_gen.geometry.union import fade_weight
 
 from . import settle
+from .fold import fold
 from .grid import Grid
 from .marching import CORNERS, cells_mesh, crossing
 from .rows import RowQueue
@@ -409,36 +408,6 @@ def finest_cells(field_: SparseField, states: list[GCState], parents: list, lips
         st.blocks = np.sort(np.concatenate([P[keep[:, o]] + keys.corner[o] for o in range(8)]),
                             kind="stable")                   # 8 sorted runs: a merge
     return n_cells
-
-
-def fold(values: list[np.ndarray], inside: list[np.ndarray], smooth: float,
-         blend: float = 0.0, measures: list[np.ndarray] | None = None) -> np.ndarray:
-    """Min (smooth = 0) or smooth-min of width `smooth` over the GCs holding each point, in GC
-    order (the same fold as the dense path), or with blend > 0 the blended union (weights from
-    the points' `measures` in each GC, summed in GC order as the dense path does); +inf where
-    no GC holds the point."""
-    if blend > 0:
-        num = np.zeros(len(values[0]), dtype=np.float64)
-        den = np.zeros(len(values[0]), dtype=np.float64)
-        for v, ins, m in zip(values, inside, measures):
-            w = np.where(ins, fade_weight(m.astype(np.float32), blend), 0.0).astype(np.float64)
-            num += w * np.where(ins, v, 0.0).astype(np.float64)
-            den += w
-        with np.errstate(invalid="ignore", divide="ignore"):
-            return np.where(den > 0, num / den, np.inf).astype(np.float32)
-    acc = None
-    for v, ins in zip(values, inside):
-        v = np.where(ins, v, np.float32(np.inf)).astype(np.float32)
-        if acc is None:
-            acc = v
-        elif smooth == 0.0:
-            acc = np.minimum(acc, v)
-        else:
-            with np.errstate(invalid="ignore"):
-                both = np.isfinite(acc) & np.isfinite(v)
-                acc = np.where(both, smooth_min(acc, v, smooth), np.minimum(acc, v))
-            acc = acc.astype(np.float32)
-    return acc
 
 
 def extract_sparse(gcs: list[GeneralizedCylinder], grid: Grid, stores: list[PointStore],

@@ -39,7 +39,7 @@ def test_fade_weight_is_one_deep_inside_and_floor_on_the_boundary():
 def test_blend_is_the_weighted_mean_in_gc_order_and_sparse_equals_it():
     ga, gb = two_gcs()
     fields = [sphere_sdf((0.15, 0.0, 0.0), 0.3), sphere_sdf((0.0, 0.15, 0.0), 0.33)]
-    sdf_fn, R, width = through_gcs([ga, gb], fields), 48, 0.3
+    sdf_fn, R, width = through_gcs([ga, gb], fields), 32, 0.3
     ref = extract_mesh([ga, gb], per_gc_rows(sdf_fn), R, method="prefiltered", blend=width,
                        keep_values=True)
     pts = grid_points(R)
