@@ -1,5 +1,5 @@
-"""Seams benchmark: the min union (`before`) and the blended union (`after`, model.union=blend)
-fitted on the same meshes in the same run, each scored where GCs meet against its ceiling.
+"""Seams benchmark: the min union (`before`) and the blended union (`after`, the default
+`model.union`) on the same fits in the same run, each scored where GCs meet against its ceiling.
 
     python -m bench.seams [--only ant creature_0000] [--steps 1500] [--resolution 256]
                           [--fit-workers 2] [--no-picture]
@@ -7,7 +7,10 @@ fitted on the same meshes in the same run, each scored where GCs meet against it
 Shapes (`SHAPES`): pyvista's ant and airplane with their hand-annotated GCs, two procedural
 creatures with their parts, and the rest poses of four animals (deer, horse, fox, wolf) with
 their rig's GCs; each fitted on its own as a user fits one asset (train.py stage=fit, the
-default recipe but its union, one thread, `--steps`, meshed at `--resolution`). The meshes are
+default recipe with the min union, one thread, `--steps`, meshed at `--resolution`); `after`
+meshes the same checkpoint with the blend: the default loss does not depend on the union
+(`model.union.loss_shares` is off), so a fit with the blend would train the same network, and
+its training time per step is the before's by construction. The meshes are
 staged by bench/_seams.py; fits go through the bench's fit cache (`FitCache("seams")`: rerun to
 fill in what is missing, a stopped run keeps what it fitted).
 
@@ -19,9 +22,8 @@ meet over its error elsewhere, the same figures of the mesh's exact SDF meshed a
 (the ceiling: what the grid allows), the fit's excess = its ratio over the ceiling's, loose
 pieces, NC and F@0.01, and training seconds per step. `edits`: the shipped edit programs on the
 ant and a creature (`EDITS`), each fit's junction ratios after the edit against the truth moved
-by the same edit (`edited_truth`), and their change from the unedited ratios. `step_time_ratio`:
-after / before training seconds per step, over the shapes with both; `minutes`: this run's
-wall time. bench/results/seams.png: per shape, its worst junction close up (truth, before,
+by the same edit (`edited_truth`), and their change from the unedited ratios. `minutes`: this
+run's wall time. bench/results/seams.png: per shape, its worst junction close up (truth, before,
 after).
 """
 from __future__ import annotations
@@ -41,7 +43,10 @@ ROOT = Path(__file__).resolve().parents[1]
 SHAPES = (("ant", "annotated"), ("airplane", "annotated"), ("creature_0000", "annotated"),
           ("creature_0001", "annotated"), ("deer", "rig"), ("horse", "rig"), ("fox", "rig"),
           ("wolf", "rig"))
-RECIPES = {"before": ["model.union.kind=min"], "after": ["model.union.kind=blend"]}
+#: the fit (today's recipe with the min union, which the loss does not see); `after` meshes the
+#: same checkpoint with the default `model.union` (the blend; its loss is the same per-row loss)
+RECIPES = ("before", "after")
+FIT = ["model.union.kind=min"]
 #: shipped edit programs measured on the fitted shapes (ngc_gen/conf/edit)
 EDITS = {"ant": "posed_ant_leg", "creature_0000": "bent_tail"}
 CLOSEUP = 0.08   # radius of a close-up around the worst junction (normalised units)
@@ -55,10 +60,10 @@ def staged(only: list[str] | None) -> list[tuple[str, str, Path]]:
     return [(n, g, f) for n, g, f in _seams.staged() if (n, g) in want]
 
 
-def overrides(folder: Path, recipe: str, steps: int, resolution: int) -> list[str]:
+def overrides(folder: Path, steps: int, resolution: int) -> list[str]:
     return ["stage=fit", "data=folder", f"data.path={folder}", f"trainer.max_steps={steps}",
             f"extract.resolution={resolution}", "trainer.enable_progress_bar=false",
-            "logger=csv", *RECIPES[recipe],
+            "logger=csv", *FIT,
             f"prepare.cache_dir={ROOT}/.cache/prepared/seams/{folder.name}"]
 
 
@@ -67,31 +72,65 @@ def prepare(folder: Path, steps: int, resolution: int) -> None:
     from ngc_gen.app.config import compose_config
     from ngc_gen.app.prepare import prepare_dataset
 
-    prepare_dataset(compose_config(overrides=overrides(folder, "before", steps, resolution)),
+    prepare_dataset(compose_config(overrides=overrides(folder, steps, resolution)),
                     verbose=False)
 
 
-def fit_one(cache: FitCache, name: str, folder: Path, recipe: str, steps: int,
-            resolution: int, refit: bool = False):
-    """One shape, one recipe: a cached train.py run in its own process (one thread)."""
+def fit_one(cache: FitCache, name: str, folder: Path, steps: int, resolution: int,
+            refit: bool = False):
+    """One shape: a cached train.py run in its own process (one thread), scored with the min."""
     from ngc_gen.app.config import compose_config
 
-    over = overrides(folder, recipe, steps, resolution)
+    over = overrides(folder, steps, resolution)
 
     def fit(run_dir: Path) -> dict:
-        wall = train_subprocess(over, run_dir, f"the fit of {name} ({recipe})")
-        return {"wall_s": wall, "label": f"{name}/{recipe}"}
+        wall = train_subprocess(over, run_dir, f"the fit of {name}")
+        return {"wall_s": wall, "label": f"{name}/before"}
 
     f = cache.get({"stage": "seams_fit", "config": config_recipe(compose_config(overrides=over)),
                    "data": file_identity([folder])}, fit, refit=refit)
-    print(f"{name} ({recipe}) {'cached' if f.reused else 'fitted'}: {f.run_dir}", flush=True)
+    print(f"{name} {'cached' if f.reused else 'fitted'}: {f.run_dir}", flush=True)
     return f
 
 
-def row(name: str, recipe: str, run_dir: Path, ceil: dict) -> dict:
-    """seams.json `shapes` entry of one fit run (its metrics.json) beside its ceiling."""
+def blended(run_dir: Path, name: str, resolution: int) -> dict:
+    """The fit's shape meshed with the default union (conf/model: the blend) and scored as the
+    fit stage scores (the same metrics and seeds), cached beside the run as after.json; its
+    mesh goes to meshes/<name>_after.ply."""
+    path = run_dir / "after.json"
+    if path.exists():
+        return json.loads(path.read_text())
+    import torch
+
+    from bench._seams import truth_and_gcs
+    from ngc_gen.app.config import compose_config
+    from ngc_gen.data.atomic import atomic_write
+    from ngc_gen.eval import junction_metrics, reconstruction_metrics
+    from ngc_gen.lit.autodecoder import check_union
+    from ngc_gen.shape import load_shapes
+    from ngc_gen.shape.load import recorded_union
+
+    union = check_union(compose_config(overrides=["stage=fit"]).model.union)
+    truth, gcs = truth_and_gcs(run_dir, name)
+    shape = load_shapes(run_dir / "checkpoints" / "last.ckpt")[name]
+    shape = shape.replaced(**recorded_union({"union": union}))
+    with torch.no_grad():
+        res = shape.mesh(resolution)
+    atomic_write(run_dir / "meshes" / f"{name}_after.ply",
+                 lambda f: f.write(res.mesh.export(file_type="ply")))
+    m = {**reconstruction_metrics(res.mesh, truth), **junction_metrics(res.mesh, truth, gcs)}
+    out = {"union": union, "extract_s": res.stats["seconds"],
+           **{k: m[k] for k in ("junction_ratio_dist", "junction_ratio_normal", "extra_pieces",
+                                "sliver_breaks", "normal_consistency", "fscore")}}
+    path.write_text(json.dumps(out))
+    return out
+
+
+def row(name: str, recipe: str, run_dir: Path, ceil: dict, resolution: int) -> dict:
+    """seams.json `shapes` entry of one fit run (its metrics.json: before; `blended`: after)
+    beside its ceiling."""
     m = json.loads((run_dir / "metrics.json").read_text())
-    s = m["shapes"][name]
+    s = m["shapes"][name] if recipe == "before" else blended(run_dir, name, resolution)
     out = {"name": name, "recipe": recipe,
            "junction_ratio_dist": s["junction_ratio_dist"],
            "junction_ratio_normal": s["junction_ratio_normal"],
@@ -133,16 +172,6 @@ def table(rows: list[dict]) -> list[str]:
     return out
 
 
-def step_time_ratio(rows: list[dict]) -> float | None:
-    """after / before training seconds per step, summed over the shapes with both."""
-    by = {(r["name"], r["recipe"]): r["step_s"] for r in rows}
-    pairs = [(by[n, "before"], by[n, "after"]) for n, _ in SHAPES
-             if (n, "before") in by and (n, "after") in by]
-    if not pairs:
-        return None
-    return float(sum(a for _, a in pairs) / sum(b for b, _ in pairs))
-
-
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--only", nargs="*", default=None, help="only these shapes (names)")
@@ -150,8 +179,8 @@ def main():
     ap.add_argument("--resolution", type=int, default=256)
     ap.add_argument("--fit-workers", type=int, default=2, help="fits side by side")
     ap.add_argument("--no-picture", action="store_true")
-    ap.add_argument("--refit", nargs="*", default=[], choices=list(RECIPES),
-                    help="fit these recipes again (the cache keys the config, not the code)")
+    ap.add_argument("--refit", action="store_true",
+                    help="fit again (the cache keys the config, not the code)")
     args = ap.parse_args()
     names = [n for n, _ in SHAPES]
     bad = [n for n in args.only or [] if n not in names]
@@ -165,19 +194,17 @@ def main():
     for _, _, folder in shapes:
         prepare(folder, args.steps, args.resolution)
     cache = FitCache("seams")
-    jobs = [(n, folder, r) for n, _, folder in shapes for r in RECIPES]
     with ThreadPoolExecutor(max(1, args.fit_workers)) as pool:
-        fits = list(pool.map(lambda j: fit_one(cache, *j, args.steps, args.resolution,
-                                               j[2] in args.refit), jobs))
-    runs = {(n, r): f.run_dir for (n, _, r), f in zip(jobs, fits)}
+        fits = list(pool.map(lambda s: fit_one(cache, s[0], s[2], args.steps, args.resolution,
+                                               args.refit), shapes))
+    runs = {(n, r): f.run_dir for (n, _, _), f in zip(shapes, fits) for r in RECIPES}
     rows = []
     for n, _, _ in shapes:
         ceil = _ceiling(runs[n, "before"], n, args.resolution)
-        rows += [row(n, r, runs[n, r], ceil) for r in RECIPES]
+        rows += [row(n, r, runs[n, r], ceil, args.resolution) for r in RECIPES]
     edits = close.edit_rows({n: p for n, p in EDITS.items() if (n, "before") in runs}, runs,
                             rows, args.resolution)
-    res = {"shapes": rows, "edits": edits, "step_time_ratio": step_time_ratio(rows),
-           "steps": args.steps, "resolution": args.resolution,
+    res = {"shapes": rows, "edits": edits, "steps": args.steps, "resolution": args.resolution,
            "minutes": (time.perf_counter() - t0) / 60.0}
     bench.write(res)
     if not args.no_picture:
@@ -187,7 +214,7 @@ def main():
         print(f"edit {e['program']} on {e['name']} ({e['recipe']}): junction "
               f"{e['junction_ratio_dist']:.2f} / {e['junction_ratio_normal']:.2f}, change "
               f"{e['change_dist']:+.1%} / {e['change_normal']:+.1%}")
-    print(f"after / before seconds per step: {res['step_time_ratio']}; {res['minutes']:.1f} min")
+    print(f"{res['minutes']:.1f} min")
 
 
 def _ceiling(run_dir: Path, name: str, resolution: int) -> dict:

@@ -45,9 +45,11 @@ def build_module(cfg: DictConfig, n_codes: int, meta: dict):
 
 
 def union_blend(cfg: DictConfig) -> float:
-    """The blend width of the run's `model.union` (0: the min, or a model without GCs)."""
+    """The blend width the loss's row shares use: the run's `model.union` width with kind blend
+    and loss_shares (0: rows unweighted, as for the min or a model without GCs)."""
     union = cfg.model.get("union")
-    return float(union.width) if union and union.get("kind") == "blend" else 0.0
+    shares = union and union.get("kind") == "blend" and union.get("loss_shares", False)
+    return float(union.width) if shares else 0.0
 
 
 def run_fit(cfg: DictConfig) -> dict:

@@ -56,7 +56,7 @@ def gc_list(gcs) -> list[GeneralizedCylinder]:
 
 def extract_mesh(gcs: Sequence[GeneralizedCylinder], rows_fn: RowsFn, resolution: int = 256,
                  bound: float = 1.0, method: str = "sparse", smooth: float = 0.0,
-                 blend: float = 0.0, cache: FieldCache | None = None,
+                 blend: float = 0.0, blend_k: float = 0.0, cache: FieldCache | None = None,
                  gc_keys: Sequence[Hashable] | None = None, *,
                  chunk: int = 65536, background: float | None = None, fixed_batch: bool = False,
                  device=None, keep_values: bool = False, settings: SparseSettings | None = None,
@@ -72,7 +72,9 @@ def extract_mesh(gcs: Sequence[GeneralizedCylinder], rows_fn: RowsFn, resolution
       smooth minimum of width k (`ngc_gen.geometry.smooth`), a smooth union where parts overlap.
     blend: 0 (the min / smooth-min above) or the width w in (0, 1] of the blended union: a
       partition of unity over the GCs holding a point, each GC fading out over the relative
-      radii [1 - w, 1] (`ngc_gen.geometry.union`); smooth must then be 0.
+      radii [1 - w, 1] (`ngc_gen.geometry.union`); smooth must then be 0. blend_k: its
+      softness (0: the weighted mean; k > 0: a weighted soft minimum, the smaller value where
+      GCs disagree by more than about k).
     cache, gc_keys: with a `FieldCache`, per-GC values are kept under gc_keys[i] (hashable; the
       caller's key for GC i's parameters and code) and only GCs with new keys are evaluated
       (sparse only); the mesh equals a full re-extraction.
@@ -135,10 +137,10 @@ def extract_mesh(gcs: Sequence[GeneralizedCylinder], rows_fn: RowsFn, resolution
             stores, hits = [s for s, _ in got], sum(h for _, h in got)
         stats.update(cache_hits=hits, cache_misses=len(gcs) - hits)
         mesh, values = extract_sparse(gcs, grid, stores, queue_args, stats, smooth, background,
-                                      settings or SparseSettings(), keep_values, blend)
+                                      settings or SparseSettings(), keep_values, blend, blend_k)
     else:
         flat = evaluate_grid(gcs, grid, queue_args, stats, smooth, method == "prefiltered",
-                             slab_points, progress, blend)
+                             slab_points, progress, blend, blend_k)
         covered = np.isfinite(flat)
         stats["n_covered"] = int(covered.sum())
         flat[~covered] = background
@@ -148,7 +150,7 @@ def extract_mesh(gcs: Sequence[GeneralizedCylinder], rows_fn: RowsFn, resolution
         stats["seconds_marching"] = time.perf_counter() - t0
     stats.update(n_grid_points=grid.n_points, n_gcs=len(gcs), resolution=grid.resolution,
                  bound=grid.bound, background=background, method=method, smooth=smooth,
-                 blend=blend,
+                 blend=blend, blend_k=blend_k if blend else 0.0,
                  fixed_batch=bool(fixed_batch), n_faces=len(mesh.faces),
                  n_vertices=len(mesh.vertices))
     stats["seconds"] = time.perf_counter() - t_start

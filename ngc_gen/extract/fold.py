@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from ngc_gen.geometry.smooth import smooth_min
-from ngc_gen.geometry.union import fade_weight
+from ngc_gen.geometry.union import BlendAccumulator
 
 
 def fold_into(acc: np.ndarray, flat: np.ndarray, v: np.ndarray, smooth: float) -> None:
@@ -22,20 +22,17 @@ def fold_into(acc: np.ndarray, flat: np.ndarray, v: np.ndarray, smooth: float) -
 
 
 def fold(values: list[np.ndarray], inside: list[np.ndarray], smooth: float,
-         blend: float = 0.0, measures: list[np.ndarray] | None = None) -> np.ndarray:
+         blend: float = 0.0, measures: list[np.ndarray] | None = None,
+         blend_k: float = 0.0) -> np.ndarray:
     """Min (smooth = 0) or smooth-min of width `smooth` over the GCs holding each point, in GC
-    order (the same fold as the dense path), or with blend > 0 the blended union (weights from
-    the points' `measures` in each GC, summed in GC order as the dense path does); +inf where
-    no GC holds the point."""
+    order (the same fold as the dense path), or with blend > 0 the blended union of width blend
+    and softness blend_k (`BlendAccumulator`; weights from the points' `measures` in each GC,
+    folded in GC order as the dense path does); +inf where no GC holds the point."""
     if blend > 0:
-        num = np.zeros(len(values[0]), dtype=np.float64)
-        den = np.zeros(len(values[0]), dtype=np.float64)
+        acc = BlendAccumulator(len(values[0]), blend, blend_k)
         for v, ins, m in zip(values, inside, measures):
-            w = np.where(ins, fade_weight(m.astype(np.float32), blend), 0.0).astype(np.float64)
-            num += w * np.where(ins, v, 0.0).astype(np.float64)
-            den += w
-        with np.errstate(invalid="ignore", divide="ignore"):
-            return np.where(den > 0, num / den, np.inf).astype(np.float32)
+            acc.add(ins, v[ins], m[ins])
+        return acc.result()
     acc = None
     for v, ins in zip(values, inside):
         v = np.where(ins, v, np.float32(np.inf)).astype(np.float32)

@@ -412,10 +412,12 @@ def finest_cells(field_: SparseField, states: list[GCState], parents: list, lips
 
 def extract_sparse(gcs: list[GeneralizedCylinder], grid: Grid, stores: list[PointStore],
                    queue_args: dict, stats: dict, smooth: float, background: float,
-                   settings: SparseSettings, keep_values: bool = False, blend: float = 0.0):
+                   settings: SparseSettings, keep_values: bool = False, blend: float = 0.0,
+                   blend_k: float = 0.0):
     """-> (mesh, values or None). stats gain per-level counts. blend > 0: the blended union,
     whose value in a block another GC finds deep may still be positive (a weighted mean, not a
-    minimum), so no GC drops another's blocks there."""
+    minimum), so no GC drops another's blocks there; blend_k its softness."""
+    union = (blend, blend_k)
     keys = Keys(grid.resolution)
     field_ = SparseField(grid, keys, queue_args, stats)
     counts = overlap_counts(gcs)
@@ -485,13 +487,13 @@ def extract_sparse(gcs: list[GeneralizedCylinder], grid: Grid, stores: list[Poin
     cells = sorted_unique(np.concatenate([st.blocks for st in states]
                                          + [np.zeros(0, dtype=np.int64)]))
     points = sorted_unique(np.concatenate(keys.corner_runs(cells, 1)))
-    F = field_values(field_, states, points, smooth, background, blend)
+    F = field_values(field_, states, points, smooth, background, union)
     stats.update(completion_network_evals=stats["n_network_evals"] - evals0,
                  seconds_completion=time.perf_counter() - t0)
     t0 = time.perf_counter()
     evals0 = stats["n_network_evals"]
     cells, points, F, rounds = close_surface(field_, states, cells, points, F, smooth,
-                                             background, blend)
+                                             background, union)
     stats.update(repair_rounds=rounds, repair_network_evals=stats["n_network_evals"] - evals0,
                  seconds_repair=time.perf_counter() - t0)
     corner_vals = F[positions(points, keys.corner_runs(cells, 1))]
@@ -510,9 +512,10 @@ def extract_sparse(gcs: list[GeneralizedCylinder], grid: Grid, stores: list[Poin
 
 
 def field_values(field_: SparseField, states: list[GCState], points: np.ndarray, smooth: float,
-                 background: float, blend: float = 0.0) -> np.ndarray:
+                 background: float, union: tuple[float, float] = (0.0, 0.0)) -> np.ndarray:
     """F at sorted unique point keys: every GC whose box holds a point, folded in GC order;
-    the background where no GC holds it."""
+    the background where no GC holds it. union: (blend width, blend softness), (0, 0) for
+    the min / smooth min."""
     grid, keys = field_.grid, field_.keys
     lo = np.zeros((len(states), 3), dtype=np.int64)
     hi = np.full((len(states), 3), -1, dtype=np.int64)             # empty box: holds nothing
@@ -534,7 +537,7 @@ def field_values(field_: SparseField, states: list[GCState], points: np.ndarray,
         vals.append(v)
         ins.append(i)
         ms.append(mm)
-    F = (fold(vals, ins, smooth, blend, ms) if states
+    F = (fold(vals, ins, smooth, union[0], ms, union[1]) if states
          else np.full(len(points), np.inf, np.float32))
     return np.where(np.isfinite(F), F, np.float32(background)).astype(np.float32)
 
@@ -556,7 +559,7 @@ FACES = [(a, side, np.flatnonzero(CORNERS[:, a] == side)) for a in range(3) for 
 
 def close_surface(field_: SparseField, states: list[GCState], cells: np.ndarray,
                   points: np.ndarray, F: np.ndarray, smooth: float, background: float,
-                  blend: float = 0.0):
+                  union: tuple[float, float] = (0.0, 0.0)):
     """Grow the active cells until the surface is closed: a crossing cell whose face has
     corners of both signs shares that face's crossing edges with the cell across it, which
     therefore holds surface too. A learned SDF is not exactly Lipschitz, so refinement can drop
@@ -589,7 +592,7 @@ def close_surface(field_: SparseField, states: list[GCState], cells: np.ndarray,
         pos = np.minimum(np.searchsorted(points, corner_pts), len(points) - 1)
         fresh = corner_pts[points[pos] != corner_pts]
         if len(fresh):
-            Fn = field_values(field_, states, fresh, smooth, background, blend)
+            Fn = field_values(field_, states, fresh, smooth, background, union)
             order = np.argsort(np.concatenate([points, fresh]), kind="stable")
             points = np.concatenate([points, fresh])[order]
             F = np.concatenate([F, Fn])[order]

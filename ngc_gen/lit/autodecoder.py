@@ -1,12 +1,14 @@
 """Auto-decoder training (DeepSDF style) for NGC (one code per GC) and DeepSDF (one per shape).
 
 loss = mean |F(z_id, x) - sdf| (optionally both clamped to +-clamp) + code_reg * mean ||z||^2
-(paper: 1e-4). With the blended union (`union` kind blend) a batch also carries each row's share
+(paper: 1e-4). With the blended union and `loss_shares` a batch also carries each row's share
 of its sample, w_j / sum_k w_k over the GCs k holding the sample (`ngc_gen.geometry.union`), and
 the L1 term is their weighted mean: sum_j w_j |f_j - sdf| / sum_j w_j bounds the blend's own
-error |sum_j w_j f_j / sum_j w_j - sdf| from above, so the loss trains what the union shows (a
-GC fading out is not held to samples where the next GC speaks). Phase two (paper): from `codes_only_from` x max_steps the decoder's learning
-rate is zero and only the codes move (an lr switch rather than requires_grad, so it is
+error |sum_j w_j f_j / sum_j w_j - sdf| from above (a GC fading out is not held to samples
+where the next GC speaks). Off by default: on the ant it left the blend's junctions worse than
+the plain loss (docs/fitting.md "Seams"), which trains every GC on every sample it holds, the
+estimates the blend averages. Phase two (paper): from `codes_only_from` x max_steps the
+decoder's learning rate is zero and only the codes move (an lr switch rather than requires_grad, so it is
 resume- and DDP-safe). An optional `scheduler` (ngc_gen.lit.schedules, `_partial_: true`)
 scales both learning rates per step (DeepSDF: halved at fixed intervals).
 """
@@ -35,6 +37,11 @@ def check_union(union) -> dict | None:
         from ngc_gen.geometry.union import check_width
 
         union["width"] = check_width(union.get("width", 0.0))
+        union["k"] = float(union.get("k") or 0.0)
+        union["loss_shares"] = bool(union.get("loss_shares", False))
+        if union["k"] < 0:
+            raise ValueError(f"model.union.k must be >= 0 (0: the weighted mean), got "
+                             f"{union['k']}")
     return union
 
 
@@ -45,7 +52,7 @@ class AutoDecoder(L.LightningModule):
     LR scheduler given (optimizer, total_steps=trainer.max_steps), or None (constant learning
     rates); `pe_anneal` > 0: the NGC decoder's encoding bands open one after the other over that
     fraction of the steps (coarse-to-fine), all open afterwards; `union`: how the GCs' fields
-    combine, {kind: min} or {kind: blend, width} (recorded: shapes of the fit use it; None, as
+    combine, {kind: min} or {kind: blend, width, k, loss_shares} (recorded: shapes of the fit use it; None, as
     in checkpoints from before it was recorded, is the min). Defaults are those of
     conf/model/small.yaml, the default `model` (tests/app/test_config.py keeps them equal);
     `lr` has none: the presets differ (small 1e-2, paper 1e-4, DeepSDF 1e-3 / 5e-4)."""

@@ -16,13 +16,14 @@ def recorded_gcs(shape_meta: dict) -> list[GeneralizedCylinder]:
     return [GeneralizedCylinder.from_dict(g) for g in d["gcs"]]
 
 
-def recorded_blend(hparams) -> float:
-    """The blend width of a fit's recorded union (`model.union`: {kind: blend, width}); 0 for
-    the min, and for checkpoints fitted before the union was recorded (they used the min)."""
+def recorded_union(hparams) -> dict:
+    """Shape keyword arguments of a fit's recorded union (`model.union`: {kind: blend, width,
+    k}): {blend, blend_k}, both 0 for the min and for checkpoints fitted before the union was
+    recorded (they used the min)."""
     union = hparams.get("union") if hasattr(hparams, "get") else None
     if not union or union.get("kind", "min") == "min":
-        return 0.0
-    return float(union["width"])
+        return {"blend": 0.0, "blend_k": 0.0}
+    return {"blend": float(union["width"]), "blend_k": float(union.get("k") or 0.0)}
 
 
 def shapes_from_autodecoder(module) -> dict[str, Shape]:
@@ -33,7 +34,7 @@ def shapes_from_autodecoder(module) -> dict[str, Shape]:
     for m in module.hparams.meta["shapes"]:
         codes = module.codes.weight[m["code_offset"]:m["code_offset"] + m["n_codes"]].detach()
         out[m["name"]] = Shape(recorded_gcs(m), codes.clone(), module.decoder, name=m["name"],
-                               blend=recorded_blend(module.hparams), info={"mesh": yaml.safe_load(m["annotation_yaml"]).get("mesh")})
+                               **recorded_union(module.hparams), info={"mesh": yaml.safe_load(m["annotation_yaml"]).get("mesh")})
     return out
 
 
@@ -64,5 +65,5 @@ def autodecoder_mesh(module, index: int, resolution: int = 256, bound: float = 1
             return extract_world_mesh(lambda x: module.decoder(code.expand(len(x), -1), x),
                                       resolution, bound, chunk=chunk, **kwargs)
     shape = Shape(gcs if gcs is not None else recorded_gcs(meta), codes.detach().clone(),
-                  module.decoder, name=meta["name"], blend=recorded_blend(module.hparams))
+                  module.decoder, name=meta["name"], **recorded_union(module.hparams))
     return shape.mesh(resolution, bound, chunk=chunk, **kwargs)

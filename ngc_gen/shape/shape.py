@@ -15,7 +15,8 @@ import numpy as np
 import torch
 
 from ngc_gen.extract import FieldCache, extract_mesh
-from ngc_gen.geometry import GeneralizedCylinder, fade_weight, smooth_min
+from ngc_gen.geometry import GeneralizedCylinder, smooth_min
+from ngc_gen.geometry.union import BlendAccumulator
 
 from .features import PartFeatures, blend_features
 
@@ -26,11 +27,13 @@ OUTSIDE = 1.0
 class Shape:
     """gcs: K GeneralizedCylinders; codes: (K, code_dim); decoder: an NGCDecoder (features,
     sdf_from_features); mixes: {gc index: PartFeatures}; smooth: smooth-union width (0: min);
-    blend: blended-union width (0: the min / smooth min; the fit's recorded union)."""
+    blend, blend_k: blended-union width (0: the min / smooth min) and softness (the fit's
+    recorded union, `ngc_gen.geometry.union`)."""
 
     def __init__(self, gcs: Iterable[GeneralizedCylinder], codes: torch.Tensor, decoder, *,
                  name: str = "shape", mixes: dict[int, PartFeatures] | None = None,
-                 smooth: float = 0.0, blend: float = 0.0, info: dict | None = None,
+                 smooth: float = 0.0, blend: float = 0.0, blend_k: float = 0.0,
+                 info: dict | None = None,
                  cache: FieldCache | None = None):
         self.gcs = list(gcs)
         self.codes = torch.as_tensor(codes).detach().float()
@@ -38,7 +41,7 @@ class Shape:
         self.name = str(name)
         self.mixes = dict(mixes or {})
         self.smooth = float(smooth)
-        self.blend = float(blend)
+        self.blend, self.blend_k = float(blend), float(blend_k)
         self.info = dict(info or {})
         # per-GC field values of this shape and every shape edited from it (`replaced` passes
         # it on): after an edit only GCs with a new `key` are evaluated again
@@ -123,25 +126,20 @@ class Shape:
         q = torch.as_tensor(np.asarray(points) if not isinstance(points, torch.Tensor) else points,
                             dtype=torch.float64)
         out = torch.full((len(q),), float("inf"), dtype=torch.float32)
-        num = torch.zeros(len(q), dtype=torch.float64)
-        den = torch.zeros(len(q), dtype=torch.float64)
+        mixed = BlendAccumulator(len(q), self.blend, self.blend_k) if self.blend else None
         for j, gc in enumerate(self.gcs):  # a loop over the K GCs, never over points
             rel, measure = gc.relative_inside(q)  # one closest-point solve per point and GC
             idx = torch.from_numpy(np.flatnonzero(measure <= 1.0))
             if len(idx) == 0:
                 continue
             v = self.gc_sdf(j, rel[idx].float()).float()
-            if self.blend:
-                w = fade_weight(np.asarray(measure[idx.numpy()], dtype=np.float32), self.blend)
-                w = torch.from_numpy(np.asarray(w, dtype=np.float64))
-                num[idx] += w * v.double()
-                den[idx] += w
+            if mixed is not None:
+                mixed.add(idx.numpy(), v.numpy(), measure[idx.numpy()])
                 continue
             cur = out[idx]
             out[idx] = torch.where(torch.isinf(cur), v, smooth_min(cur, v, self.smooth))
-        if self.blend:
-            held = den > 0
-            out[held] = (num[held] / den[held]).float()
+        if mixed is not None:
+            out = torch.from_numpy(mixed.result())
         return out.masked_fill_(torch.isinf(out), OUTSIDE)
 
     # ---- meshes ---------------------------------------------------------------------------------
@@ -165,14 +163,15 @@ class Shape:
         if method == "sparse" and incremental:
             kwargs.update(cache=self.cache, gc_keys=[self.key(j) for j in range(len(self.gcs))])
         return extract_mesh(self.gcs, self.rows, int(resolution), float(bound), method=method,
-                            smooth=self.smooth, blend=self.blend, **kwargs)
+                            smooth=self.smooth, blend=self.blend, blend_k=self.blend_k,
+                            **kwargs)
 
     # ---- edits (new shapes) ---------------------------------------------------------------------
     def replaced(self, **changes) -> "Shape":
         """A copy with some of gcs, codes, decoder, name, mixes, smooth, blend, info replaced."""
         kw = dict(gcs=self.gcs, codes=self.codes, decoder=self.decoder, name=self.name,
-                  mixes=self.mixes, smooth=self.smooth, blend=self.blend, info=self.info,
-                  cache=self.cache)
+                  mixes=self.mixes, smooth=self.smooth, blend=self.blend,
+                  blend_k=self.blend_k, info=self.info, cache=self.cache)
         kw.update(changes)
         return Shape(kw.pop("gcs"), kw.pop("codes"), kw.pop("decoder"), **kw)
 

@@ -5,7 +5,7 @@ import torch
 
 from ngc_gen.lit.autodecoder import AutoDecoder, check_union
 from ngc_gen.shape import load_shapes
-from ngc_gen.shape.load import recorded_blend
+from ngc_gen.shape.load import recorded_union
 from tests.edit.conftest import make_module, save_checkpoint
 
 
@@ -15,15 +15,15 @@ def test_union_is_checked_and_recorded(tmp_path):
     with pytest.raises(Exception, match="blend width"):
         check_union({"kind": "blend", "width": 1.5})
     module = make_module()
-    assert recorded_blend(module.hparams) == 0.0            # no record: the min
+    assert recorded_union(module.hparams)["blend"] == 0.0  # no record: the min
     save_checkpoint(module, tmp_path / "old.ckpt")
     assert {s.blend for s in load_shapes(tmp_path / "old.ckpt").values()} == {0.0}
-    module.hparams.union = check_union({"kind": "blend", "width": 0.3})
+    module.hparams.union = check_union({"kind": "blend", "width": 0.3, "k": 0.004})
     save_checkpoint(module, tmp_path / "blend.ckpt")
     shapes = load_shapes(tmp_path / "blend.ckpt")
-    assert {s.blend for s in shapes.values()} == {0.3}
+    assert {(s.blend, s.blend_k) for s in shapes.values()} == {(0.3, 0.004)}
     module.hparams.union = {"kind": "min", "width": 0.3}
-    assert recorded_blend(module.hparams) == 0.0
+    assert recorded_union(module.hparams)["blend"] == 0.0
 
 
 def test_loss_weighs_rows_by_their_shares():
