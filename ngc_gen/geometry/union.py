@@ -11,8 +11,10 @@ over the GCs j that hold the point, rho_j its relative radius in GC j (sqrt of
 so the weight fades toward the ends too). w_j is 1 deeper than 1 - width and falls smoothly to
 FLOOR on the boundary, so a GC's field fades out before its boundary wherever another GC holds
 the point, and a point only one GC holds keeps that GC's value (the weights cancel). FLOOR keeps
-the sum positive on a boundary; the step it leaves where a GC ends is FLOOR x the two fields'
-difference. The weight depends only on the point's relative coordinates in one GC, so a
+the sum positive on a boundary; the step the mean leaves where a GC ends is FLOOR x the two
+fields' difference. `BlendAccumulator` folds the weighted mean or, with k > 0, a weighted soft
+minimum (the default, `model.union.k`), which keeps the mean where GCs agree and the min's
+material where they do not. The weight depends only on the point's relative coordinates in one GC, so a
 changed GC changes only its own terms (per-GC value caches stay valid).
 """
 from __future__ import annotations
@@ -53,8 +55,10 @@ class BlendAccumulator:
     k = 0: the weighted mean sum_j w_j f_j / sum_j w_j. k > 0: the weighted soft minimum
     F = -k log(sum_j w_j exp(-f_j / k) / sum_j w_j): equal to the mean's value where the GCs
     agree (equal f_j give that f), the smaller value where they differ by more than about k
-    (a thin part's own GC keeps its material where a coarser GC's estimate smooths it away),
-    and still continuous where a GC fades out (its term vanishes with its weight)."""
+    (a thin part's own GC keeps its material where a coarser GC's estimate smooths it away).
+    Where a GC fades out its term is lifted by k ln(1 / w_j): the field stays continuous across
+    its boundary where it undercuts the other GCs by less than k ln(1 / FLOOR) (0.041 for
+    k = 0.003), and steps by the rest beyond (the min steps by all of it)."""
 
     def __init__(self, n: int, width: float, k: float = 0.0):
         self.width, self.k = check_width(width), float(k)

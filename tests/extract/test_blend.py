@@ -7,7 +7,7 @@ import torch
 
 from ngc_gen.extract import FieldCache, extract_mesh, per_gc_rows
 from ngc_gen.geometry import GeneralizedCylinder, fade_weight
-from ngc_gen.geometry.union import FLOOR
+from ngc_gen.geometry.union import FLOOR, BlendAccumulator
 from ngc_gen.shape import Shape
 from tests.edit.conftest import GC_DICTS, make_module
 
@@ -34,6 +34,42 @@ def test_fade_weight_is_one_deep_inside_and_floor_on_the_boundary():
     np.testing.assert_allclose(wt.numpy(), w, rtol=1e-6)
     with pytest.raises(Exception, match="blend width"):
         fade_weight(m, 0.0)
+
+
+def test_soft_blend_averages_agreeing_gcs_and_keeps_the_smaller_of_disagreeing_ones():
+    """k > 0: equal values stay that value, values apart by much more than k give about the
+    smaller one (a thin part's own GC keeps its material), a GC on its boundary (weight FLOOR)
+    counts only by what it undercuts the other by past k ln(1 / FLOOR), and k = 0 is the
+    weighted mean."""
+    deep, edge = 0.0, 1.0                     # measures: rho = 0 and rho = 1
+    f1 = np.array([0.01, -0.02, 0.01, 0.01])
+    f2 = np.array([0.01, 0.03, 0.03, -0.05])
+    m2 = np.array([deep, deep, deep, edge])
+    acc = BlendAccumulator(4, 0.25, k=0.002)
+    acc.add(np.arange(4), f1, np.full(4, deep))
+    acc.add(np.arange(4), f2, m2)
+    out = acc.result()
+    assert out[0] == pytest.approx(0.01, abs=1e-7)
+    assert out[1] == pytest.approx(-0.02 + 0.002 * np.log(2), abs=1e-4)
+    assert 0.01 < out[2] < 0.0115
+    # on its boundary a GC far below the other is lifted by about k ln(1 / FLOOR): the step
+    # where it ends shrinks by that much (and vanishes for disagreements under it)
+    assert -0.05 + 0.9 * 0.002 * np.log(1 / FLOOR) < out[3] < 0.01
+    mean = BlendAccumulator(4, 0.25)
+    mean.add(np.arange(4), f1, np.full(4, deep))
+    mean.add(np.arange(4), f2, np.full(4, deep))
+    np.testing.assert_allclose(mean.result(), (f1 + f2) / 2, atol=1e-7)
+    assert np.isinf(BlendAccumulator(2, 0.25, k=0.01).result()).all()   # held by no GC
+
+
+@pytest.mark.parametrize("k", [0.0, 0.02])
+def test_sparse_equals_the_reference_grid_with_the_soft_blend(k):
+    ga, gb = two_gcs()
+    fields = [sphere_sdf((0.15, 0.0, 0.0), 0.3), sphere_sdf((0.0, 0.15, 0.0), 0.33)]
+    rows = per_gc_rows(through_gcs([ga, gb], fields))
+    ref = extract_mesh([ga, gb], rows, 32, method="prefiltered", blend=0.3, blend_k=k)
+    assert len(ref.mesh.faces) > 200
+    assert same_mesh(extract_mesh([ga, gb], rows, 32, blend=0.3, blend_k=k).mesh, ref.mesh)
 
 
 def test_blend_is_the_weighted_mean_in_gc_order_and_sparse_equals_it():
