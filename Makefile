@@ -17,13 +17,13 @@ $(BIN)/activate:
 	$(PY) -m venv $(VENV)
 
 # --no-compile: byte-compiling every module of every package at install time cost 39 s for torch
-# alone (12 s without). Instead `ngc_gen.app.bytecode` compiles what the commands import, once:
+# alone (12 s without). Instead `ngc_gen.app.runtime.bytecode` compiles what the commands import, once:
 # where PYTHONDONTWRITEBYTECODE=1 is set no command would ever write a .pyc, and each would
 # compile torch, Lightning and trimesh again (bench/cli.py measures both sides: make bench-cli)
 $(VENV)/.installed: $(BIN)/activate pyproject.toml
 	$(BIN)/python -c "import torch" 2>/dev/null || $(BIN)/pip install -q --no-compile "$(TORCH_SPEC)"
 	$(BIN)/pip install -q --no-compile -e .
-	$(BIN)/python -m ngc_gen.app.bytecode
+	$(BIN)/python -m ngc_gen.app.runtime.bytecode
 	touch $@
 
 # the test tools (pytest, import-linter, playwright) and CGAL's skeleton on top: make demo (the

@@ -17,8 +17,8 @@ Example (a new bench, bench/mybench.py)::
 
     def main():
         bench = Bench("mybench")             # load before, commit, date: taken now
-        from ngc_gen.app.config import compose_config
-        from ngc_gen.app.fit import run_fit
+        from ngc_gen.app.runtime.config import compose_config
+        from ngc_gen.app.stages.fit import run_fit
 
         cfg = compose_config(overrides=["stage=fit", "data=demo", "model=small"])
         recipe = {"config": config_recipe(cfg),          # the whole resolved config
@@ -362,7 +362,7 @@ def train_subprocess(overrides: list[str], run_dir: Path, what: str) -> float:
 
 def cached_run_fit(bench: str, cfg, refit: bool = False, extra: dict | None = None,
                    label: str | None = None) -> Fit:
-    """`ngc_gen.app.fit.run_fit(cfg)` through the bench's FitCache: the recipe is the whole
+    """`ngc_gen.app.stages.fit.run_fit(cfg)` through the bench's FitCache: the recipe is the whole
     resolved config (`config_recipe`), the dataset's identity (`dataset_identity`) and
     `extra` (settings of the bench that shape the fit but are not in the config). The fit's
     run_dir is the cache folder (its metrics.json, checkpoints/last.ckpt, meshes/); info holds
@@ -375,7 +375,7 @@ def cached_run_fit(bench: str, cfg, refit: bool = False, extra: dict | None = No
 
         from omegaconf import open_dict
 
-        from ngc_gen.app.fit import run_fit
+        from ngc_gen.app.stages.fit import run_fit
 
         with open_dict(cfg):
             cfg.run_dir = str(run_dir)

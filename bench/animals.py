@@ -84,7 +84,7 @@ def rest_fits(cache: FitCache, args) -> list:
     run in `--fit-workers` processes of one thread and are cached like the other stages."""
     from concurrent.futures import ThreadPoolExecutor
 
-    from ngc_gen.app.config import compose_config
+    from ngc_gen.app.runtime.config import compose_config
 
     species = list(compose_config(overrides=data_overrides(args)).data.species)
 
@@ -110,9 +110,9 @@ def rest_fits(cache: FitCache, args) -> list:
 
 
 def train(args) -> dict:
-    from ngc_gen.app.config import compose_config
-    from ngc_gen.app.diffusion import run_diffusion
-    from ngc_gen.app.shape_latent import run_shape_latent
+    from ngc_gen.app.runtime.config import compose_config
+    from ngc_gen.app.stages.train_diffusion import run_diffusion
+    from ngc_gen.app.stages.train_shape_latent import run_shape_latent
 
     cache = FitCache("animals")
     base = ["experiment=animals", *data_overrides(args)]
@@ -191,8 +191,8 @@ def main():
     from hydra.utils import instantiate
 
     torch.set_num_threads(args.threads)
-    from ngc_gen.app.config import compose_config
-    from ngc_gen.app.sample import generate, interpolate
+    from ngc_gen.app.runtime.config import compose_config
+    from ngc_gen.app.stages.sample import generate, interpolate
     from ngc_gen.data.rigs.animals import purity_summary
     from ngc_gen.eval import pairwise_chamfer
     from ngc_gen.generate import load_generator

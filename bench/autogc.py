@@ -85,7 +85,7 @@ def annotate_all(names: dict, hand: dict) -> tuple[list[dict], dict]:
     from ngc_gen.data.autogc.coverage import coverage_stats
     from ngc_gen.data.mesh.io import load_mesh, normalize
     from ngc_gen.data.mesh.sampling import sample_surface
-    from ngc_gen.app.config import compose_config
+    from ngc_gen.app.runtime.config import compose_config
 
     cfg = compose_config(overrides=["run_dir=/tmp"])
     settings = AutoGCSettings.from_config(cfg.annotate)
@@ -143,7 +143,7 @@ def fit(method: str, names: list[str], hand: dict, steps: int, resolution: int,
     `seed`; per-shape metrics."""
     from omegaconf import OmegaConf, open_dict
 
-    from ngc_gen.app.config import compose_config
+    from ngc_gen.app.runtime.config import compose_config
 
     files = [str(RUNS / "annotations" / f"{n}.yaml") if method == "auto" else str(hand[n])
              for n in names]

@@ -5,7 +5,7 @@ checked); edit_s_128: `edit.py run=<fit run of the ant> edit=posed_ant_leg
 extract.resolution=128` end to end (picture included), with the bytecode the Makefile's setup
 writes; edit_s_128_no_bytecode: the same with no bytecode and no numba kernel cache (a fresh
 install without that step); help_s: the slowest `--help` of train.py, edit.py and sample.py;
-setup_s_added: what `python -m ngc_gen.app.bytecode` (the setup step) takes on empty caches.
+setup_s_added: what `python -m ngc_gen.app.runtime.bytecode` (the setup step) takes on empty caches.
 
 The bytecode cases run with PYTHONPYCACHEPREFIX and NUMBA_CACHE_DIR pointing at folders of this
 bench (empty, or filled by the setup step), so nothing of the checkout's own __pycache__ is read
@@ -36,7 +36,7 @@ TARGET_REJECT_S, TARGET_EDIT_S = 2.0, 6.0
 
 def fitted_ant() -> Path:
     """A fit run of the ant (model=small, 300 steps) from the bench's fit cache."""
-    from ngc_gen.app.config import compose_config
+    from ngc_gen.app.runtime.config import compose_config
 
     cfg = compose_config(overrides=[
         "stage=fit", "data=ant", "model=small", "trainer.max_steps=300",
@@ -111,7 +111,7 @@ def main(argv=None) -> int:
                     "NUMBA_CACHE_DIR": str(work / "numba_none")}
 
         t0 = time.perf_counter()  # the setup step on an empty bytecode cache
-        subprocess.run([PY, "-m", "ngc_gen.app.bytecode"], cwd=ROOT, env=env_warm, check=True,
+        subprocess.run([PY, "-m", "ngc_gen.app.runtime.bytecode"], cwd=ROOT, env=env_warm, check=True,
                        capture_output=True)
         setup_s = time.perf_counter() - t0
 

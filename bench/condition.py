@@ -44,7 +44,7 @@ LEGS = ("leg_fl", "leg_fr", "leg_bl", "leg_br")
 
 def defaults() -> dict:
     """The condition settings sample.py uses (conf/mode/condition.yaml), the bench's defaults."""
-    from ngc_gen.app.config import compose_config
+    from ngc_gen.app.runtime.config import compose_config
 
     return dict(compose_config("sample", ["mode=condition"]).condition)
 
@@ -127,7 +127,7 @@ def mesh_shapes(gen, shapes, out_dir: Path, resolution: int):
     returns (meshes, seconds per mesh)."""
     import trimesh
 
-    from ngc_gen.app.outputs import extract_and_write
+    from ngc_gen.app.runtime.outputs import extract_and_write
 
     written, secs = extract_and_write(gen, shapes, out_dir, resolution, normalised=False,
                                       progress=False)

@@ -89,7 +89,7 @@ def make_bar(out_dir: Path = BAR_DIR, spacing: float = 0.016) -> Path:
 def fit_config(steps: int, resolution: int):
     from omegaconf import OmegaConf, open_dict
 
-    from ngc_gen.app.config import compose_config
+    from ngc_gen.app.runtime.config import compose_config
 
     cfg = compose_config(overrides=[
         "stage=fit", "data=demo", "model=small", f"trainer.max_steps={steps}",
@@ -383,7 +383,7 @@ def main():
                     "points: the cores the load leaves free), N or null")
     args = ap.parse_args()
     bench = Bench("deform", results=args.results)  # timings need an idle machine: its load
-    from ngc_gen.app.cli import set_threads
+    from ngc_gen.app.runtime.cli import set_threads
 
     threads = set_threads(None if args.threads == "null" else args.threads)
 

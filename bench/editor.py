@@ -18,7 +18,7 @@ extraction settings. Each figure is the median of --repeats interactions with ne
 The issue's target: preview_s <= 0.3 s.
 
 Then (unless --no-screenshot) bench/results/editor.png: the editor page in headless Chromium,
-made by the browser test's steps (`ngc_gen.app.editor.browser`), on the ant with a posed leg.
+made by the browser test's steps (`tests.app.editor.browser`), on the ant with a posed leg.
 
 Baseline measured in the same run: extract_preview_s, the preview extraction alone (no
 editor), so preview_s / extract_preview_s is the editor's overhead on a loaded machine.
@@ -59,7 +59,7 @@ SHAPES = {"ant": "leg_l1", "creature_0000": "leg_fl"}  # shape -> the GC the int
 def fitted(steps: int, refit: bool = False, resolution: int = 64) -> Path:
     """The ant + 3 creatures fit of `make demo` at `steps` steps: from the bench's fit cache
     while its recipe (the whole config, the shapes' data) is unchanged, else fitted now."""
-    from ngc_gen.app.config import compose_config
+    from ngc_gen.app.runtime.config import compose_config
 
     cfg = compose_config(overrides=[
         "stage=fit", "data=demo", "model=small", f"trainer.max_steps={steps}",
@@ -150,7 +150,7 @@ def browser_latency(cfg, gc: str, repeats: int) -> tuple[list[dict], list[dict]]
     edits after the page opened (twist), which come before the cases."""
     from playwright.sync_api import sync_playwright
 
-    from ngc_gen.app.editor import browser
+    from tests.app.editor import browser
     from ngc_gen.app.editor.server import EditorServer
     from ngc_gen.app.editor.start import open_session
 
@@ -226,7 +226,7 @@ def screenshot(cfg, path: Path) -> None:
     """editor.png: the browser test's steps on the ant, a leg posed through the page."""
     from playwright.sync_api import sync_playwright
 
-    from ngc_gen.app.editor import browser
+    from tests.app.editor import browser
     from ngc_gen.app.editor.server import EditorServer
     from ngc_gen.app.editor.start import open_session
 
@@ -268,10 +268,10 @@ def main() -> None:
     import torch
 
     torch.set_num_threads(args.threads)
-    from ngc_gen.app.editor import browser
+    from tests.app.editor import browser
     from ngc_gen.app.editor.server import EditorServer
     from ngc_gen.app.editor.start import open_session
-    from ngc_gen.app.config import compose_config
+    from ngc_gen.app.runtime.config import compose_config
 
     ckpt = Path(args.ckpt) if args.ckpt else fitted(args.steps, args.refit)
     cases = []

@@ -65,7 +65,7 @@ METHODS = {  # name -> (data config, model config, extra overrides)
 
 def fit_config(method: str, steps: int, resolution: int, batch_size: int, run_dir: Path,
                extra: list[str] = ()):
-    from ngc_gen.app.config import compose_config
+    from ngc_gen.app.runtime.config import compose_config
 
     data, model, own = METHODS[method]
     return compose_config(overrides=[
@@ -77,7 +77,7 @@ def fit_config(method: str, steps: int, resolution: int, batch_size: int, run_di
 def run(method: str, steps: int, resolution: int, batch_size: int, run_root: Path,
         extra: list[str] = ()) -> dict:
     """A fresh fit run of one method in run_root/<method> (an earlier one is removed)."""
-    from ngc_gen.app.fit import run_fit
+    from ngc_gen.app.stages.fit import run_fit
 
     run_dir = run_root / method
     if run_dir.exists():
@@ -90,8 +90,8 @@ def score_checkpoint(cfg, checkpoint: Path, out_dir: Path, **mesh_kwargs) -> dic
     junction measure at the shapes' prepared GCs included)."""
     import torch
 
-    from ngc_gen.app.fit import junction_settings, named_gcs, reconstruct
-    from ngc_gen.app.prepare import prepare_dataset
+    from ngc_gen.app.stages.fit import junction_settings, named_gcs, reconstruct
+    from ngc_gen.app.stages.prepare_data import prepare_dataset
     from ngc_gen.lit.checkpoint import load_autodecoder
 
     prepared = prepare_dataset(cfg)
@@ -127,9 +127,9 @@ def deepsdf_long(steps: int, resolution: int, batch_size: int, ngc_seconds: floa
     import lightning as L
     import torch
 
-    from ngc_gen.app.fit import build_module, shapes_meta
-    from ngc_gen.app.prepare import prepare_dataset
-    from ngc_gen.app.training import start_run, train
+    from ngc_gen.app.stages.fit import build_module, shapes_meta
+    from ngc_gen.app.stages.prepare_data import prepare_dataset
+    from ngc_gen.app.runtime.training import start_run, train
     from ngc_gen.data.datamodule import PreparedDataModule
     from ngc_gen.lit.checkpoint import load_autodecoder
 
@@ -137,7 +137,7 @@ def deepsdf_long(steps: int, resolution: int, batch_size: int, ngc_seconds: floa
     marks = ",".join(str(m) for m in LONG_MARKS)
     cfg = fit_config("deepsdf", steps, resolution, batch_size, run_dir, [
         "model=deepsdf", "code_balance=0.0", "callbacks.checkpoint.every_n_train_steps=100",
-        "+callbacks.clock._target_=ngc_gen.app.training.TrainClock",
+        "+callbacks.clock._target_=ngc_gen.app.runtime.training.TrainClock",
         f"+callbacks.clock.dirpath={run_dir}", f"+callbacks.clock.marks=[{marks}]"])
     if not score_only:
         prepared = prepare_dataset(cfg)
@@ -184,9 +184,9 @@ def ceiling(resolution: int) -> dict:
     import trimesh
 
     from bench._seams import exact_sdf_mesh
-    from ngc_gen.app.config import compose_config
-    from ngc_gen.app.fit import junction_settings
-    from ngc_gen.app.prepare import prepare_dataset
+    from ngc_gen.app.runtime.config import compose_config
+    from ngc_gen.app.stages.fit import junction_settings
+    from ngc_gen.app.stages.prepare_data import prepare_dataset
     from ngc_gen.eval import junction_metrics, reconstruction_metrics
 
     cfg = compose_config(overrides=["stage=fit", "data=fitbench", "run_dir=/tmp/ngc-ceiling"])
@@ -273,7 +273,7 @@ def rescore(run_dir: Path, resolution: int) -> dict:
     `resolution`) and rewrite its metrics.json: for metric changes, without training again."""
     from omegaconf import OmegaConf
 
-    from ngc_gen.app.config import compose_config
+    from ngc_gen.app.runtime.config import compose_config
 
     metrics_path = run_dir / "metrics.json"
     metrics = json.loads(metrics_path.read_text())

@@ -50,7 +50,7 @@ def overrides(args) -> list[str]:
 
 def compose_batch_size() -> int:
     """The recipe's batch size (conf/experiment/generate.yaml)."""
-    from ngc_gen.app.config import compose_config
+    from ngc_gen.app.runtime.config import compose_config
 
     return int(compose_config(overrides=["experiment=generate"]).batch_size)
 
@@ -64,9 +64,9 @@ def train(args) -> dict:
     shape_latent_dir, diffusion_dir, shape_latent_stage_s (when trained in this call)}."""
     from omegaconf import open_dict
 
-    from ngc_gen.app.config import compose_config
-    from ngc_gen.app.diffusion import run_diffusion
-    from ngc_gen.app.shape_latent import run_shape_latent
+    from ngc_gen.app.runtime.config import compose_config
+    from ngc_gen.app.stages.train_diffusion import run_diffusion
+    from ngc_gen.app.stages.train_shape_latent import run_shape_latent
 
     cache = FitCache("generate")
 
@@ -105,7 +105,7 @@ def mesh_set(gen, latents, names, out_dir, resolution):
     """Decode and mesh latents like sample.py does; returns (meshes, seconds per mesh)."""
     import trimesh
 
-    from ngc_gen.app.outputs import extract_and_write
+    from ngc_gen.app.runtime.outputs import extract_and_write
     from ngc_gen.generate.shapes import decode_shapes
 
     shapes = decode_shapes(gen.shape_latent, latents, names)
@@ -183,10 +183,10 @@ def main():
 
     torch.set_num_threads(args.threads)
 
-    from ngc_gen.app.config import repo_root
+    from ngc_gen.app.runtime.config import repo_root
     from ngc_gen.data.datasets import Creatures
     from ngc_gen.eval import generation_metrics, pairwise_chamfer
-    from ngc_gen.app.sample import generate
+    from ngc_gen.app.stages.sample import generate
     from ngc_gen.generate import load_generator
 
     t_start = time.perf_counter()

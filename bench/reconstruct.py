@@ -42,7 +42,7 @@ def common(args) -> list[str]:
 
 
 def direct(args) -> dict:
-    from ngc_gen.app.config import compose_config
+    from ngc_gen.app.runtime.config import compose_config
 
     cfg = compose_config(overrides=common(args) + [
         "stage=fit", "model=small", f"trainer.max_steps={args.fit_steps}"])
@@ -63,8 +63,8 @@ VARIANTS = {
 def reconstructed(args, name: str, overrides: list[str]) -> dict:
     from omegaconf import open_dict
 
-    from ngc_gen.app.config import compose_config
-    from ngc_gen.app.stages import run_stage
+    from ngc_gen.app.runtime.config import compose_config
+    from ngc_gen.app.stages.registry import run_stage
 
     cfg = compose_config(overrides=["experiment=generate"] + common(args) + [
         "stage=reconstruct", f"run={args.shape_latent_run}", *overrides])
@@ -102,7 +102,7 @@ def main():
     ap.add_argument("--only", choices=["direct", "reconstruct"], default=None)
     args = ap.parse_args()
     bench = Bench("reconstruct")
-    from ngc_gen.app.cli import set_threads
+    from ngc_gen.app.runtime.cli import set_threads
 
     threads = set_threads(args.threads)
     t0 = time.perf_counter()

@@ -126,9 +126,9 @@ def _train_generator(kind: str, folder: Path, args) -> tuple:
     (steps from the bench's arguments); cached in the bench's fit cache."""
     from bench.animals import cached_stage
     from bench._harness import FitCache
-    from ngc_gen.app.config import compose_config
-    from ngc_gen.app.diffusion import run_diffusion
-    from ngc_gen.app.shape_latent import run_shape_latent
+    from ngc_gen.app.runtime.config import compose_config
+    from ngc_gen.app.stages.train_diffusion import run_diffusion
+    from ngc_gen.app.stages.train_shape_latent import run_shape_latent
 
     cache = FitCache("transfer")
     base = ["experiment=animals", "data=folder", f"data.path={folder}", "seed=0", "logger=csv",
@@ -154,7 +154,7 @@ def generator_rows(records: list[dict], clips_m: list, args) -> dict:
     import trimesh
 
     from bench.animals import rows_for
-    from ngc_gen.app.sample import generate
+    from ngc_gen.app.stages.sample import generate
     from ngc_gen.generate import load_generator
 
     out = {}
@@ -179,8 +179,8 @@ def reconstruct_heldout(rest: list[dict], args) -> dict:
     """The held-out species at rest, transferred (rig withheld) and put into the transferred
     animals' shape-latent model by stage=reconstruct (latent, then codes): F-score@0.01."""
     from bench._harness import FitCache, config_recipe
-    from ngc_gen.app.config import compose_config
-    from ngc_gen.app.reconstruct import run_reconstruct
+    from ngc_gen.app.runtime.config import compose_config
+    from ngc_gen.app.stages.reconstruct_shapes import run_reconstruct
     from omegaconf import open_dict
 
     folder = GEN / "heldout"

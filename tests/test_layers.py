@@ -70,6 +70,6 @@ def test_a_circle_is_found_when_one_is_added():
     import grimp
 
     graph = grimp.build_graph("ngc_gen", include_external_packages=False)
-    graph.add_import(importer="ngc_gen.geometry.curves", imported="ngc_gen.app.pipeline")
+    graph.add_import(importer="ngc_gen.geometry.curves", imported="ngc_gen.app.stages.pipeline")
     found = import_cycles(graph)
-    assert len(found) == 1 and {"ngc_gen.geometry.curves", "ngc_gen.app.pipeline"} <= set(found[0])
+    assert len(found) == 1 and {"ngc_gen.geometry.curves", "ngc_gen.app.stages.pipeline"} <= set(found[0])

@@ -30,10 +30,11 @@ from ngc_gen.models.edm import EDMLoss, EDMPrecond, ResidualMLPDenoiser
 from ngc_gen.models.sampler import edm_sampler
 
 from .checkpoint import load_module
+from . import kinds
 from .diffusion_options import PCA_COMPLETE, STANDARDISE
 from .parts import keywords, optimizer_factory
 
-CHECKPOINT_KIND = "ngc_gen.diffusion"
+CHECKPOINT_KIND = kinds.DIFFUSION  # the one table: ngc_gen/lit/kinds.py
 
 
 class LatentDiffusion(L.LightningModule):

@@ -17,6 +17,8 @@ from pathlib import Path
 
 from ngc_gen.data.errors import DataError
 
+from .kinds import KINDS
+
 
 class _Stub(dict):
     """Whatever the pickle names (a tensor rebuild, a Lightning AttributeDict): an empty dict
@@ -95,8 +97,3 @@ def check_kind(path: Path, kinds: dict[str, str], fix: str) -> str:
                         f"{' or '.join(kinds.values())}", fix=fix)
     return kind
 
-
-# checkpoint_kind -> the run that writes it (the CHECKPOINT_KIND of ngc_gen.lit's modules)
-KINDS = {"ngc_gen.autodecoder": "a `train.py stage=fit` run",
-         "ngc_gen.shape_latent": "a `train.py stage=shape_latent` run",
-         "ngc_gen.diffusion": "a `train.py stage=diffusion` run"}

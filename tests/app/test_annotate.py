@@ -10,8 +10,8 @@ import trimesh
 import yaml
 
 from ngc_gen.data.annotations import load_annotation
-from ngc_gen.app.stages import run_stage
-from ngc_gen.app.annotate import HEADER
+from ngc_gen.app.stages.registry import run_stage
+from ngc_gen.app.stages.annotate import HEADER
 
 from ..helpers import compose_config
 from ..data.autogc.test_skeleton_gcs import tube_union

@@ -19,8 +19,8 @@ def test_shape_latents_refuse_another_gc_layout_before_preparing(tmp_path, monke
     import trimesh
     import yaml
 
-    from ngc_gen.app import prepare as prepare_stage
-    from ngc_gen.app.stages import run_stage
+    from ngc_gen.app.stages import prepare_data as prepare_stage
+    from ngc_gen.app.stages.registry import run_stage
     from ngc_gen.data.errors import DataError
 
     from ..conftest import straight_gc

@@ -168,7 +168,7 @@ def test_link_latest_points_a_fixed_name_at_the_latest_fit(tmp_path, capsys):
 def test_a_setting_at_its_neutral_value_leaves_the_recipe_key_as_it_was():
     """Adding a setting (junction_weight, prepare.pair_margin) at the value that does what the
     code did before must not invalidate every cached fit; any other value changes the key."""
-    from ngc_gen.app.config import compose_config
+    from ngc_gen.app.runtime.config import compose_config
 
     cfg = compose_config(overrides=["stage=fit", "data=ant"])
     recipe = h.config_recipe(cfg)

@@ -19,8 +19,8 @@ import numpy as np
 
 from ngc_gen.viz.gc_mesh import gc_surface
 
-from ..checks import LOOPBACK, check_editor, editor_out_dir
-from ..config import sparse_settings
+from ..runtime.checks import LOOPBACK, check_editor, editor_out_dir
+from ..runtime.config import sparse_settings
 from .meshing import MeshLoop
 from .session import POSE_AXES, EditorSession, Outcome
 

@@ -17,7 +17,7 @@ from torch.utils.data import RandomSampler, Sampler
 
 from ngc_gen.data.atomic import atomic_write_text
 
-from .shape_latent import with_stage_steps
+from .train_shape_latent import with_stage_steps
 
 # settings of the `diffusion` group the stage reads itself (not LatentDiffusion arguments)
 RUNNER_KEYS = ("batch_size", "batches_per_epoch", "max_steps", "pose_transfer")
@@ -78,7 +78,7 @@ def run_diffusion(cfg: DictConfig) -> dict:
     from ngc_gen.lit.checkpoint import resolve_checkpoint
     from ngc_gen.lit.shape_latent import FIX, ShapeLatentModule
 
-    from .training import instantiate_group, start_run, train
+    from ..runtime.training import instantiate_group, start_run, train
 
     cfg = with_stage_steps(cfg, "diffusion")
     ckpt = resolve_checkpoint(cfg.shape_latent_run, FIX, "shape-latent run").resolve()

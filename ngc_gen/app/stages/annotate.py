@@ -40,7 +40,7 @@ from ngc_gen.data.errors import DataError
 from ngc_gen.data.mesh.io import load_mesh, normalize
 from ngc_gen.data.mesh.sampling import sample_surface
 
-from .training import start_run
+from ..runtime.training import start_run
 
 HEADER = "# written by `train.py stage=annotate` (automatic GCs); edit freely, or delete to redo\n"
 COVERAGE_SAMPLES = 50_000

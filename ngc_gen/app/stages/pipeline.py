@@ -24,7 +24,7 @@ from omegaconf import DictConfig, OmegaConf
 from ngc_gen.data.atomic import atomic_write_text
 from ngc_gen.data.errors import DataError
 
-from .stages import resolve, run_stage
+from .registry import COMMANDS, run_stage
 
 
 # step -> (config name, the key that holds its output directory)
@@ -37,10 +37,6 @@ LINKS = {"edit": ("fit", "run={}"),
          "sample": ("diffusion", "run={}")}
 
 
-# the pipeline's steps that are not train.py stages (those go through `run_stage`)
-STEP_RUNNERS = {"edit": "ngc_gen.app.edit:run_edit", "sample": "ngc_gen.app.sample:run_sample"}
-
-
 def _fail(what: str, step: str | None = None, fix: str = "") -> DataError:
     return DataError(what, field=f"pipeline.{step}" if step else "pipeline", fix=fix)
 
@@ -48,7 +44,7 @@ def _fail(what: str, step: str | None = None, fix: str = "") -> DataError:
 def plan(cfg: DictConfig, run_dir: Path) -> list[tuple[str, DictConfig]]:
     """[(step, composed config)] in run order; DataError for an unknown step, a missing link or
     an override Hydra rejects, before anything runs."""
-    from .config import compose_config
+    from ..runtime.config import compose_config
 
     p = cfg.get("pipeline")
     if not p or not p.get("steps"):
@@ -96,11 +92,11 @@ def plan(cfg: DictConfig, run_dir: Path) -> list[tuple[str, DictConfig]]:
 
 
 def run_step(step: str, cfg: DictConfig) -> dict:
-    from .cli import set_threads
+    from ..runtime.cli import set_threads
 
     set_threads(cfg.get("threads"))
-    if step in STEP_RUNNERS:
-        return resolve(STEP_RUNNERS[step])(cfg)
+    if step in COMMANDS:  # edit, sample; the others are train.py stages
+        return COMMANDS[step].run(cfg)
     return run_stage(cfg)
 
 

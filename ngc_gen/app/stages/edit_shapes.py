@@ -22,12 +22,12 @@ import yaml
 # light imports only: the program and out_dir are checked before torch loads (`run_edit`)
 from ngc_gen.edit.errors import EditError
 
-from .background_render import BackgroundRenderer
-from .checkpoints import fit_checkpoint
-from .checks import check_edit, edit_output_dir
-from .config import sparse_settings
-from .mix_sources import MixSources
-from .programs import program_from_config
+from ..runtime.background_render import BackgroundRenderer
+from ..runtime.checkpoints import fit_checkpoint
+from ..runtime.checks import check_edit, edit_output_dir
+from ..runtime.config import sparse_settings
+from ..runtime.mix_sources import MixSources
+from ..runtime.programs import program_from_config
 
 def _json_safe(x):
     import numpy as np

@@ -18,9 +18,9 @@ from tqdm import tqdm
 from ngc_gen.data.atomic import atomic_write, atomic_write_text
 from ngc_gen.data.prepare import PreparedShape
 
-from .config import sparse_settings
-from .prepare import prepare_dataset
-from .training import instantiate_group, start_run, train
+from ..runtime.config import sparse_settings
+from .prepare_data import prepare_dataset
+from ..runtime.training import instantiate_group, start_run, train
 
 
 def shapes_meta(prepared: list[PreparedShape], kind: str) -> dict:

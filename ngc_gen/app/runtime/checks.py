@@ -231,3 +231,86 @@ def check_edit(cfg) -> None:
     if shape is not None and not isinstance(shape, str):
         raise ConfigError("must be a shape name", key="shape", value=shape,
                           fix="pass shape=<name> (edit.py lists the names if it is wrong)")
+
+
+# ---- what train.py's stages check before torch loads (their registry entries name these) ----
+def check_resume_from(cfg, kind: str) -> None:
+    """ckpt_path, when given, is a checkpoint of this stage's `kind` (read without torch)."""
+    from ngc_gen.lit.kinds import only
+    from ngc_gen.lit.peek import check_kind, resolve_checkpoint
+
+    if cfg.get("ckpt_path") is None:
+        return
+    fix = ("pass ckpt_path=<run dir> or <run>/checkpoints/last.ckpt of an interrupted run "
+           "of the same stage")
+    check_kind(resolve_checkpoint(cfg.ckpt_path, what="checkpoint to resume from", fix=fix),
+               only(kind), fix)
+
+
+def check_shape_latent(cfg) -> None:
+    """stage=shape_latent: shape_latent.init_decoder, when given, is a fit run."""
+    from ngc_gen.lit.kinds import FIT, only
+    from ngc_gen.lit.peek import check_kind, resolve_checkpoint
+
+    init = cfg.get("shape_latent", {}).get("init_decoder")
+    if init is not None:
+        fix = "pass shape_latent.init_decoder=<a `train.py stage=fit` run or its last.ckpt>"
+        check_kind(resolve_checkpoint(init, fix, "fit run"), only(FIT), fix)
+
+
+def check_diffusion_stage(cfg) -> None:
+    """stage=diffusion: shape_latent_run is a shape-latent run; the diffusion settings name
+    known choices."""
+    from ngc_gen.lit.kinds import SHAPE_LATENT, only
+    from ngc_gen.lit.peek import check_kind, resolve_checkpoint
+
+    fix = ("pass the run directory (or checkpoints/last.ckpt) of a `train.py "
+           "stage=shape_latent` run")
+    path = resolve_checkpoint(cfg.get("shape_latent_run"), fix, "shape-latent run")
+    check_kind(path, only(SHAPE_LATENT), fix)
+    if cfg.get("diffusion") is not None:
+        check_diffusion(cfg.diffusion)
+
+
+def check_diffusion(d) -> None:
+    """diffusion.standardise and diffusion.pca_complete name known choices."""
+    from ngc_gen.lit.diffusion_options import PCA_COMPLETE, STANDARDISE
+
+    for key, allowed in (("standardise", STANDARDISE), ("pca_complete", PCA_COMPLETE)):
+        if d.get(key) is not None and d.get(key) not in allowed:
+            raise ConfigError("unknown choice", key=f"diffusion.{key}", value=d.get(key),
+                              fix=f"choose one of {', '.join(allowed)}")
+    check_pose_transfer(d.get("pose_transfer"))
+
+
+def check_pose_transfer(pt) -> None:
+    """diffusion.pose_transfer: null, or bodies (a non-empty list of names) and the GC template
+    file the shapes were made with (its GCs' parents)."""
+    from omegaconf import ListConfig
+
+    if not pt:
+        return
+    key = "diffusion.pose_transfer"
+    bodies = pt.get("bodies")
+    if not isinstance(bodies, (list, tuple, ListConfig)) or not bodies \
+            or not all(isinstance(b, str) and b for b in bodies):
+        raise ConfigError("needs a non-empty list of body names", key=f"{key}.bodies",
+                          value=bodies, fix="list the names the shape names start with, e.g. "
+                          "diffusion.pose_transfer.bodies=[wolf,horse]")
+    if pt.get("poses") not in (None, "missing", "all"):
+        raise ConfigError("must be missing (the poses a body lacks) or all", key=f"{key}.poses",
+                          value=pt.get("poses"), fix=f"pass {key}.poses=missing")
+    template = pt.get("template")
+    if not template or not Path(str(template)).is_file():
+        raise ConfigError("GC template file not found", key=f"{key}.template", value=template,
+                          fix="pass the template the shapes were made with (the animals': "
+                          "datasets/animals/quadruped.yaml), or diffusion.pose_transfer=null")
+
+
+def check_data_files(data) -> None:
+    """The files the data config names (annotation YAMLs, mesh headers, data=folder's meshes)."""
+    from omegaconf import OmegaConf
+
+    from ngc_gen.data.preflight import check_data
+
+    check_data(OmegaConf.to_container(data, resolve=True, throw_on_missing=True))

@@ -18,9 +18,9 @@ from ngc_gen.generate.latents import latent_path
 from ngc_gen.generate.model import ShapeGenerator
 from ngc_gen.generate.shapes import decode_shapes
 
-from .checks import check_sample
-from .config import sparse_settings
-from .outputs import _check, extract_and_write, write_outputs
+from ..runtime.checks import check_sample
+from ..runtime.config import sparse_settings
+from ..runtime.outputs import _check, extract_and_write, write_outputs
 
 
 def generate(gen: ShapeGenerator, out_dir, n: int = 16, seed: int = 0, resolution: int = 128,
@@ -134,7 +134,7 @@ def run_sample(cfg) -> dict:
     if mode == "generate":
         summary = generate(gen, out_dir, n=int(c["n"]), **common)
     elif mode == "condition":
-        from .condition import condition
+        from .sample_condition import condition
         kw = {k: v for k, v in common.items() if k != "normalised"}  # the given GCs' frame
         summary = condition(gen, out_dir, gcs=c["gcs"], n=int(c["n"]), **c["condition"], **kw)
     elif mode == "interpolate":
@@ -145,7 +145,7 @@ def run_sample(cfg) -> dict:
         summary = mix(gen, out_dir, a=c["a"], b=c["b"], part=c["part"], blend=c["blend"],
                       blend_params=params, geometry=c.get("geometry", "source"), **common)
     if c.get("picture", True) and mode == "condition":
-        from .condition import render_condition
+        from .sample_condition import render_condition
         picture = render_condition(summary, out_dir / "shapes.png", up=c["viz"]["up"])
         if picture is not None:
             print(f"picture: {picture}")

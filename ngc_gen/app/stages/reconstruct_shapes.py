@@ -26,7 +26,7 @@ from omegaconf import DictConfig, open_dict
 from ngc_gen.data.atomic import atomic_write, atomic_write_text
 from ngc_gen.data.errors import DataError
 
-from .config import sparse_settings
+from ..runtime.config import sparse_settings
 
 FIX = ("pass run=<dir or checkpoint> of a `train.py stage=fit` run (codes) or a "
        "`train.py stage=shape_latent` run (latents)")
@@ -86,8 +86,8 @@ def _codes(cfg: DictConfig, path: Path) -> dict:
     from ngc_gen.lit.reconstruct import codes_only_autodecoder
 
     from .fit import named_gcs, print_metrics, render_comparison, score_fit, shapes_meta
-    from .prepare import prepare_dataset
-    from .training import start_run, train
+    from .prepare_data import prepare_dataset
+    from ..runtime.training import start_run, train
 
     fit = load_autodecoder(path)
     run_dir = start_run(cfg)
@@ -121,7 +121,7 @@ def _refine_codes(cfg: DictConfig, module, prepared, run_dir: Path, meta: dict):
     from ngc_gen.data.datamodule import PreparedDataModule, training_rows
     from ngc_gen.lit.reconstruct import refine_codes_module
 
-    from .training import train
+    from ..runtime.training import train
 
     steps = int(cfg.reconstruct.refine_steps or 0)
     if steps <= 0:
@@ -165,9 +165,9 @@ def _latents(cfg: DictConfig, path: Path) -> dict:
     from ngc_gen.shape import recorded_gcs
 
     from .fit import print_metrics
-    from .prepare import prepare_dataset
-    from .shape_latent import save_latents, template_and_targets
-    from .training import start_run, train
+    from .prepare_data import prepare_dataset
+    from .train_shape_latent import save_latents, template_and_targets
+    from ..runtime.training import start_run, train
 
     gcs_from = str(cfg.reconstruct.gcs)
     if gcs_from not in ("input", "decoded"):

@@ -13,10 +13,10 @@ from tqdm.contrib.logging import logging_redirect_tqdm
 
 from ngc_gen.data.prepare import PrepareSettings, PreparedShape, prepare_shape, prepare_uncached
 
-from .cli import torch_threads
-from .errors import ConfigError
-from .checks import check_writable
-from .training import instantiate, instantiate_group
+from ..runtime.cli import torch_threads
+from ..runtime.errors import ConfigError
+from ..runtime.checks import check_writable
+from ..runtime.training import instantiate, instantiate_group
 
 RUNNER_KEYS = ("cache_dir", "shard", "workers")  # settings the stage reads itself (not PrepareSettings)
 

@@ -22,7 +22,7 @@ from ngc_gen.generate.model import ShapeGenerator
 from ngc_gen.generate.shapes import decode_shapes
 from ngc_gen.geometry import GeneralizedCylinder
 
-from .outputs import _check, extract_and_write, write_outputs
+from ..runtime.outputs import _check, extract_and_write, write_outputs
 
 
 def condition(gen: ShapeGenerator, out_dir, gcs, n: int, seed: int, strength: float,

@@ -6,14 +6,14 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from ngc_gen.app.errors import ConfigError
+from ngc_gen.app.runtime.errors import ConfigError
 
-from ngc_gen.app.editor import browser
+from tests.app.editor import browser
 from ngc_gen.app.editor.server import OPS_SHOWN, EditorServer, gc_middle, ops_text
 from ngc_gen.data.errors import DataError
-from ngc_gen.app.edit import run_edit
+from ngc_gen.app.stages.edit_shapes import run_edit
 
-from ..helpers import compose_config
+from ...helpers import compose_config
 from .conftest import editor_config
 
 pytestmark = pytest.mark.usefixtures("single_thread")

@@ -6,7 +6,7 @@ import time
 import pytest
 import yaml
 
-from ngc_gen.app.editor import browser
+from tests.app.editor import browser
 from ngc_gen.app.editor.server import EditorServer
 from ngc_gen.app.editor.start import open_session
 

@@ -1,4 +1,4 @@
-"""`python -m ngc_gen.app.bytecode`: byte-compile what the commands import, once, at setup.
+"""`python -m ngc_gen.app.runtime.bytecode`: byte-compile what the commands import, once, at setup.
 
 Where PYTHONDONTWRITEBYTECODE=1 is set (common in containers) and packages were installed with
 `pip --no-compile`, no .pyc is ever written, so every command compiles torch, Lightning,
@@ -17,13 +17,10 @@ import sys
 import time
 from pathlib import Path
 
-# the runners of train.py, edit.py (and the editor) and sample.py: importing them imports what
-# their work imports (torch, Lightning, trimesh, scipy, hydra, viser)
-RUNNERS = ("ngc_gen.app.stages", "ngc_gen.app.prepare", "ngc_gen.app.annotate",
-           "ngc_gen.app.fit", "ngc_gen.app.shape_latent", "ngc_gen.app.diffusion",
-           "ngc_gen.app.reconstruct", "ngc_gen.app.pipeline", "ngc_gen.app.edit",
-           "ngc_gen.app.sample", "ngc_gen.app.condition", "ngc_gen.edit.program",
-           "ngc_gen.shape", "ngc_gen.extract.extractor", "ngc_gen.viz",
+# beside the runners of the stage registry (train.py's stages, edit.py, sample.py): what their
+# work imports later (torch, Lightning, trimesh, scipy, hydra, viser)
+RUNNERS = ("ngc_gen.app.stages.sample_condition",
+           "ngc_gen.edit.program", "ngc_gen.shape", "ngc_gen.extract.extractor", "ngc_gen.viz",
            "lightning.pytorch", "ngc_gen.app.editor.server", "pyvista.plotting")
 # packages whose modules load late (numba's while it compiles or loads a cached kernel,
 # pyvista's and VTK's when a picture is drawn, Hydra's plugins while it composes): compiled
@@ -56,7 +53,10 @@ def main() -> int:
     sys.dont_write_bytecode = False  # the point of this module, whatever the environment says
     t0 = time.perf_counter()
     missing = []
-    for name in RUNNERS:
+    from ngc_gen.app.stages.registry import COMMANDS, STAGES
+
+    stages = [s.runner.split(":")[0] for s in (*STAGES.values(), *COMMANDS.values())]
+    for name in (*stages, *RUNNERS):
         try:
             importlib.import_module(name)
         except ImportError as e:  # an optional extra (viser) not installed: compile the rest

@@ -22,8 +22,8 @@ from ngc_gen.data.atomic import atomic_write, atomic_write_text
 from ngc_gen.data.errors import DataError
 from ngc_gen.data.prepare import PreparedShape
 
-from .config import sparse_settings
-from .training import instantiate_group, start_run, train
+from ..runtime.config import sparse_settings
+from ..runtime.training import instantiate_group, start_run, train
 
 LATENTS_KIND = "ngc_gen.shape_latents"
 # settings of the `shape_latent` group the stage reads itself (not ShapeLatentModule arguments)
@@ -148,7 +148,7 @@ def run_shape_latent(cfg: DictConfig) -> dict:
 
     from ngc_gen.data.datamodule import PreparedDataModule
 
-    from .prepare import prepare_dataset
+    from .prepare_data import prepare_dataset
 
     cfg = with_stage_steps(cfg, "shape_latent")
     # bad data fails before the run directory is made; GCs of another layout before preparing

@@ -81,7 +81,7 @@ def quiet_lightning() -> None:
     # the stages train for max_steps over short epochs; logging counts steps across epochs,
     # so an epoch shorter than log_every_n_steps loses no log line (Lightning warns anyway)
     warnings.filterwarnings("ignore", message=r".*smaller than the logging interval")
-    # resuming (ngc_gen.app.resume): the run directory's logs and checkpoints are continued on
+    # resuming (ngc_gen.app.runtime.resume): the run directory's logs and checkpoints are continued on
     # purpose, and the interrupted epoch's batches are drawn again (docs/scaling.md)
     for message in (r"Experiment logs directory .* exists and is not empty",
                     r"Checkpoint directory .* exists and is not empty",

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import torch
 
-from ngc_gen.app.editor import browser
+from tests.app.editor import browser
 from ngc_gen.app.editor.latent import LatentShapes
 from ngc_gen.app.editor.library import ShapeLibrary
 from ngc_gen.app.editor.server import EditorServer
@@ -20,7 +20,7 @@ from ngc_gen.lit.diffusion import LatentDiffusion
 from ngc_gen.lit.shape_latent import ShapeLatentModule
 from ngc_gen.models.shape_decoder import GCTemplate
 
-from ..edit.conftest import GC_DICTS, SIZES, tube_decoder_
+from ...edit.conftest import GC_DICTS, SIZES, tube_decoder_
 from .conftest import RES, editor_config, mesh_chamfer
 from .test_session import replay
 

@@ -13,11 +13,11 @@ import yaml
 from ngc_gen.app.editor.start import open_session
 from ngc_gen.data.errors import DataError
 from ngc_gen.edit import EditProgram
-from ngc_gen.app.edit import run_edit
+from ngc_gen.app.stages.edit_shapes import run_edit
 from ngc_gen.shape.mixing import start_frame
 
 from .conftest import RES, editor_config, mesh_chamfer
-from ..helpers import compose_config
+from ...helpers import compose_config
 
 pytestmark = pytest.mark.usefixtures("single_thread")
 

@@ -21,7 +21,8 @@ from pathlib import Path
 log = logging.getLogger(__name__)
 
 # (module, class) of the project's bad-input errors; FileNotFoundError and the OSErrors below too
-USER_ERROR_CLASSES = (("ngc_gen.app.errors", "ConfigError"), ("ngc_gen.data.errors", "DataError"),
+USER_ERROR_CLASSES = (("ngc_gen.app.runtime.errors", "ConfigError"),
+                      ("ngc_gen.data.errors", "DataError"),
                       ("ngc_gen.edit.errors", "EditError"),
                       ("ngc_gen.geometry.errors", "GeometryError"),
                       ("ngc_gen.extract.budget", "GridTooLarge"))

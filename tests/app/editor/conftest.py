@@ -11,8 +11,8 @@ from ngc_gen.app.editor.session import EditorSession
 from ngc_gen.app.editor.start import open_session
 from ngc_gen.eval.fitting import chamfer
 
-from ..edit.conftest import make_module, save_checkpoint
-from ..helpers import compose_config
+from ...edit.conftest import make_module, save_checkpoint
+from ...helpers import compose_config
 
 RES = 40  # small grids keep the replay tests fast; same grid on both sides
 

@@ -9,13 +9,13 @@ from pathlib import Path
 
 from omegaconf import OmegaConf
 
-CONF_DIR = Path(__file__).resolve().parents[2] / "conf"  # beside train.py, edit.py, sample.py
+CONF_DIR = Path(__file__).resolve().parents[3] / "conf"  # beside train.py, edit.py, sample.py
 
 
 def repo_root() -> Path:
     """The checkout this package runs from (shipped datasets, default caches: `paths`);
     override with the NGC_ROOT environment variable."""
-    return Path(os.environ.get("NGC_ROOT", Path(__file__).resolve().parents[2]))
+    return Path(os.environ.get("NGC_ROOT", Path(__file__).resolve().parents[3]))
 
 
 def config_groups() -> str:
