@@ -69,8 +69,8 @@ def overrides(folder: Path, steps: int, resolution: int) -> list[str]:
 
 def prepare(folder: Path, steps: int, resolution: int) -> None:
     """The shape's training samples, once for both recipes (they share the prepared cache)."""
-    from ngc_gen.app.config import compose_config
-    from ngc_gen.app.prepare import prepare_dataset
+    from ngc_gen.app.runtime.config import compose_config
+    from ngc_gen.app.stages.prepare_data import prepare_dataset
 
     prepare_dataset(compose_config(overrides=overrides(folder, steps, resolution)),
                     verbose=False)
@@ -79,7 +79,7 @@ def prepare(folder: Path, steps: int, resolution: int) -> None:
 def fit_one(cache: FitCache, name: str, folder: Path, steps: int, resolution: int,
             refit: bool = False):
     """One shape: a cached train.py run in its own process (one thread), scored with the min."""
-    from ngc_gen.app.config import compose_config
+    from ngc_gen.app.runtime.config import compose_config
 
     over = overrides(folder, steps, resolution)
 
@@ -103,7 +103,7 @@ def blended(run_dir: Path, name: str, resolution: int) -> dict:
     import torch
 
     from bench._seams import truth_and_gcs
-    from ngc_gen.app.config import compose_config
+    from ngc_gen.app.runtime.config import compose_config
     from ngc_gen.data.atomic import atomic_write
     from ngc_gen.eval import junction_metrics, reconstruction_metrics
     from ngc_gen.lit.autodecoder import check_union
