@@ -24,12 +24,13 @@ pieces, NC and F@0.01, and training seconds per step. `edits`: the shipped edit 
 ant and a creature (`EDITS`), each fit's junction ratios after the edit against the truth moved
 by the same edit (`edited_truth`), and their change from the unedited ratios. `minutes`: this
 run's wall time. bench/results/seams.png: per shape, its worst junction close up (truth, before,
-after).
+after). The JSON is written after each shape (`complete`: false until every shape is in).
 """
 from __future__ import annotations
 
 import argparse
 import json
+import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
@@ -194,19 +195,34 @@ def main():
     for _, _, folder in shapes:
         prepare(folder, args.steps, args.resolution)
     cache = FitCache("seams")
+    rows, edits, runs, lock = [], [], {}, threading.Lock()
+
+    def one(shape) -> None:   # fit, then score at once: a stopped run keeps whole shapes
+        name, _, folder = shape
+        run_dir = fit_one(cache, name, folder, args.steps, args.resolution, args.refit).run_dir
+        ceil = _ceiling(run_dir, name, args.resolution)
+        mine = [row(name, r, run_dir, ceil, args.resolution) for r in RECIPES]
+        done = {(name, r): run_dir for r in RECIPES}
+        edited = close.edit_rows({name: EDITS[name]} if name in EDITS else {}, done, mine,
+                                 args.resolution)
+        with lock:
+            runs.update(done)
+            rows.extend(mine)
+            edits.extend(edited)
+            write(complete=False)
+
+    def write(complete: bool) -> dict:
+        order = {n: i for i, (n, _) in enumerate(SHAPES)}
+        rows.sort(key=lambda r: (order[r["name"]], RECIPES.index(r["recipe"])))
+        res = {"shapes": rows, "edits": edits, "steps": args.steps,
+               "resolution": args.resolution, "complete": complete,
+               "minutes": (time.perf_counter() - t0) / 60.0}
+        bench.write(res)
+        return res
+
     with ThreadPoolExecutor(max(1, args.fit_workers)) as pool:
-        fits = list(pool.map(lambda s: fit_one(cache, s[0], s[2], args.steps, args.resolution,
-                                               args.refit), shapes))
-    runs = {(n, r): f.run_dir for (n, _, _), f in zip(shapes, fits) for r in RECIPES}
-    rows = []
-    for n, _, _ in shapes:
-        ceil = _ceiling(runs[n, "before"], n, args.resolution)
-        rows += [row(n, r, runs[n, r], ceil, args.resolution) for r in RECIPES]
-    edits = close.edit_rows({n: p for n, p in EDITS.items() if (n, "before") in runs}, runs,
-                            rows, args.resolution)
-    res = {"shapes": rows, "edits": edits, "steps": args.steps, "resolution": args.resolution,
-           "minutes": (time.perf_counter() - t0) / 60.0}
-    bench.write(res)
+        list(pool.map(one, shapes))
+    res = write(complete=True)
     if not args.no_picture:
         close.picture(rows, runs, bench.path.parent / "seams.png", CLOSEUP)
     print("\n".join(table(rows)))
