@@ -38,9 +38,11 @@ def edited_truth(truth, gcs: list, edited: list):
     return trimesh.Trimesh(out, np.asarray(truth.faces), process=False)
 
 
-def edit_rows(programs: dict, runs: dict, rows: list[dict], resolution: int) -> list[dict]:
-    """Per shape with a program and per recipe: the junction ratios of the edited fit against
-    the edited truth, and their change from the same fit's unedited ratios (`rows`)."""
+def edit_rows(programs: dict, runs: dict, rows: list[dict], resolution: int,
+              unions: dict) -> list[dict]:
+    """Per shape with a program and per recipe: the junction ratios of the edited fit (its
+    shape with that recipe's union, `unions`: recipe -> Shape keyword arguments) against the
+    edited truth, and their change from the same fit's unedited ratios (`rows`)."""
     import yaml
 
     from bench._seams import truth_and_gcs
@@ -56,13 +58,13 @@ def edit_rows(programs: dict, runs: dict, rows: list[dict], resolution: int) -> 
             run_dir = runs.get((name, recipe))
             if run_dir is None:
                 continue
-            cached = run_dir / f"edit_{program}.json"
+            cached = run_dir / f"edit_{program}_{recipe}.json"
             if cached.exists():
                 out.append(json.loads(cached.read_text()))
                 continue
             truth, gcs = truth_and_gcs(run_dir, name)
             shape = load_shapes(run_dir / "checkpoints" / "last.ckpt")[name]
-            edited = shape.edited(prog)
+            edited = shape.replaced(**unions[recipe]).edited(prog)
             mesh = edited.mesh(resolution).mesh
             m = junction_metrics(mesh, edited_truth(truth, gcs, edited.gcs), edited.gcs)
             base = next(r for r in rows if r["name"] == name and r["recipe"] == recipe)
@@ -94,8 +96,8 @@ def picture(rows: list[dict], runs: dict, path: Path, radius: float) -> Path | N
         if before is None or after is None:
             continue
         truth, gcs = truth_and_gcs(before, name)
-        meshes = [trimesh.load(d / "meshes" / f"{name}.ply", process=False)
-                  for d in (before, after)]
+        meshes = [trimesh.load(before / "meshes" / f"{name}{tail}.ply", process=False)
+                  for tail in ("", "_after")]     # `after` meshes the same fit: seams.blended
         found = worst_junction(meshes[0], truth, gcs, radius / 2)
         if found is None:
             continue

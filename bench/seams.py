@@ -94,6 +94,17 @@ def fit_one(cache: FitCache, name: str, folder: Path, steps: int, resolution: in
     return f
 
 
+def unions() -> dict:
+    """recipe -> the Shape keyword arguments of its union: the min, and the default
+    `model.union` (conf/model)."""
+    from ngc_gen.app.runtime.config import compose_config
+    from ngc_gen.lit.autodecoder import check_union
+    from ngc_gen.shape.load import recorded_union
+
+    union = check_union(compose_config(overrides=["stage=fit"]).model.union)
+    return {"before": recorded_union({}), "after": recorded_union({"union": union})}
+
+
 def blended(run_dir: Path, name: str, resolution: int) -> dict:
     """The fit's shape meshed with the default union (conf/model: the blend) and scored as the
     fit stage scores (the same metrics and seeds), cached beside the run as after.json; its
@@ -104,17 +115,13 @@ def blended(run_dir: Path, name: str, resolution: int) -> dict:
     import torch
 
     from bench._seams import truth_and_gcs
-    from ngc_gen.app.runtime.config import compose_config
     from ngc_gen.data.atomic import atomic_write
     from ngc_gen.eval import junction_metrics, reconstruction_metrics
-    from ngc_gen.lit.autodecoder import check_union
     from ngc_gen.shape import load_shapes
-    from ngc_gen.shape.load import recorded_union
 
-    union = check_union(compose_config(overrides=["stage=fit"]).model.union)
+    union = unions()["after"]
     truth, gcs = truth_and_gcs(run_dir, name)
-    shape = load_shapes(run_dir / "checkpoints" / "last.ckpt")[name]
-    shape = shape.replaced(**recorded_union({"union": union}))
+    shape = load_shapes(run_dir / "checkpoints" / "last.ckpt")[name].replaced(**union)
     with torch.no_grad():
         res = shape.mesh(resolution)
     atomic_write(run_dir / "meshes" / f"{name}_after.ply",
@@ -204,7 +211,7 @@ def main():
         mine = [row(name, r, run_dir, ceil, args.resolution) for r in RECIPES]
         done = {(name, r): run_dir for r in RECIPES}
         edited = close.edit_rows({name: EDITS[name]} if name in EDITS else {}, done, mine,
-                                 args.resolution)
+                                 args.resolution, unions())
         with lock:
             runs.update(done)
             rows.extend(mine)
