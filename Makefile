@@ -7,7 +7,7 @@ BIN := $(VENV)/bin
 
 # the benches, in the order `make bench` runs them (sparse-settings reads deform's and autogc's
 # fits; condition and reconstruct reuse generate's; fit-ablation reads fit's ceiling)
-BENCHES := geometry up-axis fit fit-ablation deform extract autogc sparse-settings editor \
+BENCHES := geometry up-axis fit fit-ablation seams deform extract autogc sparse-settings editor \
 	generate condition reconstruct ddp demo cli animals transfer
 
 .PHONY: setup chromium test test-all bench bench-report $(addprefix bench-,$(BENCHES)) bench-up \
@@ -84,6 +84,9 @@ bench-geometry: setup
 
 bench-fit: setup
 	$(BIN)/python bench/fit.py
+
+bench-seams: setup  # min vs the blended union on 8 shapes against their ceilings (~90 min on 2 cores)
+	$(BIN)/python -m bench.seams
 
 bench-fit-ablation: setup  # the table of bench/fit.py --tag screening runs in bench/runs/fit
 	$(BIN)/python bench/fit_ablation.py
