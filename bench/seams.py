@@ -35,8 +35,6 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
-import numpy as np
-
 from bench._harness import Bench, FitCache, config_recipe, file_identity, train_subprocess
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -164,7 +162,27 @@ def meets_targets(r: dict) -> bool:
             and r["fscore"] >= min(0.95, r["ceiling_fscore"] - 0.01))
 
 
-def table(rows: list[dict]) -> list[str]:
+def table(res: dict) -> str:
+    """bench/README.md's block: one row per shape and union, then the edited shapes."""
+    lines = rows_table(res["shapes"]) + ([""] if res.get("edits") else [])
+    for e in res.get("edits", []):
+        lines.append(f"- edit `{e['program']}` on {e['name']} ({e['recipe']}): junction "
+                     f"{e['junction_ratio_dist']:.2f} / {e['junction_ratio_normal']:.2f}, "
+                     f"change {e['change_dist']:+.1%} / {e['change_normal']:+.1%}")
+    done = "" if res.get("complete", True) else " (partial: not every shape is in)"
+    return "\n".join(lines) + f"\n\n{res['steps']} steps, {res['resolution']}^3, " \
+        f"{res['minutes']:.1f} min{done}"
+
+
+def headline(res: dict) -> str:
+    after = [r for r in res["shapes"] if r["recipe"] == "after"]
+    met = sum(meets_targets(r) for r in after)
+    worst = max((max(r["excess_dist"] or 0, r["excess_normal"] or 0) for r in after), default=0)
+    return (f"blended union: {met}/{len(after)} shapes meet the seam targets; worst excess over "
+            f"the ceiling {worst:.2f}")
+
+
+def rows_table(rows: list[dict]) -> list[str]:
     def f(x, p=2):
         return "-" if x is None else f"{x:.{p}f}"
 
@@ -232,12 +250,7 @@ def main():
     res = write(complete=True)
     if not args.no_picture:
         close.picture(rows, runs, bench.path.parent / "seams.png", CLOSEUP)
-    print("\n".join(table(rows)))
-    for e in edits:
-        print(f"edit {e['program']} on {e['name']} ({e['recipe']}): junction "
-              f"{e['junction_ratio_dist']:.2f} / {e['junction_ratio_normal']:.2f}, change "
-              f"{e['change_dist']:+.1%} / {e['change_normal']:+.1%}")
-    print(f"{res['minutes']:.1f} min")
+    print(table(res))
 
 
 def _ceiling(run_dir: Path, name: str, resolution: int) -> dict:

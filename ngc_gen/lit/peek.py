@@ -15,6 +15,7 @@ import pickle
 import zipfile
 from pathlib import Path
 
+from ngc_gen import workspace
 from ngc_gen.data.errors import DataError
 
 from .kinds import KINDS
@@ -74,7 +75,7 @@ def resolve_checkpoint(path, fix: str, what: str) -> Path:
         raise DataError(f"no {what} given", fix=fix)
     path = Path(path)
     if path.is_dir():
-        ckpt = path / "checkpoints" / "last.ckpt"
+        ckpt = workspace.last_checkpoint(path)
         if not ckpt.is_file():
             raise DataError(f"{path} holds no checkpoints/last.ckpt (is it a finished "
                             f"{what}?)", path=path, fix=fix)

@@ -15,7 +15,8 @@ from ngc_gen.app.stages import prepare_data as prepare_stage
 from ngc_gen.app.stages import train_shape_latent as shape_latent_stage
 from ngc_gen.app.runtime.programs import available_programs
 from ngc_gen.app.stages.prepare_data import settings_from_config
-from ngc_gen.app.runtime.training import build_callbacks, instantiate_group
+from ngc_gen.app.runtime.config import instantiate_group
+from ngc_gen.app.runtime.training import build_callbacks
 
 from ..conftest import straight_gc
 from ..helpers import ROOT, compose_config, run_entry

@@ -1,4 +1,4 @@
-"""What a newcomer met (issue 31, item 8) and must not meet again: caches named after the user's
+"""What a newcomer met and must not meet again: caches named after the user's
 own mesh folder, not after the shipped creatures."""
 from ..helpers import compose_config
 

@@ -7,6 +7,8 @@ import os
 import tempfile
 from pathlib import Path
 
+from ngc_gen.data.errors import DataError
+
 from .errors import ConfigError
 
 
@@ -83,29 +85,31 @@ def check_extract(cfg, prefix: str = "extract") -> None:
     config_number(cfg, f"{prefix}.chunk", integer=True, minimum=1, optional=True)
 
 
+def check_threads(threads) -> int | str | None:
+    """The `threads` setting, checked without torch: auto, null or a whole number >= 1 (the
+    project's rule for numbers, `ngc_gen.values`). ConfigError naming the key otherwise."""
+    if threads is None or str(threads) == "auto":
+        return None if threads is None else "auto"
+    from ngc_gen.values import NumberError, read_number
+
+    try:
+        return read_number(threads, integer=True, minimum=1)
+    except NumberError:
+        raise ConfigError(f"threads must be >= 1, auto or null, got {threads}", key="threads",
+                          value=threads, fix="pass threads=auto (default), threads=1 (shared "
+                          "machine) or threads=null (all cores)") from None
+
+
 # ---- what each entry point checks before torch loads ----------------------------------------
-SAMPLE_MODES = ("generate", "interpolate", "mix", "condition")
-
-
 def check_sample(cfg) -> None:
-    """sample.py's settings (conf/sample.yaml, conf/mode/): the mode, every number it reads,
-    the output folder and the run, in a second and before torch loads."""
-    mode = cfg.get("mode")
-    if mode not in SAMPLE_MODES:
-        raise ConfigError("unknown mode", key="mode", value=mode,
-                          fix=f"use one of mode={' | mode='.join(SAMPLE_MODES)}")
+    """sample.py's settings (conf/sample.yaml, conf/mode/): the mode and its settings
+    (`mode_settings`), every number it reads, the output folder and the run, in a second and
+    before torch loads."""
+    from ..stages.settings import mode_settings
+
+    mode_settings(cfg)
     check_extract(cfg)
     config_number(cfg, "seed", integer=True)
-    if mode in ("generate", "condition"):
-        config_number(cfg, "n", integer=True, minimum=1)
-    if mode == "interpolate":
-        config_number(cfg, "steps", integer=True, minimum=2)
-    if mode == "mix":
-        for key in ("t0", "t1", "w"):
-            config_number(cfg, key, optional=True)
-    if mode == "condition":
-        config_number(cfg, "condition.strength", minimum=0)
-        config_number(cfg, "condition.project_steps", integer=True, minimum=0)
     config_number(cfg, "sampler.steps", integer=True, minimum=1)
     for key in ("sampler.churn", "sampler.S_min", "sampler.S_noise"):
         config_number(cfg, key, minimum=0)
@@ -307,10 +311,94 @@ def check_pose_transfer(pt) -> None:
                           "datasets/animals/quadruped.yaml), or diffusion.pose_transfer=null")
 
 
+RECONSTRUCT_RUN_FIX = ("pass run=<dir or checkpoint> of a `train.py stage=fit` run (codes) or a "
+                       "`train.py stage=shape_latent` run (latents)")
+
+
+def check_reconstruct(cfg) -> None:
+    """stage=reconstruct: `run` is a fit or shape-latent run (its kind read without torch) and
+    the `reconstruct` group builds (`ReconstructSettings`: numbers, gcs=input|decoded)."""
+    from ngc_gen.lit.kinds import FIT, SHAPE_LATENT, only
+    from ngc_gen.lit.peek import check_kind, resolve_checkpoint
+
+    from .config import instantiate
+
+    path = resolve_checkpoint(cfg.get("run"), fix=RECONSTRUCT_RUN_FIX,
+                              what="run to reconstruct into")
+    check_kind(path, only(FIT, SHAPE_LATENT), RECONSTRUCT_RUN_FIX)
+    instantiate(cfg.reconstruct, "reconstruct")
+
+
 def check_data_files(data) -> None:
     """The files the data config names (annotation YAMLs, mesh headers, data=folder's meshes)."""
     from omegaconf import OmegaConf
 
-    from ngc_gen.data.preflight import check_data
-
     check_data(OmegaConf.to_container(data, resolve=True, throw_on_missing=True))
+
+
+# ---- a data config's files: each annotation YAML parses and names its mesh and GCs, each mesh
+# file exists and its header and data are whole (`ngc_gen.data.mesh.header`), GC names are
+# unique; the words of the full check (`load_annotation`, `load_mesh`)
+RESOURCE_PREFIXES = ("pyvista:",)  # shipped meshes (`mesh.io.RESOURCE_SCHEMES`): read later
+
+
+def _mesh_of(mesh: Path, owner) -> None:
+    from ngc_gen.data.mesh.header import check_mesh_file
+
+    try:
+        check_mesh_file(mesh)
+    except DataError as e:  # the words of prepare's `_in_context`
+        raise DataError(f"{e.what} (mesh of {owner})", path=e.path, field="mesh",
+                        fix=e.fix) from None
+
+
+def check_annotation_file(path) -> None:
+    """An annotation YAML (docs/gcs.md): a mapping with `mesh` and a non-empty `gcs` list of
+    uniquely named GCs, whose mesh file passes `check_mesh_file`. DataError naming the file."""
+    from ngc_gen.data.annotation_file import read_annotation_yaml
+
+    path = Path(path)
+    d = read_annotation_yaml(path)
+    if not isinstance(d, dict):
+        return  # load_annotation explains what an annotation must be
+    gcs = d.get("gcs")
+    if isinstance(gcs, list):
+        names = [g.get("name") for g in gcs if isinstance(g, dict)]
+        dupes = sorted({str(n) for n in names if n is not None and names.count(n) > 1})
+        if dupes:
+            raise DataError(f"GC names {dupes} appear more than once", path=path, gc=dupes[0],
+                            field="name", fix="give every GC a unique name")
+    mesh = d.get("mesh")
+    if isinstance(mesh, str) and mesh and not mesh.startswith(RESOURCE_PREFIXES):
+        file = Path(mesh).expanduser()
+        _mesh_of(file if file.is_absolute() else path.parent / file, path)
+
+
+def check_data(node) -> None:
+    """Every file a `data` config (conf/data/*.yaml, resolved to a dict) will read: the
+    annotations of AnnotatedShapes, the meshes (and annotations beside them) of MeshFolder,
+    the parts of Combined and the base of SingleGC. Generated datasets (Creatures) have no
+    user files."""
+    from ngc_gen.data.mesh_folder import mesh_files
+
+    if isinstance(node, list):
+        for part in node:
+            check_data(part)
+        return
+    if not isinstance(node, dict):
+        return
+    target = str(node.get("_target_", "")).rsplit(".", 1)[-1]
+    if target == "AnnotatedShapes":
+        for a in node.get("annotations") or []:
+            check_annotation_file(a)
+    elif target == "MeshFolder":
+        for mesh in mesh_files(node["path"]):
+            yml = mesh.with_suffix(".yaml")
+            if yml.exists():
+                check_annotation_file(yml)
+            else:
+                _mesh_of(mesh, f"automatic annotation '{mesh.stem}'")
+    elif target == "Combined":
+        check_data(node.get("parts"))
+    elif target == "SingleGC":
+        check_data(node.get("base"))

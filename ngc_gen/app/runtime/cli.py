@@ -18,23 +18,17 @@ import time
 from contextlib import contextmanager
 from pathlib import Path
 
+from ngc_gen import workspace
+
+from .checks import check_threads
+from .errors import user_error_types
+from .lock import RunDirInUse, lock_run_dir
+
 log = logging.getLogger(__name__)
 
-# (module, class) of the project's bad-input errors; FileNotFoundError and the OSErrors below too
-USER_ERROR_CLASSES = (("ngc_gen.app.runtime.errors", "ConfigError"),
-                      ("ngc_gen.data.errors", "DataError"),
-                      ("ngc_gen.edit.errors", "EditError"),
-                      ("ngc_gen.geometry.errors", "GeometryError"),
-                      ("ngc_gen.extract.budget", "GridTooLarge"))
 # OS errors that are the machine's state, not a bug: a full disk, a read-only or missing folder
 ENVIRONMENT_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM,
                       errno.ENOTDIR, errno.EISDIR, errno.EEXIST}
-
-
-def user_error_types() -> tuple[type, ...]:
-    """The bad-input exception classes of the layers imported so far."""
-    found = [getattr(sys.modules[m], c) for m, c in USER_ERROR_CLASSES if m in sys.modules]
-    return (*found, FileNotFoundError)
 
 
 def os_error_message(e: OSError) -> str:
@@ -104,7 +98,7 @@ def hydra_message(e: BaseException) -> str | None:
 
 # what a run directory holds before a stage has made anything: Hydra's record of the call and
 # the stage's record of its settings (config.yaml, seeds.json)
-RECORD_ONLY = {".hydra", "config.yaml", "seeds.json"}
+RECORD_ONLY = {".hydra", workspace.CONFIG, workspace.SEEDS}
 
 
 def discard_hydra_record() -> None:
@@ -141,16 +135,21 @@ def fail(message: str, error: BaseException | None = None) -> None:
 
 
 @contextmanager
-def user_errors():
+def user_errors(release=None):
     """Print bad-input errors as `error: <message>` (no traceback), followed by the error's
-    `help` text if it has one (the edit-op reference), and exit with status 2."""
+    `help` text if it has one (the edit-op reference), and exit with status 2. `release()`
+    drops what the command holds (its run directory's lock) before the run Hydra made for it
+    is discarded; a command refused because another holds the directory discards nothing."""
     try:
         yield
     except Exception as e:  # noqa: BLE001  (only bad input is reported; bugs are re-raised)
         message = one_line_message(e)
         if message is None:
             raise
-        discard_hydra_record()
+        if release is not None:
+            release()
+        if not isinstance(e, RunDirInUse):
+            discard_hydra_record()
         fail(message, e)
 
 
@@ -183,23 +182,6 @@ def auto_threads(cores: int | None = None, load: float | None = None) -> int:
     cores = (os.cpu_count() or 1) if cores is None else int(cores)
     load = busy_cores() if load is None else float(load)
     return max(1, min(cores, cores - int(round(load))))
-
-
-def check_threads(threads) -> int | str | None:
-    """The `threads` setting, checked without torch: auto, null or a whole number >= 1 (the
-    project's rule for numbers, `ngc_gen.values`). ConfigError naming the key otherwise."""
-    if threads is None or str(threads) == "auto":
-        return None if threads is None else "auto"
-    from ngc_gen.values import NumberError, read_number
-
-    from .errors import ConfigError
-
-    try:
-        return read_number(threads, integer=True, minimum=1)
-    except NumberError:
-        raise ConfigError(f"threads must be >= 1, auto or null, got {threads}", key="threads",
-                          value=threads, fix="pass threads=auto (default), threads=1 (shared "
-                          "machine) or threads=null (all cores)") from None
 
 
 def set_threads(threads) -> int | None:
@@ -237,14 +219,27 @@ def torch_threads(n: int):
 
 
 def run_job(fn, cfg, check=None):
-    """What every entry point does: `check(cfg)` (light input checks, before torch loads), set
-    the threads, run `fn(cfg)`, report user errors."""
-    with user_errors():
-        check_threads(cfg.get("threads"))
-        if check is not None:
-            check(cfg)
-        set_threads(cfg.get("threads"))
-        return fn(cfg)
+    """What every entry point does: `check(cfg)` (light input checks, before torch loads), own
+    the run directory (`lock.lock_run_dir`: a second command on it is refused), set the
+    threads, run `fn(cfg)`, report user errors, let the directory go."""
+    held = []
+
+    def release():
+        while held:
+            held.pop().release()
+
+    try:
+        with user_errors(release):
+            check_threads(cfg.get("threads"))
+            if check is not None:
+                check(cfg)
+            lock = lock_run_dir(cfg)
+            if lock is not None:
+                held.append(lock)
+            set_threads(cfg.get("threads"))
+            return fn(cfg)
+    finally:
+        release()
 
 
 OURS = "NGC_GEN_HYDRA_ERRORS"

@@ -7,7 +7,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from omegaconf import OmegaConf
+from omegaconf import DictConfig, OmegaConf
 
 CONF_DIR = Path(__file__).resolve().parents[3] / "conf"  # beside train.py, edit.py, sample.py
 
@@ -85,17 +85,40 @@ def compose_config(config_name: str = "train", overrides: list[str] | None = Non
             GlobalHydra.instance().hydra = running
 
 
+def instantiate(node, what: str, **kwargs):
+    """hydra.utils.instantiate, with a value the target rejects (trainer.max_steps=abc, an
+    unknown argument) reported as a ConfigError naming the config group `what`."""
+    import hydra
+    from hydra.errors import InstantiationException
+
+    from .errors import ConfigError, user_error_types
+
+    try:
+        return hydra.utils.instantiate(node, **kwargs)
+    except InstantiationException as e:
+        cause = e.__cause__ if e.__cause__ is not None else e
+        if isinstance(cause, user_error_types()):  # already says what and how to fix
+            raise cause from None
+        raise ConfigError(f"config group '{what}' does not build: "
+                          f"{' '.join(str(cause).split())[:300]}",
+                          fix=f"check the {what}.* settings (python train.py --help)") from None
+
+
+def instantiate_group(node: DictConfig, runner_keys: tuple[str, ...] = (), **runtime):
+    """The object a config group option names by `_target_` (its interpolations resolved in the
+    whole config), built with `runtime` arguments (sizes known only from the data); the group's
+    `runner_keys` are settings the stage reads itself and are left out. Arguments arrive as
+    plain dicts and lists (`_convert_="all"`), so hyper-parameters a module records stay
+    loadable with weights_only=True."""
+    d = OmegaConf.to_container(node, resolve=True)
+    for k in runner_keys:
+        d.pop(k, None)
+    what = node._key() if hasattr(node, "_key") and node._key() else "model"
+    return instantiate(d, str(what), _convert_="all", **runtime)
+
+
 def sparse_settings(node):
     """The sparse extractor's refinement (`ngc_gen.extract.SparseSettings`) from a config's
     `extract.sparse` node (conf/extract/default.yaml, where its defaults live); a bad value is
     a ConfigError that names the key."""
-    from hydra.utils import instantiate
-
-    from .errors import ConfigError
-
-    try:
-        return instantiate(node)
-    except Exception as err:  # instantiate wraps the dataclass's ValueError
-        value = OmegaConf.to_container(node) if OmegaConf.is_config(node) else node
-        raise ConfigError(str(err.__cause__ or err), key="extract.sparse", value=value,
-                          fix="see conf/extract/default.yaml for the allowed values") from err
+    return instantiate(node, "extract.sparse")

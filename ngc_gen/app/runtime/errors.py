@@ -3,6 +3,8 @@ work (an unknown stage, a malformed shard, an output folder that cannot be writt
 import, so an entry point rejects such a setting before torch loads."""
 from __future__ import annotations
 
+import sys
+
 
 class ConfigError(ValueError):
     """A bad setting: names the key, its value, what is wrong and how to fix it.
@@ -17,3 +19,18 @@ class ConfigError(ValueError):
         if fix:
             message = f"{message.rstrip('.')}. Fix: {fix}"
         super().__init__(message)
+
+
+# (module, class) of the project's bad-input errors (FileNotFoundError too; cli.py adds the
+# OSErrors of the machine's state)
+USER_ERROR_CLASSES = (("ngc_gen.app.runtime.errors", "ConfigError"),
+                      ("ngc_gen.data.errors", "DataError"),
+                      ("ngc_gen.edit.errors", "EditError"),
+                      ("ngc_gen.geometry.errors", "GeometryError"),
+                      ("ngc_gen.extract.budget", "GridTooLarge"))
+
+
+def user_error_types() -> tuple[type, ...]:
+    """The bad-input exception classes of the layers imported so far."""
+    found = [getattr(sys.modules[m], c) for m, c in USER_ERROR_CLASSES if m in sys.modules]
+    return (*found, FileNotFoundError)

@@ -11,6 +11,7 @@ import numpy as np
 import torch
 from tqdm.auto import tqdm
 
+from ngc_gen import workspace
 from ngc_gen.data.atomic import atomic_write, atomic_write_text
 from ngc_gen.data.errors import DataError
 from ngc_gen.generate.model import ShapeGenerator
@@ -61,15 +62,15 @@ def write_outputs(gen: ShapeGenerator, out_dir: Path, mode: str, written: list[W
     payload = {"kind": LATENTS_KIND, "mode": mode, "names": list(names),
                "latents": latents.detach().cpu().float().clone(), "source": gen.source,
                **{k: v for k, v in summary.items() if k in ("seed", "alphas", "a", "b")}}
-    atomic_write(out_dir / "latents.pt", lambda f: torch.save(payload, f))
+    atomic_write(workspace.latents(out_dir), lambda f: torch.save(payload, f))
     edit = edit_shapes if edit_shapes is not None else written
-    ckpt = write_edit_checkpoint(out_dir / "shapes.ckpt", gen.ngc, edit,
+    ckpt = write_edit_checkpoint(workspace.shapes_checkpoint(out_dir), gen.ngc, edit,
                                  source=f"sample.py mode={mode} run={gen.source}")
     summary = {"mode": mode, "source": gen.source, "out_dir": str(out_dir),
                "edit_checkpoint": str(ckpt), "edit_shapes": [s.name for s in edit], **summary,
                "shapes": {s.name: {"mesh": str(s.mesh), "annotation": str(s.annotation), **s.info}
                           for s in written}}
-    atomic_write_text(out_dir / "summary.json", json.dumps(summary, indent=2))
+    atomic_write_text(workspace.summary(out_dir), json.dumps(summary, indent=2))
     print(f"\n{len(written)} shapes in {out_dir}: <name>.ply + <name>.yaml, latents.pt, "
           f"shapes.ckpt, summary.json")
     for s in written:

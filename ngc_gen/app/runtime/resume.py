@@ -18,6 +18,7 @@ from typing import NamedTuple
 from lightning.pytorch.loggers import CSVLogger
 from lightning.pytorch.plugins.io import TorchCheckpointIO
 
+from ngc_gen import workspace
 from ngc_gen.data.atomic import atomic_write
 from ngc_gen.data.errors import DataError
 
@@ -27,10 +28,6 @@ from .errors import ConfigError
 class Resume(NamedTuple):
     path: str | None  # the checkpoint Lightning resumes from (None: a fresh start)
     step: int         # its global step (0 for a fresh start)
-
-
-def last_checkpoint(run_dir) -> Path:
-    return Path(run_dir) / "checkpoints" / "last.ckpt"
 
 
 def checkpoint_step(path: Path, kind: str | None, fix: str) -> int:
@@ -54,7 +51,7 @@ def resume_point(cfg, run_dir, kind: str | None) -> Resume:
     overwrite the checkpoints of an earlier run in the same directory."""
     from ngc_gen.lit.checkpoint import resolve_checkpoint
 
-    own = last_checkpoint(run_dir)
+    own = workspace.last_checkpoint(run_dir)
     if own.is_file():
         if not cfg.get("resume", True):
             raise ConfigError(f"{run_dir} already holds the checkpoints of an earlier run",

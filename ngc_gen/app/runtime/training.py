@@ -10,13 +10,14 @@ import time
 from pathlib import Path
 from typing import NamedTuple
 
-import hydra
 from lightning.pytorch.callbacks import Callback
 from omegaconf import DictConfig, OmegaConf
 
+from ngc_gen import workspace
 from ngc_gen.data.atomic import atomic_write_text
 
 from .checks import trainer_steps
+from .config import instantiate
 
 SEED_KEY = re.compile(r"(^|_)seed$")
 
@@ -48,11 +49,11 @@ def start_run(cfg: DictConfig, fixed_seeds: dict | None = None) -> Path:
     trainer_steps(cfg)  # a malformed trainer setting fails before the run directory is made
     run_dir = Path(cfg.run_dir)
     run_dir.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(run_dir / "config.yaml", OmegaConf.to_yaml(cfg, resolve=True))
+    atomic_write_text(workspace.config(run_dir), OmegaConf.to_yaml(cfg, resolve=True))
     seeds = {"config": config_seeds(cfg), "fixed": dict(fixed_seeds or {}),
              "ranks": "rank r of a multi-process run reseeds with seed + r when training starts"
                       " (its own noise); one process keeps seed"}
-    atomic_write_text(run_dir / "seeds.json", json.dumps(seeds, indent=2))
+    atomic_write_text(workspace.seeds(run_dir), json.dumps(seeds, indent=2))
     return run_dir
 
 
@@ -87,39 +88,6 @@ def quiet_lightning() -> None:
                     r"Checkpoint directory .* exists and is not empty",
                     r"You're resuming from a checkpoint that ended before the epoch ended"):
         warnings.filterwarnings("ignore", message=message)
-
-
-def instantiate(node, what: str, **kwargs):
-    """hydra.utils.instantiate, with a value the target rejects (trainer.max_steps=abc, an
-    unknown argument) reported as a ConfigError naming the config group `what`."""
-    from hydra.errors import InstantiationException
-
-    from .errors import ConfigError
-
-    from .cli import user_error_types
-
-    try:
-        return hydra.utils.instantiate(node, **kwargs)
-    except InstantiationException as e:
-        cause = e.__cause__ if e.__cause__ is not None else e
-        if isinstance(cause, user_error_types()):  # already says what and how to fix
-            raise cause from None
-        raise ConfigError(f"config group '{what}' does not build: "
-                          f"{' '.join(str(cause).split())[:300]}",
-                          fix=f"check the {what}.* settings (python train.py --help)") from None
-
-
-def instantiate_group(node: DictConfig, runner_keys: tuple[str, ...] = (), **runtime):
-    """The object a config group option names by `_target_` (its interpolations resolved in the
-    whole config), built with `runtime` arguments (sizes known only from the data); the group's
-    `runner_keys` are settings the stage reads itself and are left out. Arguments arrive as
-    plain dicts and lists (`_convert_="all"`), so hyper-parameters a module records stay
-    loadable with weights_only=True."""
-    d = OmegaConf.to_container(node, resolve=True)
-    for k in runner_keys:
-        d.pop(k, None)
-    what = node._key() if hasattr(node, "_key") and node._key() else "model"
-    return instantiate(d, str(what), _convert_="all", **runtime)
 
 
 def build_callbacks(cfg: DictConfig) -> list:

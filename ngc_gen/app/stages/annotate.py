@@ -23,7 +23,6 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
-import hydra
 import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
@@ -40,6 +39,7 @@ from ngc_gen.data.errors import DataError
 from ngc_gen.data.mesh.io import load_mesh, normalize
 from ngc_gen.data.mesh.sampling import sample_surface
 
+from ..runtime.config import instantiate
 from ..runtime.training import start_run
 
 HEADER = "# written by `train.py stage=annotate` (automatic GCs); edit freely, or delete to redo\n"
@@ -62,7 +62,7 @@ def _ours(path: Path) -> bool:
     return not path.exists() or path.read_text(encoding="utf-8", errors="replace").startswith(HEADER)
 
 
-GCS_CELL = (640, 560)  # <name>_gcs.png: two cells, 1280 x 560 (was 640 x 260: names overlapped)
+GCS_CELL = (640, 560)  # <name>_gcs.png: two cells, 1280 x 560 (room for the GC names)
 
 
 def _picture(ann: Annotation, path: Path, up="auto") -> Path | None:
@@ -125,7 +125,7 @@ def run_annotate(cfg: DictConfig) -> list[dict]:
         return run_transfer(cfg, run_dir, conf)
     settings = AutoGCSettings.from_config(conf)
     beside = bool(cfg.annotate.get("write_beside", False))
-    dataset = hydra.utils.instantiate(cfg.data)
+    dataset = instantiate(cfg.data, "data")
     rows = []
     for name, mesh, bound in _meshes(dataset):
         t0 = time.perf_counter()
@@ -174,7 +174,7 @@ def run_transfer(cfg: DictConfig, run_dir: Path, conf: dict) -> list[dict]:
     """annotate.template: the template's GCs on every mesh (module docstring)."""
     template = load_transfer_template(conf["template"], conf)
     st = TransferSettings.from_config(conf)
-    dataset = hydra.utils.instantiate(cfg.data)
+    dataset = instantiate(cfg.data, "data")
     rows, cells, shapes = [], [], []
     for name, mesh_file, bound in _meshes(dataset):
         t0 = time.perf_counter()

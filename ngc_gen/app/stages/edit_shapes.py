@@ -20,6 +20,7 @@ from pathlib import Path
 import yaml
 
 # light imports only: the program and out_dir are checked before torch loads (`run_edit`)
+from ngc_gen import workspace
 from ngc_gen.edit.errors import EditError
 
 from ..runtime.background_render import BackgroundRenderer
@@ -67,8 +68,7 @@ def run_edit(cfg) -> dict:
 
 
 def _apply(cfg, parts: dict, out_dir: Path, renderer, t_start: float) -> dict:
-    from ngc_gen.data.annotations import Annotation
-    from ngc_gen.data.atomic import atomic_write, atomic_write_text
+    from ngc_gen.data.atomic import atomic_write_text
     from ngc_gen.data.errors import DataError
     from ngc_gen.edit.program import EditProgram
     from ngc_gen.lit.checkpoint import load_autodecoder
@@ -124,32 +124,42 @@ def _apply(cfg, parts: dict, out_dir: Path, renderer, t_start: float) -> dict:
                               "vs the undeformed NGC mesh, marching cubes at the same "
                               "resolution; V from trimesh (watertight meshes)")
 
-    # ---- outputs (nothing above wrote a file) ----
+    _write_outputs(cfg, out_dir, shape, program, before.mesh, after.mesh, gcs, edited.gcs,
+                   metrics, renderer)
+    metrics["time_total_s"] = time.perf_counter() - t_start
+    metrics["out_dir"] = str(out_dir)
+    atomic_write_text(workspace.metrics(out_dir), json.dumps(_json_safe(metrics), indent=2))
+    print_summary(metrics)
+    return metrics
+
+
+def _write_outputs(cfg, out_dir: Path, shape: str, program, before, after, gcs, edited_gcs,
+                   metrics: dict, renderer) -> None:
+    """The edit's files (nothing before wrote one): both meshes, edited.yaml, program.yaml and
+    the picture (its path into `metrics`). before, after: the meshes; gcs, edited_gcs: the GCs."""
+    from ngc_gen.data.annotations import Annotation
+    from ngc_gen.data.atomic import atomic_write, atomic_write_text
+
     # GCs and mesh share the fitted NGC frame: `normalize: false` keeps it, so the file can be
     # prepared and fitted again as it is (an AnnotatedShapes list, docs/editing.md)
-    edited = Annotation(name=f"{shape}_{program.name}", mesh=str(out_dir / "deformed.ply"),
-                        gcs=edited.gcs, bound=None)
+    edited = Annotation(name=f"{shape}_{program.name}", mesh=str(out_dir / workspace.DEFORMED),
+                        gcs=edited_gcs, bound=None)
     header = (f"# GCs of '{shape}' after edit program '{program.name}' ({program.source}), in "
               f"the fitted NGC frame (normalize: false).\n# mesh: the deformed NGC mesh"
               + (f"; mixed parts (features, not stored here): {metrics['mixes']}"
-                 if mixes else "") + "\n")
-    for name, mesh in (("undeformed.ply", before.mesh), ("deformed.ply", after.mesh)):
+                 if metrics['mixes'] else "") + "\n")
+    for name, mesh in ((workspace.UNDEFORMED, before), (workspace.DEFORMED, after)):
         atomic_write(out_dir / name, lambda f, m=mesh: f.write(m.export(file_type="ply")))
-    atomic_write_text(out_dir / "edited.yaml", header + edited.to_yaml(relative_to=out_dir))
+    atomic_write_text(workspace.edited(out_dir), header + edited.to_yaml(relative_to=out_dir))
     prog = {"name": program.name, "description": program.description, "shape": shape,
             "smooth_union": program.smooth_union, "ops": program.ops}
-    atomic_write_text(out_dir / "program.yaml",
+    atomic_write_text(out_dir / workspace.PROGRAM,
                       yaml.safe_dump(_json_safe(prog), sort_keys=False, default_flow_style=None,
                                      width=100))
     if cfg.get("picture", True):
-        metrics["picture"] = render_edit(before.mesh, gcs, after.mesh, edited.gcs,
-                                         out_dir / "edit.png", program.name, up=cfg.viz.up,
-                                         renderer=renderer)
-    metrics["time_total_s"] = time.perf_counter() - t_start
-    metrics["out_dir"] = str(out_dir)
-    atomic_write_text(out_dir / "metrics.json", json.dumps(_json_safe(metrics), indent=2))
-    print_summary(metrics)
-    return metrics
+        metrics["picture"] = render_edit(before, gcs, after, edited_gcs,
+                                         workspace.picture(out_dir, "edit"), program.name,
+                                         up=cfg.viz.up, renderer=renderer)
 
 
 def render_edit(before, gcs, after, edited_gcs, path: Path, program: str,

@@ -15,12 +15,14 @@ import hydra
 from omegaconf import DictConfig
 from tqdm import tqdm
 
+from ngc_gen import workspace
 from ngc_gen.data.atomic import atomic_write, atomic_write_text
 from ngc_gen.data.prepare import PreparedShape
 
 from ..runtime.config import sparse_settings
 from .prepare_data import prepare_dataset
-from ..runtime.training import instantiate_group, start_run, train
+from ..runtime.config import instantiate_group
+from ..runtime.training import start_run, train
 
 
 def shapes_meta(prepared: list[PreparedShape], kind: str) -> dict:
@@ -72,8 +74,8 @@ def run_fit(cfg: DictConfig) -> dict:
     metrics, gt = score_fit(cfg, module, prepared, run_dir)
     metrics.update(steps=int(trainer.global_step), start_step=start_step, train_s=train_s,
                    kind=kind,
-                   checkpoint=str(run_dir / "checkpoints" / "last.ckpt"))
-    atomic_write_text(run_dir / "metrics.json", json.dumps(metrics, indent=2))
+                   checkpoint=str(workspace.last_checkpoint(run_dir)))
+    atomic_write_text(workspace.metrics(run_dir), json.dumps(metrics, indent=2))
     render_comparison(gt, run_dir, gcs=named_gcs(prepared) if kind == "ngc" else None,
                       up=cfg.viz.up)
     print_metrics(metrics)
@@ -89,10 +91,11 @@ def score_fit(cfg: DictConfig, module, prepared: list[PreparedShape], run_dir: P
     mesh_kwargs = ({} if module.hparams.kind == "deepsdf"   # its own world-space extractor
                    else {"settings": sparse_settings(cfg.extract.sparse)})
     with torch.no_grad():
-        metrics = reconstruct(module, run_dir / "meshes", gt, resolution=cfg.extract.resolution,
-                              bound=cfg.extract.bound, chunk=cfg.extract.chunk,
-                              seed=cfg.metrics_seed, gcs=named_gcs(prepared),
-                              junctions=junction_settings(cfg), **mesh_kwargs)
+        metrics = reconstruct(module, workspace.meshes(run_dir), gt,
+                              resolution=cfg.extract.resolution, bound=cfg.extract.bound,
+                              chunk=cfg.extract.chunk, seed=cfg.metrics_seed,
+                              gcs=named_gcs(prepared), junctions=junction_settings(cfg),
+                              **mesh_kwargs)
     return metrics, gt
 
 
@@ -132,7 +135,8 @@ def render_comparison(gt: dict, run_dir: Path, gcs: dict | None = None, up="auto
     A failed render (no off-screen OpenGL) is reported, not fatal: the meshes are written."""
     from ngc_gen.viz import render_grid, render_or_warn
 
-    render_or_warn(render_grid, run_dir / "meshes.png", comparison_rows(gt, run_dir / "meshes", gcs),
+    rows = comparison_rows(gt, workspace.meshes(run_dir), gcs)
+    render_or_warn(render_grid, workspace.picture(run_dir, "fit"), rows,
                    labels=list(gt), col_titles=["ground truth" + (", GCs by name" if gcs else ""),
                                                 "fitted"], frame="row", up=up)
 

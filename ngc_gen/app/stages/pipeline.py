@@ -21,6 +21,7 @@ from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
 
+from ngc_gen import workspace
 from ngc_gen.data.atomic import atomic_write_text
 from ngc_gen.data.errors import DataError
 
@@ -117,7 +118,7 @@ def headline(step: str, result: dict) -> dict:
 
 def finished_steps(run_dir: Path) -> dict:
     """The steps an earlier run of this directory finished (its summary.json), for resume."""
-    f = run_dir / "summary.json"
+    f = workspace.summary(run_dir)
     if not f.is_file():
         raise _fail(f"pipeline.resume: {f} does not exist",
                     fix="pass hydra.run.dir=<the directory of the run to resume>")
@@ -132,7 +133,7 @@ def run_pipeline(cfg: DictConfig) -> dict:
     steps = plan(cfg, run_dir)
     done = finished_steps(run_dir) if cfg.pipeline.get("resume") else {}
     run_dir.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(run_dir / "config.yaml", OmegaConf.to_yaml(cfg.pipeline))
+    atomic_write_text(workspace.config(run_dir), OmegaConf.to_yaml(cfg.pipeline))
     summary = {"run_dir": str(run_dir), "steps": {}}
     rerun = False
     for k, (step, step_cfg) in enumerate(steps, 1):
@@ -149,7 +150,7 @@ def run_pipeline(cfg: DictConfig) -> dict:
         summary["steps"][step] = {"dir": str(run_dir / step), "seconds": seconds,
                                   **headline(step, result)}
         summary["total_s"] = sum(s["seconds"] for s in summary["steps"].values())
-        atomic_write_text(run_dir / "summary.json", json.dumps(summary, indent=2))
+        atomic_write_text(workspace.summary(run_dir), json.dumps(summary, indent=2))
     summary["total_s"] = sum(s["seconds"] for s in summary["steps"].values())
     render_overview(run_dir, list(summary["steps"]), up=cfg.viz.up)
     print_summary(summary)
@@ -178,12 +179,13 @@ def render_overview(run_dir: Path, done: list[str], per_row: int = 4, up="auto")
 
     rows, labels, views = [], [], []
     if "fit" in done:
-        rows.append(load(sorted((run_dir / "fit" / "meshes").glob("*.ply"))))
+        rows.append(load(sorted((workspace.meshes(run_dir / "fit")).glob("*.ply"))))
         labels.append("fitted")
         views.append(None)
     if "edit" in done:
-        rows.append(load([run_dir / "edit" / "undeformed.ply", run_dir / "edit" / "deformed.ply"]))
-        metrics = run_dir / "edit" / "metrics.json"
+        rows.append(load([run_dir / "edit" / workspace.UNDEFORMED,
+                          run_dir / "edit" / workspace.DEFORMED]))
+        metrics = workspace.metrics(run_dir / "edit")
         program = json.loads(metrics.read_text()).get("program", "") if metrics.is_file() else ""
         labels.append(f"edit {program}: before, after")
         views.append(edit_row_view(run_dir, rows[-1], up))
@@ -194,7 +196,7 @@ def render_overview(run_dir: Path, done: list[str], per_row: int = 4, up="auto")
     kept = [(r, lab, v) for r, lab, v in zip(rows, labels, views) if r]
     if not kept:
         return
-    render_or_warn(render_grid, run_dir / "overview.png", [r for r, _, _ in kept],
+    render_or_warn(render_grid, workspace.picture(run_dir, "pipeline"), [r for r, _, _ in kept],
                    labels=[lab for _, lab, _ in kept], frame="row", up=up,
                    view=[v for _, _, v in kept])
 
@@ -213,9 +215,9 @@ def edit_row_view(run_dir: Path, meshes: list, up="auto"):
 
     edit = run_dir / "edit"
     try:
-        shape = yaml.safe_load((edit / "program.yaml").read_text())["shape"]
+        shape = yaml.safe_load((edit / workspace.PROGRAM).read_text())["shape"]
         before = load_shapes(run_dir / "fit")[shape].gcs
-        after = load_annotation(edit / "edited.yaml").gcs
+        after = load_annotation(workspace.edited(edit)).gcs
     except (OSError, KeyError, TypeError, ValueError):
         return None
     if len(meshes) != 2:

@@ -16,7 +16,7 @@ from ngc_gen.data.prepare import PrepareSettings, PreparedShape, prepare_shape, 
 from ..runtime.cli import torch_threads
 from ..runtime.errors import ConfigError
 from ..runtime.checks import check_writable
-from ..runtime.training import instantiate, instantiate_group
+from ..runtime.config import instantiate, instantiate_group
 
 RUNNER_KEYS = ("cache_dir", "shard", "workers")  # settings the stage reads itself (not PrepareSettings)
 

@@ -23,14 +23,13 @@ from pathlib import Path
 import torch
 from omegaconf import DictConfig, open_dict
 
+from ngc_gen import workspace
 from ngc_gen.data.atomic import atomic_write, atomic_write_text
 from ngc_gen.data.errors import DataError
 
-from ..runtime.config import sparse_settings
-
-FIX = ("pass run=<dir or checkpoint> of a `train.py stage=fit` run (codes) or a "
-       "`train.py stage=shape_latent` run (latents)")
-
+from ..runtime.checks import RECONSTRUCT_RUN_FIX as FIX
+from ..runtime.config import instantiate, sparse_settings
+from .settings import ReconstructSettings
 
 # what a shape-latent reconstruction writes, as metrics.json's `outputs` and the run's printout
 OUTPUTS = {
@@ -41,9 +40,9 @@ OUTPUTS = {
                                       "normalize: {bound: 0.8} is the identity (the sample.py "
                                       "convention): to edit or prepare again; rescaled, so a "
                                       "score against the raw input mesh differs from meshes/'s",
-    "shapes.ckpt": "the reconstructed shapes for edit.py run=<this run> shape=<name>",
-    "latents.pt": "one latent per shape: sample.py mode=interpolate latents=<this file>",
-    "reconstruct.png": "per shape the input mesh (left) beside its reconstruction (right)",
+    workspace.SHAPES_CHECKPOINT: "the reconstructed shapes for edit.py run=<this run> shape=<name>",
+    workspace.LATENTS: "one latent per shape: sample.py mode=interpolate latents=<this file>",
+    workspace.PICTURES["reconstruct"]: "per shape the input mesh (left) beside its reconstruction (right)",
 }
 
 
@@ -70,15 +69,16 @@ def run_reconstruct(cfg: DictConfig) -> dict:
     if kind not in (FIT, SHAPE_LATENT):
         raise DataError(f"{path} is neither a fit nor a shape-latent checkpoint (kind {kind!r})",
                         field="run", fix=FIX)
+    recon = instantiate(cfg.reconstruct, "reconstruct")
     cfg = cfg.copy()
     with open_dict(cfg):
-        cfg.trainer.max_steps = int(cfg.reconstruct.max_steps)
+        cfg.trainer.max_steps = recon.max_steps
     if kind == FIT:
-        return _codes(cfg, path)
-    return _latents(cfg, path)
+        return _codes(cfg, path, recon)
+    return _latents(cfg, path, recon)
 
 
-def _codes(cfg: DictConfig, path: Path) -> dict:
+def _codes(cfg: DictConfig, path: Path, recon: ReconstructSettings) -> dict:
     import lightning as L
 
     from ngc_gen.data.datamodule import PreparedDataModule
@@ -96,15 +96,15 @@ def _codes(cfg: DictConfig, path: Path) -> dict:
     L.seed_everything(cfg.seed, workers=True, verbose=False)
     dm = PreparedDataModule(prepared, mode=kind, batch_size=cfg.batch_size, seed=cfg.seed)
     module = codes_only_autodecoder(fit, dm.n_codes, shapes_meta(prepared, kind),
-                                    code_lr=float(cfg.reconstruct.code_lr))
+                                    code_lr=recon.code_lr)
     trained = train(cfg, run_dir, module, datamodule=dm)
     if trained.trainer.global_rank != 0:
         return {}
     metrics, gt = score_fit(cfg, module.cpu().eval(), prepared, run_dir)
     metrics.update(into=str(path), kind=kind, steps=int(trained.trainer.global_step),
                    train_s=trained.seconds,
-                   checkpoint=str(run_dir / "checkpoints" / "last.ckpt"))
-    atomic_write_text(run_dir / "metrics.json", json.dumps(metrics, indent=2))
+                   checkpoint=str(workspace.last_checkpoint(run_dir)))
+    atomic_write_text(workspace.metrics(run_dir), json.dumps(metrics, indent=2))
     render_comparison(gt, run_dir, gcs=named_gcs(prepared) if kind == "ngc" else None,
                       up=cfg.viz.up)
     print_metrics(metrics)
@@ -113,7 +113,8 @@ def _codes(cfg: DictConfig, path: Path) -> dict:
     return metrics
 
 
-def _refine_codes(cfg: DictConfig, module, prepared, run_dir: Path, meta: dict):
+def _refine_codes(cfg: DictConfig, module, prepared, run_dir: Path, meta: dict,
+                  recon: ReconstructSettings):
     """reconstruct.refine_steps > 0: the per-GC codes the latents decode to, fitted further
     with every network weight frozen (run_dir/refine). Returns (N, K, C) codes or None."""
     import lightning as L
@@ -123,14 +124,14 @@ def _refine_codes(cfg: DictConfig, module, prepared, run_dir: Path, meta: dict):
 
     from ..runtime.training import train
 
-    steps = int(cfg.reconstruct.refine_steps or 0)
+    steps = recon.refine_steps
     if steps <= 0:
         return None
     cfg = cfg.copy()
     with open_dict(cfg):
         cfg.trainer.max_steps = steps
     refine = refine_codes_module(module, module.latents.weight.detach(), meta,
-                                 code_lr=float(cfg.reconstruct.code_lr))
+                                 code_lr=recon.code_lr)
     ids, coords, sdf, _ = training_rows(prepared, "ngc")
     pick = torch.randperm(len(ids), generator=torch.Generator().manual_seed(0))[:65536]
     rows = ids[pick], coords[pick], sdf[pick]
@@ -152,28 +153,20 @@ def _l1(field, rows) -> float:
     return float((field(ids, coords).reshape(-1) - sdf).abs().mean())
 
 
-def _latents(cfg: DictConfig, path: Path) -> dict:
+def _latents(cfg: DictConfig, path: Path, recon: ReconstructSettings) -> dict:
     import lightning as L
-    import trimesh
 
     from ngc_gen.data.datamodule import PreparedDataModule
-    from ngc_gen.eval import reconstruction_metrics
-    from ngc_gen.generate.shapes import (auto_chunk, decode_shapes, normalise,
-                                         write_edit_checkpoint, write_shape)
+    from ngc_gen.generate.shapes import write_edit_checkpoint
     from ngc_gen.lit.reconstruct import latent_only_module
     from ngc_gen.lit.shape_latent import ShapeLatentModule
-    from ngc_gen.shape import recorded_gcs
 
     from .fit import print_metrics
     from .prepare_data import prepare_dataset
     from .train_shape_latent import save_latents, template_and_targets
     from ..runtime.training import start_run, train
 
-    gcs_from = str(cfg.reconstruct.gcs)
-    if gcs_from not in ("input", "decoded"):
-        raise DataError(f"reconstruct.gcs must be input or decoded, got {gcs_from!r}",
-                        field="reconstruct.gcs", fix="pass reconstruct.gcs=input (the meshes' own "
-                        "GCs, default) or reconstruct.gcs=decoded (the latent's GCs)")
+    gcs_from = recon.gcs
     trained_model = ShapeLatentModule.from_checkpoint(path)
     run_dir = start_run(cfg)
     prepared = prepare_dataset(cfg)
@@ -187,17 +180,54 @@ def _latents(cfg: DictConfig, path: Path) -> dict:
     meta = {"dataset": str(cfg.data.name), "reconstructed_into": str(path),
             "shapes": [{"name": s.name, "annotation_yaml": s.annotation_yaml} for s in prepared]}
     module = latent_only_module(trained_model, vectors, meta,
-                                latent_lr=float(cfg.reconstruct.latent_lr),
-                                param_weight=cfg.reconstruct.param_weight)
+                                latent_lr=recon.latent_lr,
+                                param_weight=recon.param_weight)
     L.seed_everything(cfg.seed, workers=True, verbose=False)
     dm = PreparedDataModule(prepared, mode="ngc", batch_size=cfg.batch_size, seed=cfg.seed)
     trained = train(cfg, run_dir, module, datamodule=dm)
     if trained.trainer.global_rank != 0:
         return {}
     module = module.cpu().eval()
-    last = run_dir / "checkpoints" / "last.ckpt"
-    save_latents(run_dir / "latents.pt", module, last)
-    refined = _refine_codes(cfg, module, prepared, run_dir, meta) if gcs_from == "input" else None
+    last = workspace.last_checkpoint(run_dir)
+    save_latents(workspace.latents(run_dir), module, last)
+    refined = (_refine_codes(cfg, module, prepared, run_dir, meta, recon)
+               if gcs_from == "input" else None)
+    res = int(cfg.extract.resolution)
+    per, written = _mesh_reconstructions(cfg, module, prepared, run_dir, gcs_from, refined)
+    write_edit_checkpoint(workspace.shapes_checkpoint(run_dir), module.ngc, written,
+                          source=f"train.py stage=reconstruct run={path}")
+    keys = [k for k, v in next(iter(per.values())).items() if not isinstance(v, bool)]
+    mean = {k: float(sum(p[k] for p in per.values()) / len(per)) for k in keys}
+    metrics = {"shapes": per, "mean": mean, "into": str(path), "kind": "shape_latent",
+               "gcs": gcs_from, "refine_steps": 0 if refined is None else
+               recon.refine_steps, "refine_l1": refined and refined[1],
+               "steps": int(trained.trainer.global_step), "train_s": trained.seconds,
+               "checkpoint": str(last), "latents": str(workspace.latents(run_dir)),
+               "edit_checkpoint": str(workspace.shapes_checkpoint(run_dir)), "resolution": res,
+               "outputs": OUTPUTS}
+    picture = render_reconstruction(prepared, run_dir, up=cfg.viz.up)
+    if picture is not None:
+        metrics["picture"] = str(picture)
+    atomic_write_text(workspace.metrics(run_dir), json.dumps(metrics, indent=2))
+    print_metrics(metrics)
+    print(explain_outputs(run_dir))
+    print(f"run directory: {run_dir}\ninterpolate toward a generated shape: python sample.py "
+          f"run=<diffusion run> mode=interpolate latents={workspace.latents(run_dir)} "
+          f"a={prepared[0].name} b=0")
+    return metrics
+
+
+def _mesh_reconstructions(cfg: DictConfig, module, prepared, run_dir: Path, gcs_from: str,
+                          refined) -> tuple[dict, list]:
+    """Each reconstructed shape meshed (with the input's GCs or the decoded ones, the refined
+    codes if any), scored against its input mesh and written (meshes/, shapes/).
+    -> ({name: metrics}, written shapes)."""
+    import trimesh
+
+    from ngc_gen.eval import reconstruction_metrics
+    from ngc_gen.generate.shapes import auto_chunk, decode_shapes, normalise, write_shape
+    from ngc_gen.shape import recorded_gcs
+
     res = int(cfg.extract.resolution)
     settings = sparse_settings(cfg.extract.sparse)
     per, written = {}, []
@@ -214,31 +244,11 @@ def _latents(cfg: DictConfig, path: Path) -> dict:
             gt = trimesh.Trimesh(s.mesh_vertices, s.mesh_faces, process=False)
             per[shape.name] = {k: v for k, v in reconstruction_metrics(
                 mesh, gt, seed=cfg.metrics_seed).items() if isinstance(v, (int, float, bool))}
-            atomic_write(run_dir / "meshes" / f"{shape.name}.ply",
+            atomic_write(workspace.mesh(run_dir, shape.name),
                          lambda f, m=mesh: f.write(m.export(file_type="ply")))
             m, gcs, _, _ = normalise(mesh, shape.gc_dicts())
             written.append(write_shape(run_dir / "shapes", shape.name, m, gcs, shape.codes))
-    write_edit_checkpoint(run_dir / "shapes.ckpt", module.ngc, written,
-                          source=f"train.py stage=reconstruct run={path}")
-    keys = [k for k, v in next(iter(per.values())).items() if not isinstance(v, bool)]
-    mean = {k: float(sum(p[k] for p in per.values()) / len(per)) for k in keys}
-    metrics = {"shapes": per, "mean": mean, "into": str(path), "kind": "shape_latent",
-               "gcs": gcs_from, "refine_steps": 0 if refined is None else
-               int(cfg.reconstruct.refine_steps), "refine_l1": refined and refined[1],
-               "steps": int(trained.trainer.global_step), "train_s": trained.seconds,
-               "checkpoint": str(last), "latents": str(run_dir / "latents.pt"),
-               "edit_checkpoint": str(run_dir / "shapes.ckpt"), "resolution": res,
-               "outputs": OUTPUTS}
-    picture = render_reconstruction(prepared, run_dir, up=cfg.viz.up)
-    if picture is not None:
-        metrics["picture"] = str(picture)
-    atomic_write_text(run_dir / "metrics.json", json.dumps(metrics, indent=2))
-    print_metrics(metrics)
-    print(explain_outputs(run_dir))
-    print(f"run directory: {run_dir}\ninterpolate toward a generated shape: python sample.py "
-          f"run=<diffusion run> mode=interpolate latents={run_dir / 'latents.pt'} "
-          f"a={prepared[0].name} b=0")
-    return metrics
+    return per, written
 
 
 def render_reconstruction(prepared, run_dir: Path, up="auto", limit: int = 8):
@@ -249,8 +259,8 @@ def render_reconstruction(prepared, run_dir: Path, up="auto", limit: int = 8):
     from ngc_gen.viz import render_grid, render_or_warn
 
     rows = [[trimesh.Trimesh(s.mesh_vertices, s.mesh_faces, process=False),
-             trimesh.load(run_dir / "meshes" / f"{s.name}.ply", process=False)]
+             trimesh.load(workspace.mesh(run_dir, s.name), process=False)]
             for s in prepared[:limit]]
-    return render_or_warn(render_grid, run_dir / "reconstruct.png", rows,
+    return render_or_warn(render_grid, workspace.picture(run_dir, "reconstruct"), rows,
                           labels=[s.name for s in prepared[:limit]],
                           col_titles=["input", "reconstruction"], frame="row", up=up)

@@ -49,7 +49,7 @@ STAGES = {
     "diffusion": Stage("ngc_gen.app.stages.train_diffusion:run_diffusion", kinds.DIFFUSION,
                        check=checks.check_diffusion_stage),
     "reconstruct": Stage("ngc_gen.app.stages.reconstruct_shapes:run_reconstruct", steps=True,
-                         mesh_folder=True, extracts=True),
+                         mesh_folder=True, extracts=True, check=checks.check_reconstruct),
     "pipeline": Stage("ngc_gen.app.stages.pipeline:run_pipeline", mesh_folder=True,
                       extracts=True, previews=True),
 }

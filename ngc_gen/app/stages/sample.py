@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from ngc_gen import workspace
 from ngc_gen.data.errors import DataError
 from ngc_gen.edit import BLEND_PARAMS, EditError, mix_weight
 from ngc_gen.generate.latents import latent_path
@@ -21,6 +22,7 @@ from ngc_gen.generate.shapes import decode_shapes
 from ..runtime.checks import check_sample
 from ..runtime.config import sparse_settings
 from ..runtime.outputs import _check, extract_and_write, write_outputs
+from .settings import mode_settings
 
 
 def generate(gen: ShapeGenerator, out_dir, n: int = 16, seed: int = 0, resolution: int = 128,
@@ -113,6 +115,33 @@ def mix(gen: ShapeGenerator, out_dir, a=0, b=1, part: str = "head", blend: str =
                          summary, edit_shapes=written[:2])
 
 
+def _generate(gen, out_dir, s, common: dict) -> dict:
+    return generate(gen, out_dir, n=s.n, **common)
+
+
+def _interpolate(gen, out_dir, s, common: dict) -> dict:
+    return interpolate(gen, out_dir, a=s.a, b=s.b, steps=s.steps, method=s.interp, **common)
+
+
+def _mix(gen, out_dir, s, common: dict) -> dict:
+    params = {k: getattr(s, k) for k in BLEND_PARAMS.get(s.blend, ())
+              if getattr(s, k, None) is not None}
+    return mix(gen, out_dir, a=s.a, b=s.b, part=s.part, blend=s.blend, blend_params=params,
+               geometry=s.geometry, **common)
+
+
+def _condition(gen, out_dir, s, common: dict) -> dict:
+    from .sample_condition import condition
+
+    kw = {k: v for k, v in common.items() if k != "normalised"}  # the given GCs' frame
+    return condition(gen, out_dir, gcs=s.gcs, n=s.n, **s.condition, **kw)
+
+
+# mode -> how it runs on its settings (`settings.MODES`) and the settings every mode shares
+MODE_RUNNERS = {"generate": _generate, "interpolate": _interpolate, "mix": _mix,
+                "condition": _condition}
+
+
 def run_sample(cfg) -> dict:
     """Dispatch `sample.py` (conf/sample.yaml) to a mode."""
     from omegaconf import OmegaConf
@@ -131,27 +160,15 @@ def run_sample(cfg) -> dict:
                   normalised=bool(c["normalise"]), progress=bool(c["progress"]),
                   settings=sparse_settings(cfg.extract.sparse))
     out_dir = Path(c["out_dir"])
-    if mode == "generate":
-        summary = generate(gen, out_dir, n=int(c["n"]), **common)
-    elif mode == "condition":
-        from .sample_condition import condition
-        kw = {k: v for k, v in common.items() if k != "normalised"}  # the given GCs' frame
-        summary = condition(gen, out_dir, gcs=c["gcs"], n=int(c["n"]), **c["condition"], **kw)
-    elif mode == "interpolate":
-        summary = interpolate(gen, out_dir, a=c["a"], b=c["b"], steps=int(c["steps"]),
-                              method=c["interp"], **common)
-    else:
-        params = {k: c[k] for k in BLEND_PARAMS.get(c["blend"], ()) if c.get(k) is not None}
-        summary = mix(gen, out_dir, a=c["a"], b=c["b"], part=c["part"], blend=c["blend"],
-                      blend_params=params, geometry=c.get("geometry", "source"), **common)
+    summary = MODE_RUNNERS[mode](gen, out_dir, mode_settings(cfg), common)
     if c.get("picture", True) and mode == "condition":
         from .sample_condition import render_condition
-        picture = render_condition(summary, out_dir / "shapes.png", up=c["viz"]["up"])
+        picture = render_condition(summary, workspace.picture(out_dir, "sample"), up=c["viz"]["up"])
         if picture is not None:
             print(f"picture: {picture}")
     elif c.get("picture", True):
-        picture = render_shapes(summary, out_dir / "shapes.png", one_row=mode != "generate",
-                                up=c["viz"]["up"])
+        picture = render_shapes(summary, workspace.picture(out_dir, "sample"),
+                                one_row=mode != "generate", up=c["viz"]["up"])
         if picture is not None:
             print(f"picture: {picture}")
     return summary

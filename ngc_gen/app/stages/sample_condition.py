@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from ngc_gen import workspace
 from ngc_gen.data.atomic import atomic_write_text
 
 from ngc_gen.generate.condition import (conditional_latents, gc_error, load_condition,
@@ -50,7 +51,7 @@ def condition(gen: ShapeGenerator, out_dir, gcs, n: int, seed: int, strength: fl
             shapes[i] = with_given_gcs(s, cond)
     written, secs = extract_and_write(gen, shapes, out_dir, resolution, bound, chunk,
                                       normalised=False, progress=progress, settings=settings)
-    atomic_write_text(out_dir / "condition.yaml", yaml.safe_dump(
+    atomic_write_text(workspace.condition(out_dir), yaml.safe_dump(
         {"name": "condition", "source": cond.source, "gcs": list(cond.gcs)}, sort_keys=False,
         default_flow_style=None, width=100))
     summary = {"n": int(n), "seed": int(seed), "condition": cond.source,
@@ -79,7 +80,7 @@ def render_condition(summary: dict, path: Path, per_row: int = 4, limit: int = 8
     shown = [(n, s) for n, s in summary["shapes"].items() if s.get("n_faces", 0) > 0][:limit]
     if not shown:
         return None
-    cond = yaml.safe_load((Path(summary["out_dir"]) / "condition.yaml").read_text())
+    cond = yaml.safe_load(workspace.condition(summary["out_dir"]).read_text())
     drawn = gcs_surface([GeneralizedCylinder.from_dict(d) for d in cond["gcs"]])
     cells = [(trimesh.load(s["mesh"], process=False),
               gcs_surface(load_annotation(s["annotation"]).gcs)) for _, s in shown]

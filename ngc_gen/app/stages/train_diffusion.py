@@ -15,6 +15,7 @@ import torch
 from omegaconf import DictConfig
 from torch.utils.data import RandomSampler, Sampler
 
+from ngc_gen import workspace
 from ngc_gen.data.atomic import atomic_write_text
 
 from .train_shape_latent import with_stage_steps
@@ -78,7 +79,8 @@ def run_diffusion(cfg: DictConfig) -> dict:
     from ngc_gen.lit.checkpoint import resolve_checkpoint
     from ngc_gen.lit.shape_latent import FIX, ShapeLatentModule
 
-    from ..runtime.training import instantiate_group, start_run, train
+    from ..runtime.config import instantiate_group
+    from ..runtime.training import start_run, train
 
     cfg = with_stage_steps(cfg, "diffusion")
     ckpt = resolve_checkpoint(cfg.shape_latent_run, FIX, "shape-latent run").resolve()
@@ -116,9 +118,9 @@ def run_diffusion(cfg: DictConfig) -> dict:
                else None,
                "edm_loss_untrained": before, "edm_loss_ema": after,
                **nearest_neighbour_stats(samples, latents, module.latent_std),
-               "checkpoint": str(run_dir / "checkpoints" / "last.ckpt"),
+               "checkpoint": str(workspace.last_checkpoint(run_dir)),
                "shape_latent_checkpoint": str(ckpt)}
-    atomic_write_text(run_dir / "metrics.json", json.dumps(metrics, indent=2))
+    atomic_write_text(workspace.metrics(run_dir), json.dumps(metrics, indent=2))
     rest = ", the others from the nearest latent" if metrics["pca_complete"] == "nearest" else ""
     space = f" ({module.space_dim} principal axes{rest})" if metrics["pca_complete"] else ""
     moved = f" + {len(latents) - n_shapes} pose-transferred" if len(latents) > n_shapes else ""

@@ -18,12 +18,14 @@ import torch
 import yaml
 from omegaconf import DictConfig, open_dict
 
+from ngc_gen import workspace
 from ngc_gen.data.atomic import atomic_write, atomic_write_text
 from ngc_gen.data.errors import DataError
 from ngc_gen.data.prepare import PreparedShape
 
 from ..runtime.config import sparse_settings
-from ..runtime.training import instantiate_group, start_run, train
+from ..runtime.config import instantiate_group
+from ..runtime.training import start_run, train
 
 LATENTS_KIND = "ngc_gen.shape_latents"
 # settings of the `shape_latent` group the stage reads itself (not ShapeLatentModule arguments)
@@ -137,7 +139,7 @@ def preview(module, run_dir: Path, n: int, resolution: int, settings=None) -> li
     for shape in shapes:
         mesh = shape.mesh(resolution, chunk=auto_chunk(resolution), settings=settings,
                           progress=False).mesh
-        path = run_dir / "meshes" / f"{shape.name}.ply"
+        path = workspace.mesh(run_dir, shape.name)
         atomic_write(path, lambda f, m=mesh: f.write(m.export(file_type="ply")))
         out.append(str(path))
     return out
@@ -162,21 +164,21 @@ def run_shape_latent(cfg: DictConfig) -> dict:
     if trainer.global_rank != 0:
         return {}
     module = module.cpu().eval()
-    last = run_dir / "checkpoints" / "last.ckpt"
-    save_latents(run_dir / "latents.pt", module, last)
+    last = workspace.last_checkpoint(run_dir)
+    save_latents(workspace.latents(run_dir), module, last)
     metrics = evaluate(module, dm)
     metrics.update(steps=int(trainer.global_step), start_step=start_step, train_s=train_s,
                    n_shapes=len(prepared),
                    latent_dim=int(module.latents.weight.shape[1]), n_params=template.size,
                    gcs=template.names, checkpoint=str(last),
-                   latents=str(run_dir / "latents.pt"))
+                   latents=str(workspace.latents(run_dir)))
     n_prev = int(cfg.shape_latent.preview)
     if n_prev > 0:
         with torch.no_grad():
             metrics["preview"] = preview(module, run_dir, n_prev,
                                          int(cfg.shape_latent.preview_resolution),
                                          sparse_settings(cfg.extract.sparse))
-    atomic_write_text(run_dir / "metrics.json", json.dumps(metrics, indent=2))
+    atomic_write_text(workspace.metrics(run_dir), json.dumps(metrics, indent=2))
     p = metrics["params"]
     print(f"\nshape latents: {len(prepared)} shapes x {module.latents.weight.shape[1]} dims, "
           f"{template.n_gcs} GCs, {template.size} GC parameters; {metrics['steps']} steps in "
