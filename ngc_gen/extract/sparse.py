@@ -364,13 +364,15 @@ def extract_sparse(gcs: list[GeneralizedCylinder], grid: Grid, stores: list[Poin
         step //= 2
 
     return complete_and_mesh(field_, states, keys, grid, stats, smooth, background,
-                             keep_values)
+                             keep_values, union)
 
 
 def complete_and_mesh(field_: SparseField, states: list[GCState], keys: Keys, grid: Grid,
-                      stats: dict, smooth: float, background: float, keep_values: bool):
+                      stats: dict, smooth: float, background: float, keep_values: bool,
+                      union: tuple[float, float] = (0.0, 0.0)):
     """After the refinement: the active cells of all GCs, F at their corners from every GC
-    holding them, the surface closed, marching cubes. -> (mesh, values or None)."""
+    holding them (union: the blend's width and softness, `field_values`), the surface closed,
+    marching cubes. -> (mesh, values or None)."""
     t0 = time.perf_counter()
     evals0 = stats["n_network_evals"]
     cells = sorted_unique(np.concatenate([st.blocks for st in states]
