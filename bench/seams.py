@@ -220,7 +220,9 @@ def main():
     for _, _, folder in shapes:
         prepare(folder, args.steps, args.resolution)
     cache = FitCache("seams")
-    rows, edits, runs, lock = [], [], {}, threading.Lock()
+    rows, edits, runs, lock = kept(bench.path, {n for n, _, _ in shapes}), [], {}, \
+        threading.Lock()
+    edits = [e for e in _old(bench.path).get("edits", []) if e["name"] in runs_of(rows)]
 
     def one(shape) -> None:   # fit, then score at once: a stopped run keeps whole shapes
         name, _, folder = shape
@@ -240,7 +242,8 @@ def main():
         order = {n: i for i, (n, _) in enumerate(SHAPES)}
         rows.sort(key=lambda r: (order[r["name"]], RECIPES.index(r["recipe"])))
         res = {"shapes": rows, "edits": edits, "steps": args.steps,
-               "resolution": args.resolution, "complete": complete,
+               "resolution": args.resolution,
+               "complete": complete and {n for n, _ in SHAPES} <= runs_of(rows),
                "minutes": (time.perf_counter() - t0) / 60.0}
         bench.write(res)
         return res
@@ -251,6 +254,19 @@ def main():
     if not args.no_picture:
         close.picture(rows, runs, bench.path.parent / "seams.png", CLOSEUP)
     print(table(res))
+
+
+def _old(path: Path) -> dict:
+    return json.loads(path.read_text()) if path.exists() else {}
+
+
+def kept(path: Path, names: set) -> list[dict]:
+    """The rows of an earlier result for the shapes this run does not fit (`--only`)."""
+    return [r for r in _old(path).get("shapes", []) if r["name"] not in names]
+
+
+def runs_of(rows: list[dict]) -> set:
+    return {r["name"] for r in rows}
 
 
 def _ceiling(run_dir: Path, name: str, resolution: int) -> dict:
