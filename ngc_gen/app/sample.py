@@ -120,6 +120,9 @@ def run_sample(cfg) -> dict:
     from ngc_gen.generate.model import load_generator
 
     check_sample(cfg)  # again for callers other than sample.py (the pipeline, tests); cheap
+    if cfg.get("mode") == "export":
+        from .export import run_export
+        return run_export(cfg)
     c = OmegaConf.to_container(cfg, resolve=True)
     mode = c["mode"]
     ex = c["extract"]
