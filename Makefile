@@ -10,7 +10,7 @@ BIN := $(VENV)/bin
 BENCHES := geometry up-axis fit fit-ablation deform extract autogc sparse-settings editor \
 	generate condition reconstruct ddp demo cli animals transfer
 
-.PHONY: setup chromium test test-all bench bench-report $(addprefix bench-,$(BENCHES)) bench-up \
+.PHONY: setup chromium gltf-validator blender test test-all bench bench-report $(addprefix bench-,$(BENCHES)) bench-up \
 	demo demo-animals clean
 
 $(BIN)/activate:
@@ -32,7 +32,7 @@ $(VENV)/.installed-dev: $(VENV)/.installed
 	$(BIN)/pip install -q --no-compile -e ".[dev,skeleton]"
 	touch $@
 
-setup: $(VENV)/.installed-dev chromium
+setup: $(VENV)/.installed-dev chromium gltf-validator
 
 # Debian's chromium for the editor's browser test (Playwright drives it; never `playwright
 # install`): installed when missing and we are root or have passwordless sudo.
@@ -41,6 +41,23 @@ chromium:
 	  if [ "$$(id -u)" = 0 ]; then apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium; \
 	  elif sudo -n true 2>/dev/null; then sudo apt-get update -qq && sudo DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium; \
 	  else echo "note: no /usr/bin/chromium and no root/sudo to install it: the editor's browser test will skip"; fi; \
+	fi
+
+# Khronos glTF-Validator (npm) for the exported GLBs' tests: installed under .cache (ignored by
+# git) when node and npm are there; the export tests check files without it otherwise
+GLTF_VALIDATOR := .cache/gltf-validator
+gltf-validator:
+	@if [ ! -d $(GLTF_VALIDATOR)/node_modules/gltf-validator ]; then \
+	  if command -v npm >/dev/null; then mkdir -p $(GLTF_VALIDATOR) && npm install --prefix $(GLTF_VALIDATOR) --no-audit --no-fund --silent gltf-validator; \
+	  else echo "note: no npm: the export tests run without Khronos glTF-Validator"; fi; \
+	fi
+
+# Debian's Blender (large) for the export's slow test and bench: the file imported headless
+blender:
+	@if [ ! -x /usr/bin/blender ]; then \
+	  if [ "$$(id -u)" = 0 ]; then apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq blender python3-numpy; \
+	  elif sudo -n true 2>/dev/null; then sudo apt-get update -qq && sudo DEBIAN_FRONTEND=noninteractive apt-get install -y -qq blender python3-numpy; \
+	  else echo "note: no /usr/bin/blender and no root/sudo to install it: the Blender check will skip"; fi; \
 	fi
 
 # the tests in TEST_WORKERS processes (pytest-xdist), a module's tests on one worker (its shared
@@ -52,7 +69,7 @@ PYTEST := $(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadscope
 test: setup
 	$(PYTEST) -m "not slow"
 
-test-all: setup
+test-all: setup blender
 	$(PYTEST)
 
 demo: $(VENV)/.installed  # (no browser needed) the whole pipeline: fit, edit, shape latents, diffusion, sample (conf/experiment/demo.yaml)

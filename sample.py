@@ -1,4 +1,5 @@
-"""Sample entry point: `python sample.py run=<diffusion run> mode=<generate|interpolate|mix> ...`
+"""Sample entry point: `python sample.py run=<diffusion run> mode=<generate|interpolate|mix|condition> ...`
+or `python sample.py mode=export run=<run holding shapes> shape=<name>`
 (Hydra, conf/sample.yaml). The runner is ngc_gen.app.sample."""
 import hydra
 from omegaconf import DictConfig
@@ -10,13 +11,14 @@ from ngc_gen.app.cli import hydra_entry
 def main(cfg: DictConfig) -> None:
     from ngc_gen.app.checks import check_sample
     from ngc_gen.app.cli import run_job
+    from ngc_gen.app.export import check_export
 
     def run(cfg):  # torch loads here, after check_sample
         from ngc_gen.app.sample import run_sample
 
         return run_sample(cfg)
 
-    run_job(run, cfg, check=check_sample)
+    run_job(run, cfg, check=check_export if cfg.get("mode") == "export" else check_sample)
 
 
 if __name__ == "__main__":

@@ -84,7 +84,7 @@ def check_extract(cfg, prefix: str = "extract") -> None:
 
 
 # ---- what each entry point checks before torch loads ----------------------------------------
-SAMPLE_MODES = ("generate", "interpolate", "mix", "condition", "export")
+SAMPLE_MODES = ("generate", "interpolate", "mix", "condition")
 
 
 def check_sample(cfg) -> None:
@@ -94,10 +94,6 @@ def check_sample(cfg) -> None:
     if mode not in SAMPLE_MODES:
         raise ConfigError("unknown mode", key="mode", value=mode,
                           fix=f"use one of mode={' | mode='.join(SAMPLE_MODES)}")
-    if mode == "export":  # a shape of any run that holds shapes, as a rigged GLB
-        from .export import check_export
-        check_export(cfg)
-        return
     check_extract(cfg)
     config_number(cfg, "seed", integer=True)
     if mode in ("generate", "condition"):

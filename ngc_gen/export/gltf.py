@@ -4,7 +4,7 @@ One scene: the skinned mesh node and the joint hierarchy at the root. The skin l
 joints and their inverse bind matrices; the mesh has POSITION, NORMAL, JOINTS_0 (unsigned
 short), WEIGHTS_0 (float), optionally COLOR_0, and one morph target per keyframe (named in
 `extras.targetNames`, which Blender reads as shape-key names). The clip animates every joint's
-rotation, the roots' translations and the morph weights (linear). The file is written to a
+rotation and translation and the morph weights (linear). The file is written to a
 temp file and renamed: a failure leaves no partial file.
 """
 from __future__ import annotations
@@ -140,8 +140,7 @@ def _animation(g, buf: _Buffer, c: GLBContent, mesh_node: int) -> None:
 
     for j in range(len(c.names)):  # joints (tens)
         channel(j, "rotation", R[:, j], "VEC4")
-        if c.parent[j] < 0:
-            channel(j, "translation", T[:, j], "VEC3")
+        channel(j, "translation", T[:, j], "VEC3")  # an edit may change a bone's length
     if c.morph is not None and len(c.morph):
         channel(mesh_node, "weights", np.asarray(c.morph_weights).reshape(-1), "SCALAR")
     g.animations.append(G.Animation(name=c.clip_name, samplers=samplers, channels=channels))
