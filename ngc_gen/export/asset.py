@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .clips import Clip
-from .correctives import corrective_offsets
+from .correctives import corrective_offsets, guide_field
 from .gltf import GLBContent
 from .skeleton import Skeleton, build_skeleton, joint_matrices
 from .weights import skin_weights
@@ -25,7 +25,7 @@ class ExportSettings:
     blend: float = 0.02
     falloff: float = 0.25
     correctives: bool = True
-    newton_steps: int = 3
+    newton_steps: int = 6
     fd_step: float = 1e-3
     max_step: float = 0.05
     colors: bool = False
@@ -91,7 +91,7 @@ def content(r: Rigged, clip: Clip | None, settings: ExportSettings) -> tuple[GLB
         offsets = []
         for k, posed in enumerate(clip.shapes):  # keyframes
             d, _ = corrective_offsets(r.vertices, r.joints, r.weights, clip.world[k] @ inv,
-                                      lambda p, s=posed: s.sdf(p).numpy(),
+                                      lambda p, s=posed: guide_field(s, p),
                                       settings.newton_steps, settings.fd_step, settings.max_step)
             offsets.append(d)
         c.morph = np.stack(offsets)

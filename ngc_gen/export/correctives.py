@@ -26,25 +26,61 @@ def skinned(vertices: np.ndarray, joints: np.ndarray, weights: np.ndarray,
     return np.einsum("vab,vb->va", M[:, :3, :3], vertices) + M[:, :3, 3]
 
 
-def project(sdf, x: np.ndarray, steps: int, h: float, max_step: float) -> np.ndarray:
-    """x (V, 3) moved onto sdf's zero set by `steps` Newton steps (central-difference gradient
-    with spacing h; each step at most max_step long; points where the field has no gradient,
-    outside every GC, stay)."""
+def project(sdf, x: np.ndarray, steps: int, h: float, max_step: float,
+            tol: float = 1e-5, regrad: int = 2) -> np.ndarray:
+    """x (V, 3) moved onto sdf's zero set by up to `steps` Newton steps, each at most max_step
+    long. The gradient (central differences, spacing h: six more field values a point) is
+    taken afresh every `regrad` steps and kept in between (near the surface it barely turns), so
+    most steps cost one field value a point. A point stops once |f| <= tol (later steps evaluate
+    the rest only); a point where the field has no gradient stays."""
     x = np.array(x, dtype=np.float64)
     eye = np.eye(3) * h
-    for _ in range(int(steps)):
-        probes = np.concatenate([x] + [x + s * e for e in eye for s in (1.0, -1.0)])
-        v = np.asarray(sdf(probes), np.float64).reshape(7, len(x))
-        f = v[0]
-        grad = np.stack([(v[1 + 2 * i] - v[2 + 2 * i]) / (2.0 * h) for i in range(3)], 1)
-        g2 = (grad * grad).sum(1)
-        ok = g2 > 1e-4
-        step = np.zeros_like(x)
-        step[ok] = -(f[ok] / g2[ok])[:, None] * grad[ok]
+    active = np.arange(len(x))
+    grad = np.zeros_like(x)
+    for step_i in range(int(steps)):
+        if not len(active):
+            break
+        xa = x[active]
+        if step_i % max(int(regrad), 1) == 0:
+            probes = np.concatenate([xa] + [xa + s * e for e in eye for s in (1.0, -1.0)])
+            v = np.asarray(sdf(probes), np.float64).reshape(7, len(xa))
+            grad[active] = np.stack([(v[1 + 2 * i] - v[2 + 2 * i]) / (2.0 * h)
+                                     for i in range(3)], 1)
+            f = v[0]
+        else:
+            f = np.asarray(sdf(xa), np.float64)
+        g = grad[active]
+        g2 = (g * g).sum(1)
+        move = (np.abs(f) > tol) & (g2 > 1e-4)
+        step = -(f[move] / g2[move])[:, None] * g[move]
         length = np.linalg.norm(step, axis=1, keepdims=True)
-        step *= np.minimum(1.0, max_step / np.maximum(length, 1e-300))
-        x += step
+        x[active[move]] += step * np.minimum(1.0, max_step / np.maximum(length, 1e-300))
+        active = active[move]
     return x
+
+
+def guide_field(shape, points: np.ndarray) -> np.ndarray:
+    """The shape's field (`Shape.sdf`), and outside every GC, where that is a constant with no
+    gradient, the decoder of the relatively nearest GC evaluated at the point's relative
+    coordinates there: a skinned vertex that left the posed GCs is still led back to the
+    surface."""
+    import torch
+
+    from ngc_gen.shape.shape import OUTSIDE
+
+    f = shape.sdf(points).numpy().astype(np.float64)
+    out = np.flatnonzero(f == OUTSIDE)  # Shape.sdf's background: in no GC
+    if len(out):
+        q = np.asarray(points, np.float64)[out]
+        best, value = np.full(len(q), np.inf), np.zeros(len(q))
+        for j, gc in enumerate(shape.gcs):  # GCs (tens), never points
+            rel = np.asarray(gc.to_relative(q))
+            m = gc.relative_measure(rel)
+            v = shape.gc_sdf(j, torch.as_tensor(rel, dtype=torch.float32)).double().numpy()
+            take = m < best
+            best[take], value[take] = m[take], v[take]
+        f[out] = value
+    return f
 
 
 def corrective_offsets(vertices: np.ndarray, joints: np.ndarray, weights: np.ndarray,
