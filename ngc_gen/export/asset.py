@@ -22,7 +22,7 @@ class ExportSettings:
 
     joints_per_gc: int = 4
     resolution: int = 96
-    blend: float = 0.02
+    blend: float = 0.05
     falloff: float = 0.25
     correctives: bool = True
     newton_steps: int = 6

@@ -2,7 +2,7 @@
 
 Linear blend skinning v' = sum_j w_j M_j B_j^-1 v approximates what NGC computes exactly: the
 posed shape's zero set. A few Newton steps along the posed field's gradient,
-x <- x - f(x) grad f / |grad f|^2 (the gradient by central differences: the field's relative
+x <- x - f(x) grad f / |grad f|^2 (the gradient by finite differences: the field's relative
 coordinates come from a closest-point solve, not autograd), put each skinned vertex on it. A
 glTF morph target is added before skinning, so the stored offset is in bind space: with the
 vertex's blended affine map x' = A v + b, the offset d solves A d = y - x'.
@@ -56,7 +56,36 @@ def project(sdf, x: np.ndarray, steps: int, h: float, max_step: float,
         length = np.linalg.norm(step, axis=1, keepdims=True)
         x[active[move]] += step * np.minimum(1.0, max_step / np.maximum(length, 1e-300))
         active = active[move]
+    if len(active):  # not settled: the zero set is a jump there (a GC's boundary cuts the
+        x[active] = bracket(sdf, x[active], grad[active], max_step)  # material), or it bounced
     return x
+
+
+def bracket(sdf, x: np.ndarray, direction: np.ndarray, reach: float, samples: int = 11,
+            iters: int = 12) -> np.ndarray:
+    """x (M, 3) moved to the sign change of sdf nearest to it on the line through it along
+    `direction` (within +-reach; bisection), where Newton cannot settle: at a jump of the
+    field (the union's background past a GC boundary, as the extractor meshes it) or a kink
+    between two GCs. A point without a sign change in reach stays."""
+    d = direction / np.maximum(np.linalg.norm(direction, axis=1, keepdims=True), 1e-300)
+    s = np.linspace(-reach, reach, samples)
+    v = np.asarray(sdf((x[:, None] + s[None, :, None] * d[:, None]).reshape(-1, 3)),
+                   np.float64).reshape(len(x), samples)
+    change = np.sign(v[:, 1:]) != np.sign(v[:, :-1])  # (M, samples - 1)
+    mid = 0.5 * (s[1:] + s[:-1])
+    dist = np.where(change, np.abs(mid)[None, :], np.inf)
+    ok = np.isfinite(dist.min(1))
+    i = dist.argmin(1)
+    lo, hi = s[i], s[i + 1]
+    f_lo = v[np.arange(len(x)), i]
+    for _ in range(int(iters)):
+        m = 0.5 * (lo + hi)
+        fm = np.asarray(sdf(x + m[:, None] * d), np.float64)
+        same = np.sign(fm) == np.sign(f_lo)
+        lo, f_lo, hi = np.where(same, m, lo), np.where(same, fm, f_lo), np.where(same, hi, m)
+    out = x.copy()
+    out[ok] += (0.5 * (lo + hi))[ok, None] * d[ok]
+    return out
 
 
 def guide_field(shape, points: np.ndarray) -> np.ndarray:
