@@ -1,19 +1,19 @@
 """Edit entry point: `python edit.py run=<fit run or checkpoint> edit=<program> [shape=<name>]`
 (Hydra, conf/edit.yaml); `program_file=<path.yaml>` runs a program from elsewhere. The runner is
-ngc_gen.app.edit."""
+ngc_gen.app.stages.edit_shapes."""
 import hydra
 from omegaconf import DictConfig
 
-from ngc_gen.app.cli import hydra_entry
+from ngc_gen.app.runtime.cli import hydra_entry
 
 
 @hydra.main(version_base="1.3", config_path="conf", config_name="edit")
 def main(cfg: DictConfig) -> None:
-    from ngc_gen.app.checks import check_edit
-    from ngc_gen.app.cli import run_job
-    from ngc_gen.app.edit import run_edit  # light: torch loads once run_edit starts the work
+    from ngc_gen.app.runtime.cli import run_job
+    from ngc_gen.app.stages.registry import COMMANDS
 
-    run_job(run_edit, cfg, check=check_edit)
+    command = COMMANDS["edit"]  # its runner (and torch) loads after its checks
+    run_job(command.run, cfg, check=command.check)
 
 
 if __name__ == "__main__":

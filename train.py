@@ -3,13 +3,13 @@
 import hydra
 from omegaconf import DictConfig
 
-from ngc_gen.app.cli import hydra_entry
+from ngc_gen.app.runtime.cli import hydra_entry
 
 
 @hydra.main(version_base="1.3", config_path="conf", config_name="train")
 def main(cfg: DictConfig) -> None:
-    from ngc_gen.app.cli import run_job
-    from ngc_gen.app.stages import check_inputs, run_stage
+    from ngc_gen.app.runtime.cli import run_job
+    from ngc_gen.app.stages.registry import check_inputs, run_stage
 
     run_job(run_stage, cfg, check=check_inputs)
 

@@ -30,16 +30,14 @@ DeepSDF).
 from __future__ import annotations
 
 import json
-import sys
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
 
+from bench._harness import FitCache, config_recipe, file_identity, train_subprocess
+
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-from bench._harness import (FitCache, config_recipe, file_identity,  # noqa: E402
-                            train_subprocess)
 
 STAGED = ROOT / ".cache/bench/junction_meshes"
 CREATURES = 8
@@ -57,7 +55,7 @@ def sources() -> list[tuple[str, str, object]]:
     (same mesh, gcs `auto`) added by `staged`."""
     from hydra.utils import instantiate
 
-    from ngc_gen.app.config import compose_config
+    from ngc_gen.app.runtime.config import compose_config
 
     out = []
     for data in ("ant", "airplane"):
@@ -123,7 +121,7 @@ def fit_overrides(name: str, folder: Path, recipe: str, steps: int) -> list[str]
 def fit_one(cache: FitCache, name: str, gcs: str, folder: Path, recipe: str,
             steps: int, refit: bool = False):
     """One mesh, one recipe: a cached train.py run in its own process (one thread)."""
-    from ngc_gen.app.config import compose_config
+    from ngc_gen.app.runtime.config import compose_config
 
     over = fit_overrides(name, folder, recipe, steps)
     cfg = compose_config(overrides=over)
@@ -188,7 +186,7 @@ def row(name: str, gcs: str, recipe: str, run_dir: Path) -> dict:
 def run(recipes: list[str], only: list[str] | None, workers: int, steps: int | None,
         refit: bool = False) -> tuple[list[dict], dict]:
     """Fit what is missing; -> (rows, {(name, gcs, recipe): run_dir})."""
-    from ngc_gen.app.config import compose_config
+    from ngc_gen.app.runtime.config import compose_config
 
     steps = steps or int(compose_config(overrides=["stage=fit"]).trainer.max_steps)
     cache = FitCache("junctions")

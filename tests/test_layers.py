@@ -70,6 +70,18 @@ def test_a_circle_is_found_when_one_is_added():
     import grimp
 
     graph = grimp.build_graph("ngc_gen", include_external_packages=False)
-    graph.add_import(importer="ngc_gen.geometry.curves", imported="ngc_gen.app.pipeline")
+    graph.add_import(importer="ngc_gen.geometry.curves", imported="ngc_gen.app.stages.pipeline")
     found = import_cycles(graph)
-    assert len(found) == 1 and {"ngc_gen.geometry.curves", "ngc_gen.app.pipeline"} <= set(found[0])
+    assert len(found) == 1 and {"ngc_gen.geometry.curves", "ngc_gen.app.stages.pipeline"} <= set(found[0])
+
+
+def test_no_module_name_is_repeated_across_layers():
+    """A module's name says which room it is in: `app/stages/fit.py` and no second `fit.py`
+    elsewhere (`errors.py`, each layer's own error type, is the one name every layer may hold)."""
+    from collections import defaultdict
+
+    homes = defaultdict(list)
+    for p in (ROOT / "ngc_gen").rglob("*.py"):
+        if p.name not in ("__init__.py", "errors.py"):
+            homes[p.stem].append(p.relative_to(ROOT / "ngc_gen").as_posix())
+    assert {k: v for k, v in homes.items() if len(v) > 1} == {}

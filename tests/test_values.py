@@ -4,8 +4,8 @@ keeps the type it was read with."""
 import pytest
 import yaml
 
-from ngc_gen.app.checks import config_number
-from ngc_gen.app.errors import ConfigError
+from ngc_gen.app.runtime.checks import config_number
+from ngc_gen.app.runtime.errors import ConfigError
 from ngc_gen.data.annotations import annotation_from_dict
 from ngc_gen.data.errors import DataError
 from ngc_gen.edit.errors import EditError

@@ -11,7 +11,7 @@ import importlib
 # mesh_folder) does not pull in trimesh and torch: train.py checks a bad data.path in a second
 _HOMES = {"Annotation": "annotations", "annotation_from_dict": "annotations",
           "load_annotation": "annotations", "save_annotation": "annotations",
-          "AutoGCSettings": "autogc.auto", "auto_annotation": "autogc.auto", "autogc.auto": "autogc.auto",
+          "AutoGCSettings": "autogc.auto", "auto_annotation": "autogc.auto",
           "auto_gcs": "autogc.auto", "DataError": "errors", "load_mesh": "mesh.io",
           "normalize": "mesh.io", "resolve_mesh_path": "mesh.io", "PreparedShape": "prepare",
           "PrepareSettings": "prepare", "load_prepared": "prepare", "prepare_shape": "prepare",
@@ -24,8 +24,4 @@ def __getattr__(name: str):
     return getattr(importlib.import_module(f"{__name__}.{_HOMES[name]}"), name)
 
 
-__all__ = [
-    "Annotation", "AutoGCSettings", "DataError", "PrepareSettings", "PreparedShape", "annotation_from_dict",
-    "auto_annotation", "autogc.auto", "auto_gcs", "load_annotation", "load_mesh", "load_prepared", "normalize",
-    "prepare_shape", "resolve_mesh_path", "save_annotation", "signed_distance",
-]
+__all__ = sorted(_HOMES)

@@ -1,6 +1,7 @@
 """An annotation file's YAML as plain data, with the one-line errors a user can act on (file
-missing, malformed YAML with its line and column, not UTF-8). PyYAML only, so the light
-pre-flight check (`preflight`) and the full reader (`annotations.load_annotation`) share it."""
+missing, malformed YAML with its line and column, not UTF-8). PyYAML only, so the check before
+torch loads (`ngc_gen.app.runtime.checks`) and the full reader (`annotations.load_annotation`)
+share it."""
 from __future__ import annotations
 
 from pathlib import Path

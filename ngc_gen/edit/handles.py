@@ -306,7 +306,16 @@ def deform_by_handles(gcs: list[GeneralizedCylinder], handles, targets,
         Rf = fn[1:].T @ fo[1:]  # old (T, N, B) -> new (T, N, B)
         queue.append((k, old, meta["moving_end"], Rf, fn[0] - Rf @ fo[0], old.name))
 
-    moved = set(bent_idx)
+    _move_followers(gcs, out, info, queue, set(bent_idx), anchored, attached)
+    return (out, info) if return_info else out
+
+
+def _move_followers(gcs, out: list, info: "HandleSolve", queue: list, moved: set, anchored,
+                    attached: dict[str, list[str]] | None) -> None:
+    """The GCs that follow the bent ones rigidly (`deform_by_handles`' `attached`, or by
+    default those with a curve end in the moving half of a bent GC, transitively, unless
+    anchored), written into `out`; `queue`: (index, old GC, moving end, R_f, t_f, root name)
+    of every bent GC."""
     index = {g.name: i for i, g in enumerate(gcs)}
     if attached is not None:
         for root, names in attached.items():
@@ -339,4 +348,3 @@ def deform_by_handles(gcs: list[GeneralizedCylinder], handles, targets,
                 info.followers[g.name] = root
                 moved.add(i)
                 queue.append((i, g, None, Rf, tf, root))
-    return (out, info) if return_info else out

@@ -10,7 +10,7 @@ from ngc_gen.eval.fitting import (chamfer, chamfer_l1, component_sizes, emd, fra
                                   point_mesh_distance, reconstruction_metrics)
 from ngc_gen.eval.junctions import junction_metrics
 from ngc_gen.eval.generation import generation_metrics, metrics_from_distances, pairwise_chamfer
-from ngc_gen.eval.sampling import sample_boundary, sample_point_clouds, sample_surface
+from ngc_gen.eval.point_samples import sample_boundary, sample_point_clouds, sample_surface
 
 __all__ = [
     "sample_surface", "sample_boundary", "sample_point_clouds",

@@ -44,7 +44,7 @@ from scipy.optimize import linear_sum_assignment
 from scipy.spatial import cKDTree
 from scipy.spatial.distance import cdist
 
-from ngc_gen.eval.sampling import is_empty, sample_boundary
+from ngc_gen.eval.point_samples import is_empty, sample_boundary
 
 
 def _check_points(p: np.ndarray, name: str) -> np.ndarray:

@@ -46,7 +46,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from ngc_gen.eval.fitting import _to_surface, face_components
-from ngc_gen.eval.sampling import is_empty, on_solid_boundary, sample_surface
+from ngc_gen.eval.point_samples import is_empty, on_solid_boundary, sample_surface
 from ngc_gen.geometry import GeneralizedCylinder
 
 FACES_PER_PIECE = 32      # faces of each fitted piece that vote for its true piece

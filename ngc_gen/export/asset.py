@@ -1,5 +1,5 @@
 """A shape as a rigged asset: mesh, skeleton, skin, optional clip and corrective shapes, in
-one `GLBContent` (`ngc_gen.export.gltf` writes it). Settings are conf/export/default.yaml's."""
+one `GLBContent` (`ngc_gen.export.glb_writer` writes it). Settings are conf/export/default.yaml's."""
 from __future__ import annotations
 
 import time
@@ -9,8 +9,8 @@ import numpy as np
 
 from .clips import Clip
 from .correctives import corrective_offsets, guide_field
-from .gltf import GLBContent
-from .skeleton import Skeleton, build_skeleton, joint_matrices
+from .glb_writer import GLBContent
+from .joint_chains import Skeleton, build_skeleton, joint_matrices
 from .weights import skin_weights
 
 

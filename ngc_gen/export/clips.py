@@ -22,7 +22,7 @@ import torch
 
 from ngc_gen.geometry import GeneralizedCylinder, bernstein_basis
 
-from .skeleton import Skeleton, joint_matrices
+from .joint_chains import Skeleton, joint_matrices
 from .weights import chain_tents
 
 

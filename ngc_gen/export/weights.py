@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from .skeleton import Skeleton
+from .joint_chains import Skeleton
 
 INFLUENCES = 4
 

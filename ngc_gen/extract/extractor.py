@@ -92,23 +92,12 @@ def extract_mesh(gcs: Sequence[GeneralizedCylinder], rows_fn: RowsFn, resolution
     """
     t_start = time.perf_counter()
     gcs = gc_list(gcs)
-    if method not in METHODS:
-        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
     smooth = float(smooth)
-    if not smooth >= 0.0:
-        raise ValueError(f"smooth must be >= 0 (0: hard minimum; k > 0: smooth-min width), "
-                         f"got {smooth!r}")
-    check_resolution(int(resolution), method, keep_values)  # before any grid is allocated
+    _check_arguments(gcs, resolution, method, smooth, cache, gc_keys, keep_values)
     grid = Grid(int(resolution), float(bound))
     background = grid.spacing if background is None else float(background)
     if not (np.isfinite(background) and background > 0):
         raise ValueError(f"background must be a positive finite value, got {background!r}")
-    if cache is not None and method != "sparse":
-        raise ValueError(f"a FieldCache works with method='sparse', not {method!r}")
-    if (cache is None) != (gc_keys is None):
-        raise ValueError("pass cache and gc_keys together (one key per GC)")
-    if gc_keys is not None and len(gc_keys) != len(gcs):
-        raise ValueError(f"gc_keys must hold one key per GC: {len(gc_keys)} keys, {len(gcs)} GCs")
     stats = new_stats()
     queue_args = dict(rows_fn=rows_fn, chunk=chunk, fixed_batch=fixed_batch, device=device)
 
@@ -139,3 +128,20 @@ def extract_mesh(gcs: Sequence[GeneralizedCylinder], rows_fn: RowsFn, resolution
                  n_vertices=len(mesh.vertices))
     stats["seconds"] = time.perf_counter() - t_start
     return ExtractionResult(mesh, stats, values if keep_values else None)
+
+
+def _check_arguments(gcs, resolution, method, smooth, cache, gc_keys, keep_values) -> None:
+    """ValueError for an argument of `extract_mesh` it cannot work with; `GridTooLarge` for a
+    resolution that does not fit in memory (checked before any grid is allocated)."""
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+    if not smooth >= 0.0:
+        raise ValueError(f"smooth must be >= 0 (0: hard minimum; k > 0: smooth-min width), "
+                         f"got {smooth!r}")
+    check_resolution(int(resolution), method, keep_values)
+    if cache is not None and method != "sparse":
+        raise ValueError(f"a FieldCache works with method='sparse', not {method!r}")
+    if (cache is None) != (gc_keys is None):
+        raise ValueError("pass cache and gc_keys together (one key per GC)")
+    if gc_keys is not None and len(gc_keys) != len(gcs):
+        raise ValueError(f"gc_keys must hold one key per GC: {len(gc_keys)} keys, {len(gcs)} GCs")

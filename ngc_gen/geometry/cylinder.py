@@ -23,9 +23,9 @@ from .curves import Curve, curve_from_dict
 from .errors import GeometryError
 from .frames import FrameField
 from .interp import interp
-from .relative import (RelativeTables, coarse_convex, coarse_cover, coarse_indices,
-                       coarse_owned, coarse_reach, near_cover, relative_coordinates,
-                       segment_bulge, span_bounds)
+from .relative import near_cover, relative_coordinates
+from .relative_tables import (RelativeTables, coarse_convex, coarse_cover, coarse_indices,
+                              coarse_owned, coarse_reach, segment_bulge, span_bounds)
 
 GC_KEYS = {"name", "curve", "up", "keys", "caps", "reparam"}
 COVER_SAMPLES = 16   # radius samples per polyline segment when sizing the cover balls
@@ -348,6 +348,18 @@ class GeneralizedCylinder:
         x, back = as_tensor(rel)
         check_points(x, "relative coordinates")
         return back(chunked(self._to_world, x, self.chunk))
+
+    def centre_line(self, n: int) -> np.ndarray:
+        """(n, 3) float64 world points of the curve at n evenly spaced normalised arc lengths
+        from start to end (relative coordinates (u, 0, 0), u in [-1, 1])."""
+        u = np.linspace(-1.0, 1.0, n)
+        return np.asarray(self.to_world(np.stack([u, np.zeros(n), np.zeros(n)], 1)),
+                          dtype=np.float64)
+
+    def mean_radius(self) -> float:
+        """The mean over the keys of each key's ellipse radius sqrt(r_y r_z) (its geometric
+        mean: the radius of the circle of the same area)."""
+        return float(torch.sqrt(self._key_r.prod(dim=1)).mean())
 
     @staticmethod
     def relative_measure(rel):

@@ -9,9 +9,10 @@ from __future__ import annotations
 import torch
 from torch import nn
 
+from . import kinds
 from .parts import decoder_and_kind
 
-CHECKPOINT_KIND = "ngc_gen.autodecoder"  # what `train.py stage=fit` checkpoints record
+CHECKPOINT_KIND = kinds.FIT  # the one table: ngc_gen/lit/kinds.py
 
 
 class Hparams(dict):

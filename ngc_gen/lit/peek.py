@@ -15,7 +15,10 @@ import pickle
 import zipfile
 from pathlib import Path
 
+from ngc_gen import workspace
 from ngc_gen.data.errors import DataError
+
+from .kinds import KINDS
 
 
 class _Stub(dict):
@@ -79,7 +82,7 @@ def resolve_checkpoint(path, fix: str, what: str) -> Path:
         raise DataError(f"no {what} given", fix=fix)
     path = Path(path)
     if path.is_dir():
-        ckpt = path / "checkpoints" / "last.ckpt"
+        ckpt = workspace.last_checkpoint(path)
         if not ckpt.is_file():
             raise DataError(f"{path} holds no checkpoints/last.ckpt (is it a finished "
                             f"{what}?)", path=path, fix=fix)
@@ -102,8 +105,3 @@ def check_kind(path: Path, kinds: dict[str, str], fix: str) -> str:
                         f"{' or '.join(kinds.values())}", fix=fix)
     return kind
 
-
-# checkpoint_kind -> the run that writes it (the CHECKPOINT_KIND of ngc_gen.lit's modules)
-KINDS = {"ngc_gen.autodecoder": "a `train.py stage=fit` run",
-         "ngc_gen.shape_latent": "a `train.py stage=shape_latent` run",
-         "ngc_gen.diffusion": "a `train.py stage=diffusion` run"}

@@ -33,10 +33,11 @@ from torch import nn
 
 from ngc_gen.models.shape_decoder import GCTemplate, ShapeDecoder
 
+from . import kinds
 from .checkpoint import load_module, resolve_checkpoint
 from .parts import decoder_and_kind, keywords, optimizer_factory
 
-CHECKPOINT_KIND = "ngc_gen.shape_latent"
+CHECKPOINT_KIND = kinds.SHAPE_LATENT  # the one table: ngc_gen/lit/kinds.py
 FIX = "pass the run directory (or checkpoints/last.ckpt) of a `train.py stage=shape_latent` run"
 
 

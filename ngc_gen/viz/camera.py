@@ -225,10 +225,8 @@ def least_motion_view(displacements: np.ndarray, up, reference: np.ndarray,
 def _curve_motion(before, after, n: int = 33) -> tuple[np.ndarray, np.ndarray]:
     """(points, displacements), both (K, 3): the curve points of GCs in `before` (n per curve
     at equal normalised arc length, paired with `after` by name) and how far each moved."""
-    u = np.stack([np.linspace(-1.0, 1.0, n), np.zeros(n), np.zeros(n)], 1)
     by_name = {g.name: g for g in after}
-    pairs = [(np.asarray(g.to_world(u), dtype=np.float64),
-              np.asarray(by_name[g.name].to_world(u), dtype=np.float64))
+    pairs = [(g.centre_line(n), by_name[g.name].centre_line(n))
              for g in before if g.name in by_name]
     if not pairs:
         return np.zeros((0, 3)), np.zeros((0, 3))

@@ -10,8 +10,8 @@ import trimesh
 import yaml
 
 from ngc_gen.data.annotations import load_annotation
-from ngc_gen.app.stages import run_stage
-from ngc_gen.app.annotate import HEADER
+from ngc_gen.app.stages.registry import run_stage
+from ngc_gen.app.stages.annotate import HEADER
 
 from ..helpers import compose_config
 from ..data.autogc.test_skeleton_gcs import tube_union
@@ -49,7 +49,7 @@ def test_writes_annotations_pictures_and_a_table(folder, tmp_path, capsys):
         ann = load_annotation(run / f"{name}.yaml")  # loadable, mesh path resolves
         assert ann.mesh_path.samefile(folder / f"{name}.ply")
         png = (run / f"{name}_gcs.png").read_bytes()
-        assert int.from_bytes(png[16:20], "big") >= 1200  # two 640 px cells (was 640 in all)
+        assert int.from_bytes(png[16:20], "big") >= 1200  # two 640 px cells
         assert int.from_bytes(png[20:24], "big") >= 500
     tripod = load_annotation(run / "tripod.yaml")
     assert len(tripod.gcs) == 3 and tripod.gc_names[0] == "trunk"

@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from ngc_gen.app.stages import run_stage
+from ngc_gen.app.stages.registry import run_stage
 from ngc_gen.data.annotations import load_annotation
 from ngc_gen.data.autogc.template import load_template
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from ngc_gen.app.background_render import BackgroundRenderer
+from ngc_gen.app.runtime.background_render import BackgroundRenderer
 from ngc_gen.viz import render_grid
 
 pytest.importorskip("pyvista")

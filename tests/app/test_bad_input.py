@@ -20,11 +20,11 @@ import torch
 import trimesh
 import yaml
 
-from ngc_gen.app.cli import run_job
-from ngc_gen.app.diffusion import run_diffusion
-from ngc_gen.app.edit import run_edit
-from ngc_gen.app.sample import run_sample
-from ngc_gen.app.stages import run_stage
+from ngc_gen.app.runtime.cli import run_job
+from ngc_gen.app.stages.train_diffusion import run_diffusion
+from ngc_gen.app.stages.edit_shapes import run_edit
+from ngc_gen.app.stages.sample import run_sample
+from ngc_gen.app.stages.registry import run_stage
 from ngc_gen.lit.diffusion import LatentDiffusion
 from ngc_gen.lit.shape_latent import ShapeLatentModule
 

@@ -2,8 +2,8 @@
 import pytest
 import torch
 
-from ngc_gen.app.cli import auto_threads, run_job, set_threads
-from ngc_gen.app.errors import ConfigError
+from ngc_gen.app.runtime.cli import auto_threads, run_job, set_threads
+from ngc_gen.app.runtime.errors import ConfigError
 
 from ..helpers import run_entry
 
@@ -57,7 +57,7 @@ def test_entry_points_reject_bad_threads(script, tmp_path):
 def test_busy_cores_reads_the_cpu_time_spent_meanwhile(tmp_path, monkeypatch):
     # /proc/stat's first line: user nice system idle iowait ...; between the two reads the
     # machine spent 150 busy and 50 idle jiffies: 3/4 of every core
-    from ngc_gen.app import cli
+    from ngc_gen.app.runtime import cli
 
     stat = tmp_path / "stat"
     lines = iter(["cpu 100 0 100 1000 0 0 0\n", "cpu 200 0 150 1040 10 0 0\n"])

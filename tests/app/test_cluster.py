@@ -10,9 +10,9 @@ from hydra import compose, initialize_config_dir
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import OmegaConf
 
-from ngc_gen.app.config import CONF_DIR, register_resolvers
-from ngc_gen.app.errors import ConfigError
-from ngc_gen.app.prepare import parse_shard, prepare_dataset
+from ngc_gen.app.runtime.config import CONF_DIR, register_resolvers
+from ngc_gen.app.runtime.errors import ConfigError
+from ngc_gen.app.stages.prepare_data import parse_shard, prepare_dataset
 
 from ..conftest import straight_gc
 from ..helpers import compose_config, run_entry

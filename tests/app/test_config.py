@@ -10,12 +10,13 @@ import pytest
 import torch
 from omegaconf import OmegaConf
 
-from ngc_gen.app import diffusion as diffusion_stage
-from ngc_gen.app import prepare as prepare_stage
-from ngc_gen.app import shape_latent as shape_latent_stage
-from ngc_gen.app.programs import available_programs
-from ngc_gen.app.prepare import settings_from_config
-from ngc_gen.app.training import build_callbacks, instantiate_group
+from ngc_gen.app.stages import train_diffusion as diffusion_stage
+from ngc_gen.app.stages import prepare_data as prepare_stage
+from ngc_gen.app.stages import train_shape_latent as shape_latent_stage
+from ngc_gen.app.runtime.programs import available_programs
+from ngc_gen.app.stages.prepare_data import settings_from_config
+from ngc_gen.app.runtime.config import instantiate_group
+from ngc_gen.app.runtime.training import build_callbacks
 
 from ..conftest import straight_gc
 from ..helpers import ROOT, compose_config, run_entry
@@ -289,8 +290,8 @@ def test_the_sparse_extraction_settings_come_from_the_extract_group():
     """`extract.sparse` (conf/extract/default.yaml) is where the sparse refinement's defaults
     live: it builds the library's `SparseSettings()`, an override reaches the object every
     stage extracts with, and a bad value is a ConfigError that names the key."""
-    from ngc_gen.app.config import sparse_settings
-    from ngc_gen.app.errors import ConfigError
+    from ngc_gen.app.runtime.config import sparse_settings
+    from ngc_gen.app.runtime.errors import ConfigError
     from ngc_gen.extract import SparseSettings
 
     for config in ("train", "edit", "sample"):

@@ -6,7 +6,7 @@ import pytest
 import torch
 import trimesh
 
-from ngc_gen.app.fit import run_fit
+from ngc_gen.app.stages.fit import run_fit
 
 from ..helpers import compose_config
 

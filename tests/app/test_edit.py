@@ -8,8 +8,8 @@ from ngc_gen.data.annotations import load_annotation
 from ngc_gen.data.procedural.creatures import CREATURE_PARTS
 from ngc_gen.edit.program import EditProgram
 from ngc_gen.edit import EditError
-from ngc_gen.app.edit import run_edit
-from ngc_gen.app.programs import available_programs
+from ngc_gen.app.stages.edit_shapes import run_edit
+from ngc_gen.app.runtime.programs import available_programs
 
 from ..edit.conftest import make_module, save_checkpoint
 from ..helpers import ROOT, compose_config, run_entry

@@ -108,7 +108,7 @@ def test_resume_after_kill_continues_to_the_same_step(torus_folder, tmp_path):
 def test_reconstruct_puts_a_new_mesh_into_the_fit_with_the_decoder_frozen(torus_run, tmp_path):
     """stage=reconstruct: only the new shape's codes move; the result is a fit checkpoint that
     edit.py opens, and the new mesh is recovered about as well as the fitted one."""
-    from ngc_gen.app.stages import run_stage
+    from ngc_gen.app.stages.registry import run_stage
     from ngc_gen.shape import load_shapes
 
     from ..helpers import compose_config
@@ -134,7 +134,7 @@ def test_reconstruct_puts_a_new_mesh_into_the_fit_with_the_decoder_frozen(torus_
 def test_fit_picture_names_every_gc_of_every_shape(tmp_path):
     """meshes.png's rows: the ground truth carries its GC surfaces and one label per GC (the
     names edit programs use, at each curve's middle) beside the fitted mesh."""
-    from ngc_gen.app.fit import comparison_rows
+    from ngc_gen.app.stages.fit import comparison_rows
     from ngc_gen.geometry import GeneralizedCylinder
 
     from ..conftest import straight_gc

@@ -1,4 +1,4 @@
-"""What a newcomer met (issue 31, item 8) and must not meet again: caches named after the user's
+"""What a newcomer met and must not meet again: caches named after the user's
 own mesh folder, not after the shipped creatures."""
 from ..helpers import compose_config
 
@@ -19,8 +19,8 @@ def test_shape_latents_refuse_another_gc_layout_before_preparing(tmp_path, monke
     import trimesh
     import yaml
 
-    from ngc_gen.app import prepare as prepare_stage
-    from ngc_gen.app.stages import run_stage
+    from ngc_gen.app.stages import prepare_data as prepare_stage
+    from ngc_gen.app.stages.registry import run_stage
     from ngc_gen.data.errors import DataError
 
     from ..conftest import straight_gc

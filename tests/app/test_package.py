@@ -22,7 +22,7 @@ def test_installed_wheel_finds_the_edit_programs(tmp_path):
     wheel = next(wheels.glob("*.whl"))
     subprocess.run([*pip, "install", "--no-deps", "--target", str(target), str(wheel)],
                    check=True, capture_output=True, timeout=600)
-    code = ("import ngc_gen; from ngc_gen.app.programs import available_programs; "
+    code = ("import ngc_gen; from ngc_gen.app.runtime.programs import available_programs; "
             "print(ngc_gen.__file__); print(' '.join(available_programs()))")
     r = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True,
                        text=True, env={"PYTHONPATH": str(target), "PATH": "/usr/bin:/bin"},

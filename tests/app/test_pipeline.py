@@ -9,7 +9,7 @@ import trimesh
 
 from ngc_gen.data.annotations import load_annotation
 from ngc_gen.data.errors import DataError
-from ngc_gen.app.pipeline import STEPS, edit_row_view, plan, run_pipeline
+from ngc_gen.app.stages.pipeline import STEPS, edit_row_view, plan, run_pipeline
 
 from ..helpers import compose_config, run_entry
 

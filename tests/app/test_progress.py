@@ -7,9 +7,9 @@ import lightning as L
 import torch
 from torch.utils.data import DataLoader, TensorDataset
 
-from ngc_gen.app import progress
-from ngc_gen.app.progress import StepProgress, eta_text
-from ngc_gen.app.training import build_trainer
+from ngc_gen.app.runtime import progress
+from ngc_gen.app.runtime.progress import StepProgress, eta_text
+from ngc_gen.app.runtime.training import build_trainer
 
 from ..helpers import compose_config
 

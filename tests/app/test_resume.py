@@ -17,6 +17,7 @@ import torch
 import trimesh
 import yaml
 
+from ngc_gen import workspace
 from ngc_gen.data.prepare import load_prepared
 
 from ..conftest import straight_gc
@@ -90,9 +91,11 @@ def kill_and_resume(args: list[str], run: Path, steps: int):
     kill_when(args, lambda: ckpt_step(last) >= 40)
     saved = ckpt_step(last)
     assert 40 <= saved < steps and not (run / "metrics.json").exists()
+    assert workspace.lock(run).is_file()  # the killed run's lock: the rerun takes it over
     log_before = csv_rows(run)
     r = run_entry("train.py", *args, timeout=900)
     assert r.returncode == 0, r.stderr[-3000:]
+    assert not workspace.lock(run).exists()
     return saved, r.stdout, log_before
 
 

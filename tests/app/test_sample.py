@@ -13,10 +13,10 @@ import yaml
 from ngc_gen.data.annotations import load_annotation
 from ngc_gen.data.errors import DataError
 from ngc_gen.shape import autodecoder_mesh, recorded_gcs
-from ngc_gen.app.sample import generate, interpolate, mix, run_sample
+from ngc_gen.app.stages.sample import generate, interpolate, mix, run_sample
 from ngc_gen.generate import load_generator
 from ngc_gen.lit.checkpoint import load_autodecoder
-from ngc_gen.app.diffusion import run_diffusion
+from ngc_gen.app.stages.train_diffusion import run_diffusion
 
 from ..helpers import compose_config, run_entry
 
@@ -199,7 +199,7 @@ def test_entry_point_exits_2_with_a_message(tmp_path):
 
 def test_edit_runs_unchanged_on_a_generated_shape(runs, tmp_path):
     """The generated shapes.ckpt + YAML go through edit.py's code path as a fitted shape does."""
-    from ngc_gen.app.edit import run_edit
+    from ngc_gen.app.stages.edit_shapes import run_edit
 
     run_edit(compose_config("edit", [f"run={runs['gen']}", "edit=bent_tail",  # sample.py's dir
                                      "shape=sample_001", "extract.resolution=16",
@@ -214,7 +214,7 @@ def test_reconstruct_a_held_out_creature_and_interpolate_to_a_generated_one(runs
     """stage=reconstruct into the shape-latent run: one latent for the held-out creature (the
     decoders frozen), then its codes refined; sample.py interpolates from it to a generated
     shape by name."""
-    from ngc_gen.app.stages import run_stage
+    from ngc_gen.app.stages.registry import run_stage
 
     base = runs["sl"].parent
     out = tmp_path / "rec"
@@ -237,7 +237,7 @@ def test_reconstruct_a_held_out_creature_and_interpolate_to_a_generated_one(runs
     assert lat["names"] == held_out and lat["latents"].shape == (1, width)
     assert set(metrics["shapes"]) == set(held_out) and (out / "shapes.ckpt").is_file()
     # every file explained (metrics.json and the printout), and the picture of input vs result
-    from ngc_gen.app.reconstruct import OUTPUTS
+    from ngc_gen.app.stages.reconstruct_shapes import OUTPUTS
     assert metrics["outputs"] == OUTPUTS and "meshes/<name>.ply" in OUTPUTS
     assert json.loads((out / "metrics.json").read_text())["outputs"] == OUTPUTS
     assert (out / "reconstruct.png").stat().st_size > 1000

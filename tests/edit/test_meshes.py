@@ -1,4 +1,4 @@
-"""Edits seen through extracted meshes (issue 4's exactness tests), with a real NGCDecoder whose
+"""Edits seen through extracted meshes (the exactness tests), with a real NGCDecoder whose
 weights make a closed tube field (conftest), so no fitting is needed."""
 import numpy as np
 import pytest

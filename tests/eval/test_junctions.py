@@ -176,7 +176,7 @@ def test_intersecting_true_pieces_are_one_solid(scene):
 
 def test_defaults_are_the_metrics_group():
     """The library's defaults are conf/metrics/default.yaml's `junctions` (one home)."""
-    from ngc_gen.app.config import compose_config
+    from ngc_gen.app.runtime.config import compose_config
 
     conf = compose_config(overrides=["stage=fit"]).metrics.junctions
     sig = inspect.signature(junction_metrics).parameters

@@ -5,8 +5,8 @@ from __future__ import annotations
 import pytest
 import torch
 
-from ngc_gen.app.cli import run_job
-from ngc_gen.app.export import check_export
+from ngc_gen.app.runtime.cli import run_job
+from ngc_gen.app.stages.export_shape import check_export
 
 from ..helpers import run_entry
 from .conftest import export_config

@@ -7,7 +7,7 @@ from __future__ import annotations
 import pytest
 import yaml
 
-from ngc_gen.app.sample import run_sample
+from ngc_gen.app.stages.sample import run_sample
 from ngc_gen.export import Playback
 from ngc_gen.export.blender import blender_available, blender_check
 

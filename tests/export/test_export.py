@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import yaml
 
-from ngc_gen.app.sample import run_sample
+from ngc_gen.app.stages.sample import run_sample
 from ngc_gen.export import (ExportSettings, GLBContent, Playback, build_skeleton,
                             joint_matrices, write_glb)
 from ngc_gen.export.validator import validate, validator_available

@@ -260,8 +260,8 @@ def test_cache_and_arguments_are_checked():
 def test_fitted_ant_sparse_equals_prefiltered_including_antennae(tmp_path):
     """A short real fit of the ant (15 GCs, antennae a few voxels thick): the sparse mesh has
     the prefiltered one's surface (Chamfer < 1e-6 against the surface) and its antennae."""
-    from ngc_gen.app.config import compose_config
-    from ngc_gen.app.fit import run_fit
+    from ngc_gen.app.runtime.config import compose_config
+    from ngc_gen.app.stages.fit import run_fit
     from ngc_gen.lit.checkpoint import load_autodecoder
     from ngc_gen.shape import autodecoder_mesh as extract_shape
     from ngc_gen.shape import recorded_gcs as shape_gcs

@@ -5,7 +5,7 @@ import torch
 
 from ngc_gen.geometry.closest_check import (closest_point_check, nearest_sample,
                                             random_bezier_gc)
-from ngc_gen.geometry.relative import coarse_owned, coarse_reach
+from ngc_gen.geometry.relative_tables import coarse_owned, coarse_reach
 
 
 def test_foot_point_is_the_global_closest_point():

@@ -202,3 +202,21 @@ def test_convex_radius_makes_the_window_convex(rng, points, r):
         q = T.poly_x[co[c]] + T.convex[c] * rng.uniform(0.9, 1.0, (200, 1)) * d
         ftt = 1 + ((C[None] - q[:, None]) * Ctt[None]).sum(-1)  # f'' in arc length
         assert np.all(ftt > 0)
+
+
+def test_centre_line_runs_along_the_curve_at_equal_arc_length(rng):
+    gc = GeneralizedCylinder.from_dict(random_gc_dict(rng, degree=3))
+    line = gc.centre_line(33)
+    assert line.shape == (33, 3) and line.dtype == np.float64
+    np.testing.assert_allclose(line[[0, -1]], np.asarray(gc.curve.points)[[0, -1]], atol=1e-9)
+    steps = np.linalg.norm(np.diff(line, axis=0), axis=1)
+    assert steps.std() < 0.02 * steps.mean()  # equal normalised arc length
+    assert abs(steps.sum() - gc.length) < 0.01 * gc.length
+
+
+def test_mean_radius_averages_each_keys_geometric_mean_radius():
+    gc = GeneralizedCylinder.from_dict({
+        "name": "bar", "curve": {"type": "bezier", "points": [[-0.8, 0, 0], [0.8, 0, 0]]},
+        "keys": [{"t": 0, "radii": [1, 4]}, {"t": 0.5, "radii": [0.5, 0.5]},
+                 {"t": 1, "radii": [0.25, 1]}]})
+    assert gc.mean_radius() == pytest.approx((2.0 + 0.5 + 0.5) / 3)

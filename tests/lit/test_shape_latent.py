@@ -13,7 +13,7 @@ from ngc_gen.data.datamodule import PreparedDataModule
 from ngc_gen.data.errors import DataError
 from ngc_gen.data.prepare import PrepareSettings, prepare_shape
 from ngc_gen.lit.shape_latent import ShapeLatentModule
-from ngc_gen.app.shape_latent import template_and_targets
+from ngc_gen.app.stages.train_shape_latent import template_and_targets
 
 from ..helpers import compose_config
 
@@ -167,7 +167,7 @@ def test_shapes_without_a_shared_template_are_refused(prepared):
 
 def test_ngc_decoder_can_start_from_a_fit_checkpoint(prepared, tmp_path):
     from ngc_gen.lit.autodecoder import AutoDecoder
-    from ngc_gen.app.shape_latent import init_ngc_from_fit
+    from ngc_gen.app.stages.train_shape_latent import init_ngc_from_fit
 
     module = make_module(prepared)
     for decoder, ok in ((decoder_sizes("small"), True), (decoder_sizes("paper"), False)):

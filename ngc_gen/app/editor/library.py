@@ -15,7 +15,7 @@ from ngc_gen.edit import EditError
 from ngc_gen.geometry import GeneralizedCylinder
 from ngc_gen.shape import Shape
 
-from ..mix_sources import MixSources
+from ..runtime.mix_sources import MixSources
 
 
 def as_written(shape: Shape) -> Shape:

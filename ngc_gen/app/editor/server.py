@@ -17,10 +17,11 @@ from pathlib import Path
 
 import numpy as np
 
+from ngc_gen import workspace
 from ngc_gen.viz.gc_mesh import gc_surface
 
-from ..checks import LOOPBACK, check_editor, editor_out_dir
-from ..config import sparse_settings
+from ..runtime.checks import LOOPBACK, check_editor, editor_out_dir
+from ..runtime.config import sparse_settings
 from .meshing import MeshLoop
 from .session import POSE_AXES, EditorSession, Outcome
 
@@ -398,7 +399,7 @@ class EditorServer:
 
     @_guard
     def _on_save(self, _):
-        self.say(self.session.save(self.out_dir / "program.yaml",
+        self.say(self.session.save(self.out_dir / workspace.PROGRAM,
                                    int(self.editor.refine_resolution)).message)
 
     @_guard

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from ngc_gen.data.errors import DataError
 
-from ..checkpoints import fit_checkpoint
-from ..programs import program_from_config
+from ..runtime.checkpoints import fit_checkpoint
+from ..runtime.programs import program_from_config
 from .latent import LatentShapes
 from .library import ShapeLibrary
 from .limits import Limits

@@ -17,6 +17,8 @@ import trimesh
 
 from ngc_gen.data.errors import DataError
 
+from .gltf_header import check_gltf_file
+
 # scheme -> (package, sub-folder holding the shipped files)
 RESOURCE_SCHEMES: dict[str, tuple[str, str]] = {"pyvista": ("pyvista", "examples")}
 
@@ -93,6 +95,8 @@ def load_mesh(path: str | os.PathLike) -> trimesh.Trimesh:
             path=file,
             fix="check the path (relative paths in an annotation are relative to the YAML file)",
         )
+    if file.suffix.lower() in (".gltf", ".glb"):
+        check_gltf_file(file)  # what trimesh does not check (a node tree with a circle)
     try:
         loaded = trimesh.load(file, process=False)
         if isinstance(loaded, trimesh.Scene):
