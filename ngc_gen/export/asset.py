@@ -18,17 +18,18 @@ from .weights import skin_weights
 class ExportSettings:
     """joints_per_gc: joints along each GC; resolution: the mesh grid; blend, falloff: the skin
     weights' widths (`weights.skin_weights`); correctives: store the morph targets; newton_steps,
-    fd_step, max_step: their projection (`correctives.project`); colors: COLOR_0 by GC."""
+    fd_step, max_step: their projection (`correctives.project`); colors: COLOR_0 by GC. No
+    defaults here: conf/mode/export.yaml's `export:` block is their one source."""
 
-    joints_per_gc: int = 4
-    resolution: int = 96
-    blend: float = 0.05
-    falloff: float = 0.25
-    correctives: bool = True
-    newton_steps: int = 6
-    fd_step: float = 1e-3
-    max_step: float = 0.05
-    colors: bool = False
+    joints_per_gc: int
+    resolution: int
+    blend: float
+    falloff: float
+    correctives: bool
+    newton_steps: int
+    fd_step: float
+    max_step: float
+    colors: bool
 
     @classmethod
     def from_config(cls, d) -> "ExportSettings":

@@ -32,8 +32,9 @@ def _assert_valid(path):
 
 def test_fit_rest_pose(fit_ckpt, tmp_path):
     out = tmp_path / "one.glb"
-    summary = run_sample(export_config(fit_ckpt, out, "shape=one"))
+    summary = run_sample(export_config(fit_ckpt, out, "shape=one", "export.picture=true"))
     _assert_valid(out)
+    assert out.with_suffix(".png").stat().st_size > 0  # the rest pose with its joints
     p = Playback(out)
     assert p.joint_names == [f"{g}_{k}" for g in ("body", "arm", "tail") for k in range(3)]
     assert summary["joints"] == 9 and summary["keyframes"] == 0

@@ -158,6 +158,7 @@ def make_clip(cfg, shape, rigged, template):
 
 def run_export(cfg) -> dict:
     """Export the shape the config names; returns the summary written beside the file."""
+    from ngc_gen.data.atomic import atomic_write_text
     from ngc_gen.data.autogc.template import load_template
     from ngc_gen.export import ExportSettings, content, rig_shape, write_glb
     from ngc_gen.shape import load_shapes
@@ -190,5 +191,5 @@ def run_export(cfg) -> dict:
                              rigged.skeleton.parent)
         if png is not None:
             print(f"picture: {png}")
-    Path(checked["out"]).with_suffix(".json").write_text(json.dumps(summary, indent=1))
+    atomic_write_text(Path(checked["out"]).with_suffix(".json"), json.dumps(summary, indent=1))
     return summary
