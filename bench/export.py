@@ -82,7 +82,7 @@ def export_case(run, shape_name, clip, out: Path, frames: int, resolution: int) 
 
 
 def _surface(mesh, n, seed):
-    from ngc_gen.eval.sampling import sample_surface
+    from ngc_gen.eval.point_samples import sample_surface
 
     return sample_surface(mesh, n, seed)
 
