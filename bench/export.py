@@ -221,6 +221,12 @@ def table(r: dict) -> str:
                   f"{r['target_ratio']:g} on every counted frame: "
                   f"{'met' if r['ratio_met'] else 'not met'} (worst "
                   f"{r['max_ratio_counted']:.2f} over {r['frames_counted']} frames)."]
+    if r.get("animal_export_s"):
+        lines += ["", f"An animal with a {r['animal_keyframes']}-keyframe clip exported in "
+                      f"{min(r['animal_export_s']):.1f}-{max(r['animal_export_s']):.1f} s "
+                      f"(target 30 s on 2 cores; the machine's load is in the footer). Bad "
+                      f"input: exit codes {sorted({b['exit'] for b in r['bad_input']})}, "
+                      f"{max(b['seconds'] for b in r['bad_input']):.1f} s at most."]
     return "\n".join(lines)
 
 
