@@ -14,6 +14,8 @@ from ngc_gen.lit import kinds
 
 from ..runtime import checks
 from ..runtime.errors import ConfigError
+from .collection import check_collection
+from .export_shape import check_export
 
 
 @dataclass(frozen=True)
@@ -51,13 +53,15 @@ STAGES = {
     "reconstruct": Stage("ngc_gen.app.stages.reconstruct_shapes:run_reconstruct", steps=True,
                          mesh_folder=True, extracts=True, check=checks.check_reconstruct),
     "pipeline": Stage("ngc_gen.app.stages.pipeline:run_pipeline", mesh_folder=True,
-                      extracts=True, previews=True),
+                      extracts=True, previews=True, check=check_collection),
 }
 
 # the commands beside train.py: edit.py and sample.py (the pipeline runs them as steps too)
 COMMANDS = {
     "edit": Stage("ngc_gen.app.stages.edit_shapes:run_edit", check=checks.check_edit),
     "sample": Stage("ngc_gen.app.stages.sample:run_sample", check=checks.check_sample),
+    # sample.py mode=export: a shape of any run that holds shapes as a rigged GLB
+    "export": Stage("ngc_gen.app.stages.export_shape:run_export", check=check_export),
 }
 
 
