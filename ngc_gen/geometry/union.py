@@ -14,8 +14,8 @@ the point, and a point only one GC holds keeps that GC's value (the weights canc
 the sum positive on a boundary; the step the mean leaves where a GC ends is FLOOR x the two
 fields' difference. `BlendAccumulator` folds the weighted mean or, with k > 0, a weighted soft
 minimum (the default, `model.union.k`), which keeps the mean where GCs agree and the min's
-material where they do not. The weight depends only on the point's relative coordinates in one GC, so a
-changed GC changes only its own terms (per-GC value caches stay valid).
+material where they do not. The weight depends only on the point's relative coordinates in one
+GC, so a changed GC changes only its own terms (per-GC value caches stay valid).
 """
 from __future__ import annotations
 

@@ -8,8 +8,8 @@ error |sum_j w_j f_j / sum_j w_j - sdf| from above (a GC fading out is not held 
 where the next GC speaks). Off by default: on the ant it left the blend's junctions worse than
 the plain loss (docs/fitting.md "Seams"), which trains every GC on every sample it holds, the
 estimates the blend averages. Phase two (paper): from `codes_only_from` x max_steps the
-decoder's learning rate is zero and only the codes move (an lr switch rather than requires_grad, so it is
-resume- and DDP-safe). An optional `scheduler` (ngc_gen.lit.schedules, `_partial_: true`)
+decoder's learning rate is zero and only the codes move (an lr switch rather than
+requires_grad, so it is resume- and DDP-safe). An optional `scheduler` (ngc_gen.lit.schedules, `_partial_: true`)
 scales both learning rates per step (DeepSDF: halved at fixed intervals).
 """
 from __future__ import annotations
@@ -52,8 +52,8 @@ class AutoDecoder(L.LightningModule):
     LR scheduler given (optimizer, total_steps=trainer.max_steps), or None (constant learning
     rates); `pe_anneal` > 0: the NGC decoder's encoding bands open one after the other over that
     fraction of the steps (coarse-to-fine), all open afterwards; `union`: how the GCs' fields
-    combine, {kind: min} or {kind: blend, width, k, loss_shares} (recorded: shapes of the fit use it; None, as
-    in checkpoints from before it was recorded, is the min). Defaults are those of
+    combine, {kind: min} or {kind: blend, width, k, loss_shares} (recorded: shapes of the fit
+    use it; None, as in checkpoints from before it was recorded, is the min). Defaults are those of
     conf/model/small.yaml, the default `model` (tests/app/test_config.py keeps them equal);
     `lr` has none: the presets differ (small 1e-2, paper 1e-4, DeepSDF 1e-3 / 5e-4)."""
 
