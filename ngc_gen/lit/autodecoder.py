@@ -9,7 +9,8 @@ where the next GC speaks). Off by default: on the ant it left the blend's juncti
 the plain loss (docs/fitting.md "Seams"), which trains every GC on every sample it holds, the
 estimates the blend averages. Phase two (paper): from `codes_only_from` x max_steps the
 decoder's learning rate is zero and only the codes move (an lr switch rather than
-requires_grad, so it is resume- and DDP-safe). An optional `scheduler` (ngc_gen.lit.schedules, `_partial_: true`)
+requires_grad, so it is resume- and DDP-safe). An optional `scheduler` (ngc_gen.lit.schedules,
+`_partial_: true`)
 scales both learning rates per step (DeepSDF: halved at fixed intervals).
 """
 from __future__ import annotations

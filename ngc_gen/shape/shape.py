@@ -4,7 +4,8 @@ The field of a shape at a world point q is, over the GCs j that contain q, the b
 decoder(code_j, rel_j(q)) weighted by where q lies in each GC (`blend`: the width of the fade,
 `ngc_gen.geometry.union`), or their minimum (blend 0; the smooth minimum of width `smooth`); a
 point no GC contains is outside (positive background). Shapes are values: edits return new
-shapes (`replaced`, `with_part`, `edited`), so a before/after pair shares the decoder and differs only where it was edited.
+shapes (`replaced`, `with_part`, `edited`), so a before/after pair shares the decoder and
+differs only where it was edited.
 """
 from __future__ import annotations
 
@@ -158,7 +159,8 @@ class Shape:
         """ExtractionResult (mesh, stats) of the shape's zero level set on a resolution^3 grid
         over [-bound, bound]^3 (`ngc_gen.extract.extract_mesh`, the shape's union: blend of
         width `blend`, or min / smooth min of width `smooth` over the GCs). method "sparse"
-        (default) keeps per-GC values in `self.cache` unless incremental=False; "prefiltered" / "dense" are the exact references; kwargs go
+        (default) keeps per-GC values in `self.cache` unless incremental=False; "prefiltered" /
+        "dense" are the exact references; kwargs go
         to extract_mesh (chunk, fixed_batch, keep_values, progress, ...)."""
         if method == "sparse" and incremental:
             kwargs.update(cache=self.cache, gc_keys=[self.key(j) for j in range(len(self.gcs))])
