@@ -111,7 +111,8 @@ class RunLock:
 
 def lock_run_dir(cfg) -> RunLock | None:
     """The lock on the command's run directory (`owned_dir`), taken now; None when the command
-    has no shared directory, is a rank other than 0, or the platform cannot lock."""
+    has no shared directory, is a rank other than 0, the platform cannot lock, or the folder
+    cannot be written (the command's own check reports that, naming its setting)."""
     run_dir = owned_dir(cfg)
     if run_dir is None or not _rank_zero():
         return None
@@ -119,4 +120,9 @@ def lock_run_dir(cfg) -> RunLock | None:
         import fcntl  # noqa: F401
     except ImportError:
         return None
-    return RunLock(run_dir).acquire()
+    try:
+        return RunLock(run_dir).acquire()
+    except RunDirInUse:
+        raise
+    except OSError:  # a folder that cannot be made or written: the command's own check says so
+        return None
