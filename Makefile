@@ -5,19 +5,13 @@ VENV ?= .venv
 TORCH_SPEC ?= torch==2.13.0
 BIN := $(VENV)/bin
 
-# the benches, in the order `make bench` runs them (sparse-settings reads deform's and autogc's
-# fits; condition and reconstruct reuse generate's; fit-ablation reads fit's ceiling)
-BENCHES := geometry up-axis fit fit-ablation deform extract autogc sparse-settings editor \
-	generate condition reconstruct ddp demo cli animals transfer
-
-.PHONY: setup chromium test test-all bench bench-report $(addprefix bench-,$(BENCHES)) \
-	demo demo-animals clean
+.PHONY: setup chromium test test-all bench bench-report demo demo-animals clean
 
 $(BIN)/activate:
 	$(PY) -m venv $(VENV)
 
-# --no-compile: byte-compiling every module of every package at install time cost 39 s for torch
-# alone (12 s without). Instead `ngc_gen.app.runtime.bytecode` compiles what the commands import, once:
+# --no-compile: byte-compiling every module of every package at install time costs 39 s for torch
+# alone (12 s without); `ngc_gen.app.runtime.bytecode` compiles what the commands import, once:
 # where PYTHONDONTWRITEBYTECODE=1 is set no command would ever write a .pyc, and each would
 # compile torch, Lightning and trimesh again (bench/cli.py measures both sides: make bench-cli)
 $(VENV)/.installed: $(BIN)/activate pyproject.toml
@@ -44,8 +38,8 @@ chromium:
 	fi
 
 # the tests in TEST_WORKERS processes (pytest-xdist), a module's tests on one worker (its shared
-# fixtures are built once): most tests use one core, so 2 workers on 2 cores took the default
-# run from 739 s to 479 s here. TEST_WORKERS=0 runs them in this process.
+# fixtures are built once): most tests use one core, so on 2 cores 2 workers run the default
+# suite in 479 s against 739 s for one. TEST_WORKERS=0 runs them in this process.
 TEST_WORKERS ?= 2
 PYTEST := $(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadscope
 
@@ -70,66 +64,28 @@ demo-animals: $(VENV)/.installed
 	$(BIN)/python sample.py run=$(DEMO_ANIMALS)/diffusion mode=interpolate a=wolf_gallop_00 b=horse_gallop_00 hydra.run.dir=$(DEMO_ANIMALS)/interpolate
 	$(BIN)/python edit.py run=$(DEMO_ANIMALS)/generate edit=posed_animal_leg shape=sample_000 out_dir=$(DEMO_ANIMALS)/edit
 
-# every bench one after another (never side by side: they time themselves), then the tables of
-# bench/README.md from bench/results/*.json
+# every bench one after another, in the order of bench/__init__.py's BENCHES (never side by
+# side: they time themselves), then the tables of bench/README.md from bench/results/*.json
 bench: setup
-	@for b in $(BENCHES); do $(MAKE) --no-print-directory bench-$$b || exit 1; done
+	@for b in $$($(PY) -m bench); do $(MAKE) --no-print-directory bench-$$b || exit 1; done
 	$(MAKE) --no-print-directory bench-report
 
 bench-report:  # bench/README.md's tables from bench/results/*.json (stdlib only)
-	$(PY) bench/report.py
+	$(PY) -m bench.report
 
-bench-geometry: setup
-	$(BIN)/python bench/geometry.py
+# one bench: make bench-<name> runs `python -m bench.<name>` (the name's - as _); the benches
+# below run with arguments or without the virtual environment
+bench-%: setup
+	$(BIN)/python -m bench.$(subst -,_,$*)
 
-bench-fit: setup
-	$(BIN)/python bench/fit.py
+bench-extract: setup
+	$(BIN)/python -m bench.extract --threads 2
 
-bench-fit-ablation: setup  # the table of bench/fit.py --tag screening runs in bench/runs/fit
-	$(BIN)/python bench/fit_ablation.py
-
-bench-deform: setup
-	$(BIN)/python bench/deform.py
-
-bench-extract: setup  # dense, prefiltered and sparse extraction of bench-deform's fit
-	$(BIN)/python bench/extract.py --threads 2
-
-bench-generate: setup
-	$(BIN)/python bench/generate.py
-
-.PHONY: bench-transfer
-bench-transfer: setup  # the quadruped template on the posed animals (rig withheld), creatures, chair/torus/sphere
-	$(BIN)/python bench/transfer.py
-
-bench-animals: setup  # rigged animals: GCs from the rig, rest-pose fits, generation vs held-out clips / species
-	$(BIN)/python bench/animals.py
-
-bench-editor: setup
-	$(BIN)/python bench/editor.py
-
-bench-autogc: setup
-	$(BIN)/python bench/autogc.py
-
-bench-sparse-settings: setup  # the sparse extractor's settings (margin, tracking) on bench-deform's and bench-autogc's fits
-	$(BIN)/python bench/sparse_settings.py
-
-bench-reconstruct: setup  # reuses bench-generate's shape-latent run
-	$(BIN)/python bench/reconstruct.py
-
-bench-condition: setup  # reuses bench-generate's runs (trains them if missing)
-	$(BIN)/python bench/condition.py --sweep
+bench-condition: setup
+	$(BIN)/python -m bench.condition --sweep
 
 bench-demo:  # make demo on a fresh clone of HEAD, timed (stdlib only: the clone sets itself up)
-	$(PY) bench/demo.py
-
-bench-up-axis: setup  # the pictures' up-axis rule on the ant, airplane and creatures
-	$(BIN)/python bench/up_axis.py
-
-bench-ddp: setup  # one training process against two (gloo) on CPU
-	$(BIN)/python bench/ddp.py
-
-bench-cli: setup  # how fast the commands answer (rejections, --help, an edit at 128^3; bytecode)
-	$(BIN)/python bench/cli.py
+	$(PY) -m bench.demo
 
 clean:
 	rm -rf $(VENV) outputs .pytest_cache

@@ -3,16 +3,11 @@
 Every script in bench/ writes its result through `Bench.write`, so every bench/results/<name>.json
 carries the same `machine` record, and every bench that trains a model goes through `FitCache`,
 so a fit is reused exactly when its whole recipe is unchanged. The module imports only the
-standard library (torch and omegaconf are imported inside the functions that need them):
-bench/demo.py runs it with a bare `python3`.
+standard library and ngc_gen/data/atomic.py (torch and omegaconf are imported inside the
+functions that need them): bench/demo.py runs it with a bare `python3`.
 
-Example (a new bench, bench/mybench.py)::
+Example (a new bench: docs/contributing.md, "Add a bench")::
 
-    import sys
-    from pathlib import Path
-
-    ROOT = Path(__file__).resolve().parents[1]
-    sys.path.insert(0, str(ROOT))
     from bench._harness import Bench, FitCache, config_recipe, file_identity
 
     def main():
@@ -33,6 +28,9 @@ Example (a new bench, bench/mybench.py)::
         bench.write({"cd": 1.2e-4, "train_s": fit.info["train_s"]})
         # -> bench/results/mybench.json: {"cd": ..., "train_s": ..., "machine": {...}}
 
+A bench that reads another bench's fit asks the cache for it (`latest_fit("deform")`), never
+imports the other bench's module.
+
 The machine record (`MACHINE_KEYS`, the same keys in every result):
   cpus              os.cpu_count()
   torch_threads     torch.get_num_threads() when the result is written (None: torch not loaded)
@@ -42,7 +40,9 @@ The machine record (`MACHINE_KEYS`, the same keys in every result):
   load_1min_before  1-minute load average when the bench started (`Bench(...)`)
   load_1min_after   the same when the result was written
 A bench that measures something else than this process (demo.py times a fresh clone) passes
-the right values to `write` (`commit=...`, `torch_threads=...`).
+the right values to `write` (`commit=...`, `torch_threads=...`). Results are written with
+the package's atomic writer (ngc_gen/data/atomic.py: a reader sees the old file or the whole new
+one; a new file gets 0666 less the umask).
 """
 from __future__ import annotations
 
@@ -53,11 +53,12 @@ import platform
 import shutil
 import subprocess
 import sys
-import tempfile
 from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Callable
+
+from ngc_gen.data.atomic import atomic_write_text
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "bench/results"
@@ -124,37 +125,6 @@ def machine(load_before: float | None = None, date_utc: str | None = None,
 
 
 # ---- writing results ------------------------------------------------------------------------
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
-def write_atomic(path: str | os.PathLike, data: str | bytes) -> Path:
-    """Write `data` to `path` through a temp file in the same folder and `os.replace`: a reader
-    sees the old file or the whole new one; on an exception the temp file is removed and `path`
-    is untouched. The file gets the usual mode (0666 less the umask), not mkstemp's 0600.
-    The folder is created if needed. Returns the path."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    raw = data.encode("utf-8") if isinstance(data, str) else data
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(raw)
-            f.flush()
-            os.fsync(f.fileno())
-        os.chmod(tmp, 0o666 & ~_umask())
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
-    return path
-
-
 def dumps(result: dict) -> str:
     """The results' JSON text: indented, one trailing newline (NaN refused: it is not JSON)."""
     return json.dumps(result, indent=2, allow_nan=False) + "\n"
@@ -164,8 +134,8 @@ class Bench:
     """One bench run: `Bench(name)` at the start records the load, the date and the commit;
     `write(result)` writes bench/results/<name>.json with the machine record added."""
 
-    def __init__(self, name: str, results: Path = RESULTS):
-        self.name, self.results = name, Path(results)
+    def __init__(self, name: str, results: Path | None = None):
+        self.name, self.results = name, Path(results if results is not None else RESULTS)
         self.load_before, self.date_utc = load_1min(), now_utc()
 
     @property
@@ -183,7 +153,7 @@ class Bench:
             raise ValueError(f"{self.name}: the result has its own 'machine' entry; the "
                              "harness writes it (pass corrections as keyword arguments)")
         out = {**result, "machine": self.machine(**machine_overrides)}
-        return write_atomic(self.path if path is None else path, dumps(out))
+        return atomic_write_text(self.path if path is None else path, dumps(out))
 
 
 # ---- the fit cache --------------------------------------------------------------------------
@@ -293,7 +263,7 @@ class FitCache:
         commit, dirty = git_commit()
         rec = {"key": key, "recipe": _normalise(recipe), "info": _normalise(info),
                "date_utc": now_utc(), "commit": commit, "dirty": dirty}
-        write_atomic(done, dumps(rec))
+        atomic_write_text(done, dumps(rec))
         return Fit(run_dir, key, rec["info"], rec["recipe"], False)
 
     def entries(self) -> list[Fit]:
@@ -385,3 +355,48 @@ def cached_run_fit(bench: str, cfg, refit: bool = False, extra: dict | None = No
                 "wall_s": time.perf_counter() - t0, "label": label}
 
     return FitCache(bench).get(recipe, fit, refit=refit)
+
+
+def cached_stage(cache: FitCache, name: str, cfg, run: Callable, refit: bool = False,
+                 link: Path | None = None, leave_out: tuple[str, ...] = ()) -> Fit:
+    """A stage's run (`run(cfg)`, e.g. run_shape_latent) through `cache`, keyed by the stage's
+    name, its resolved config (less the `leave_out` groups, which it never reads) and the
+    dataset's identity; `link` (e.g. bench/runs/generate/shape_latent) points at the run.
+    info holds stage_s (the stage's wall seconds) and the name as label."""
+    def fit(run_dir: Path) -> dict:
+        import time
+
+        from omegaconf import open_dict
+
+        with open_dict(cfg):
+            cfg.run_dir = str(run_dir)
+        t0 = time.perf_counter()
+        run(cfg)
+        return {"stage_s": time.perf_counter() - t0, "label": name}
+
+    recipe = {k: v for k, v in config_recipe(cfg).items() if k not in leave_out}
+    f = cache.get({"stage": name, "config": recipe, "data": dataset_identity(cfg)}, fit,
+                  refit=refit)
+    if link is not None:
+        link_latest(link, f.run_dir)
+    return f
+
+
+def latest_fit(bench: str, where: dict | None = None, root: Path = FITS) -> Fit:
+    """The newest complete fit in another bench's cache whose config has the values of `where`
+    (dotted keys: {"trainer.max_steps": 1500}): how a bench reuses a fit another bench trained,
+    without importing it. SystemExit with one line naming the make target when there is none."""
+    def value(recipe: dict, dotted: str):
+        node = recipe.get("config", {})
+        for k in dotted.split("."):
+            node = node.get(k) if isinstance(node, dict) else None
+        return node
+
+    where = where or {}
+    fits = [f for f in FitCache(bench, root).entries()
+            if all(value(f.recipe, k) == v for k, v in where.items())]
+    if not fits:
+        want = ", ".join(f"{k}={v}" for k, v in where.items())
+        raise SystemExit(f"no {bench} fit in {Path(root) / bench}" + (f" with {want}" if want
+                         else "") + f": run `make bench-{bench.replace('_', '-')}` first")
+    return fits[-1]

@@ -30,16 +30,14 @@ DeepSDF).
 from __future__ import annotations
 
 import json
-import sys
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
 
+from bench._harness import FitCache, config_recipe, file_identity, train_subprocess
+
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-from bench._harness import (FitCache, config_recipe, file_identity,  # noqa: E402
-                            train_subprocess)
 
 STAGED = ROOT / ".cache/bench/junction_meshes"
 CREATURES = 8

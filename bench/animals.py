@@ -3,7 +3,7 @@
 separately, held-out species, each beside its ceiling and floor, with memorisation and a
 wolf -> horse interpolation.
 
-    python bench/animals.py [--frames 2] [--fit-steps N] [--shape-latent-steps N]
+    python -m bench.animals [--frames 2] [--fit-steps N] [--shape-latent-steps N]
                             [--diffusion-steps N] [--sets 2] [--resolution 128]
 
 Data: data=animals with `--frames` frames per clip (the default config has 5; the bench's
@@ -33,18 +33,15 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 import time
 from pathlib import Path
 
-import numpy as np
+from bench._generation import clouds, mesh_set, rows_for
+from bench._harness import (Bench, FitCache, cached_stage, config_recipe, dataset_identity,
+                            train_subprocess)
+from bench._tables import pct
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-from bench._harness import (Bench, FitCache, config_recipe, dataset_identity,  # noqa: E402
-                            link_latest, train_subprocess)
-from bench.generate import clouds, mesh_set  # noqa: E402
-
 RUNS = ROOT / "bench/runs/animals"
 RESULTS = ROOT / "bench/results"
 CHURN = {"steps": 40, "churn": 40, "S_min": 0.05, "S_max": 50, "S_noise": 1.003}  # sample.py
@@ -56,26 +53,6 @@ REST_FRAMES = 2   # the rest poses do not depend on the frames per clip: fitted 
 def data_overrides(args) -> list[str]:
     return ["data=animals", f"data.frames={args.frames}", "trainer.enable_progress_bar=false",
             "logger=csv", f"seed={args.seed}"]
-
-
-def cached_stage(cache: FitCache, name: str, cfg, run, refit: bool, runs: Path = RUNS,
-                 leave_out: tuple[str, ...] = ()):
-    """A stage's run from the fit cache, keyed by its config (less the `leave_out` groups,
-    which it never reads) and the data's identity; runs/<name> links to it."""
-    from omegaconf import open_dict
-
-    def fit(run_dir: Path) -> dict:
-        with open_dict(cfg):
-            cfg.run_dir = str(run_dir)
-        t0 = time.perf_counter()
-        run(cfg)
-        return {"stage_s": time.perf_counter() - t0}
-
-    recipe = {k: v for k, v in config_recipe(cfg).items() if k not in leave_out}
-    f = cache.get({"stage": name, "config": recipe, "data": dataset_identity(cfg)}, fit,
-                  refit=refit)
-    link_latest(runs / name, f.run_dir)
-    return f
 
 
 def rest_fits(cache: FitCache, args) -> list:
@@ -120,29 +97,17 @@ def train(args) -> dict:
     sl = cached_stage(cache, "shape_latent", compose_config(overrides=[
         *base, "stage=shape_latent", "shape_latent.preview=0",
         *([f"shape_latent.max_steps={args.shape_latent_steps}"] if args.shape_latent_steps
-          else [])]), run_shape_latent, args.refit, leave_out=("diffusion",))
+          else [])]), run_shape_latent, args.refit, RUNS / "shape_latent",
+        leave_out=("diffusion",))
     diff = cached_stage(cache, "diffusion", compose_config(overrides=[
         *base, "stage=diffusion", f"shape_latent_run={sl.run_dir}",
         *([f"diffusion.max_steps={args.diffusion_steps}"] if args.diffusion_steps else [])]),
-        run_diffusion, args.refit)
+        run_diffusion, args.refit, RUNS / "diffusion")
     load = lambda f: json.loads((f.run_dir / "metrics.json").read_text())  # noqa: E731
     shapes = {n: {**m, "mesh": str(f.run_dir / "meshes" / f"{n}.ply")}
               for f in fits for n, m in load(f)["shapes"].items()}
     return {"fit": {"shapes": shapes, "steps": load(fits[0])["steps"]}, "shape_latent": load(sl),
             "shape_latent_dir": sl.run_dir, "diffusion": load(diff), "diffusion_dir": diff.run_dir}
-
-
-def rows_for(sets: dict, ref_meshes, points: int) -> dict:
-    """{row: {mmd_cd, cov_cd, nna_cd}} of each row's sets against one reference."""
-    from ngc_gen.eval import generation_metrics, pairwise_chamfer
-
-    ref, _ = clouds(ref_meshes, points, 0)
-    d_rr = pairwise_chamfer(ref)
-    out = {}
-    for key, groups in sets.items():
-        per = [generation_metrics(clouds(g, points, 0)[0], ref, ref_ref=d_rr) for g in groups]
-        out[key] = {k: float(np.mean([p[k] for p in per])) for k in ("mmd_cd", "cov_cd", "nna_cd")}
-    return out
 
 
 def picture(fitted: dict, rest: list[dict], posed: list[dict], gen_dir: Path, gen_names,
@@ -166,7 +131,54 @@ def picture(fitted: dict, rest: list[dict], posed: list[dict], gen_dir: Path, ge
                    titles=titles, up="y")
 
 
-def main():
+def sample_sets(gen, n_gen: int, args):
+    """n_gen meshes of each row: generated (deterministic and stochastic sampler), noise
+    latents, training latents decoded. -> (generated names, and the four lists of meshes)."""
+    import numpy as np
+    import trimesh
+
+    from ngc_gen.app.stages.sample import generate
+
+    sampled = generate(gen, RUNS / "samples", n=n_gen, seed=args.seed,
+                       resolution=args.resolution, progress=False)
+    gen_names = sorted(sampled["shapes"])
+    gen_m = [trimesh.load(RUNS / "samples" / f"{n}.ply", process=False) for n in gen_names]
+    churned = generate(gen, RUNS / "samples_churn", n=n_gen, seed=args.seed,
+                       resolution=args.resolution, progress=False, sampler=CHURN)
+    churn_m = [trimesh.load(RUNS / "samples_churn" / f"{n}.ply", process=False)
+               for n in sorted(churned["shapes"])]
+    noise_m, _ = mesh_set(gen, gen.noise_latents(n_gen, seed=args.seed + 1, kind="fitted"),
+                          [f"noise_{i:03d}" for i in range(n_gen)], RUNS / "noise",
+                          args.resolution)
+    pick = np.random.default_rng(args.seed + 2).choice(   # its own draws: main's subsets stay
+        len(gen.train_latents), n_gen, replace=n_gen > len(gen.train_latents))
+    decoded_m, _ = mesh_set(gen, gen.train_latents[pick], [f"train_{i:03d}" for i in pick],
+                            RUNS / "train_decoded", args.resolution)
+    return gen_names, gen_m, churn_m, noise_m, decoded_m
+
+
+def interpolation(gen, train: list[dict], args):
+    """A wolf interpolated into the horse of the same clip in 8 steps: (a, b, the largest
+    consecutive-step Chamfer over their mean (None if a mesh is empty), empty meshes)."""
+    import numpy as np
+    import trimesh
+
+    from ngc_gen.app.stages.sample import interpolate
+    from ngc_gen.eval import pairwise_chamfer
+
+    a = next(r["name"] for r in train if r["species"] == "wolf")
+    b = next(r["name"] for r in train if r["species"] == "horse" and
+             r["clip"] == next(x for x in train if x["name"] == a)["clip"])
+    interpolate(gen, RUNS / "interp", a=a, b=b, steps=8, resolution=args.resolution,
+                progress=False)
+    inter_m = [trimesh.load(p, process=False) for p in sorted((RUNS / "interp").glob("*.ply"))]
+    i_pts, empty = clouds(inter_m, args.points, 0)
+    steps = np.array([pairwise_chamfer(i_pts[i:i + 1], i_pts[i + 1:i + 2])[0, 0]
+                      for i in range(len(i_pts) - 1)])
+    return a, b, (float(steps.max() / steps.mean()) if empty == 0 else None), empty
+
+
+def parse_args():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--frames", type=int, default=5, help="frames per clip (the config's)")
     ap.add_argument("--seed", type=int, default=0)
@@ -183,7 +195,13 @@ def main():
     ap.add_argument("--fit-workers", type=int, default=2,
                     help="processes fitting the rest poses side by side")
     ap.add_argument("--refit", action="store_true")
-    args = ap.parse_args()
+    return ap.parse_args()
+
+
+def main():
+    import numpy as np
+
+    args = parse_args()
     bench = Bench("animals")
 
     import torch
@@ -192,7 +210,6 @@ def main():
 
     torch.set_num_threads(args.threads)
     from ngc_gen.app.runtime.config import compose_config
-    from ngc_gen.app.stages.sample import generate, interpolate
     from ngc_gen.data.rigs.animals import purity_summary
     from ngc_gen.eval import pairwise_chamfer
     from ngc_gen.generate import load_generator
@@ -213,22 +230,8 @@ def main():
     gen = load_generator(runs["diffusion_dir"])
     n_ref = max(len(clips_m), len(species_m))
     n_gen = args.sets * n_ref
-    sampled = generate(gen, RUNS / "samples", n=n_gen, seed=args.seed,
-                       resolution=args.resolution, progress=False)
-    gen_names = sorted(sampled["shapes"])
-    gen_m = [trimesh.load(RUNS / "samples" / f"{n}.ply", process=False) for n in gen_names]
-    churned = generate(gen, RUNS / "samples_churn", n=n_gen, seed=args.seed,
-                       resolution=args.resolution, progress=False, sampler=CHURN)
-    churn_m = [trimesh.load(RUNS / "samples_churn" / f"{n}.ply", process=False)
-               for n in sorted(churned["shapes"])]
-    noise_m, _ = mesh_set(gen, gen.noise_latents(n_gen, seed=args.seed + 1, kind="fitted"),
-                          [f"noise_{i:03d}" for i in range(n_gen)], RUNS / "noise",
-                          args.resolution)
+    gen_names, gen_m, churn_m, noise_m, decoded_m = sample_sets(gen, n_gen, args)
     rng = np.random.default_rng(args.seed)
-    pick = np.random.default_rng(args.seed + 2).choice(   # apart from rng: same ceiling subsets
-        len(gen.train_latents), n_gen, replace=n_gen > len(gen.train_latents))
-    decoded_m, _ = mesh_set(gen, gen.train_latents[pick], [f"train_{i:03d}" for i in pick],
-                            RUNS / "train_decoded", args.resolution)
     res = {"n_train": len(train_m), "n_heldout_clips": len(clips_m),
            "n_heldout_species": len(species_m)}
     for key, ref_m in (("clips", clips_m), ("species", species_m)):
@@ -245,16 +248,7 @@ def main():
     g_pts, _ = clouds(gen_m, args.points, 0)
     t_pts, _ = clouds(train_m, args.points, 0)
     res["nearest_train_cd_median"] = float(np.median(pairwise_chamfer(g_pts, t_pts).min(1)))
-    a = next(r["name"] for r in records["train"] if r["species"] == "wolf")
-    b = next(r["name"] for r in records["train"] if r["species"] == "horse" and
-             r["clip"] == next(x for x in records["train"] if x["name"] == a)["clip"])
-    interpolate(gen, RUNS / "interp", a=a, b=b, steps=8, resolution=args.resolution,
-                progress=False)
-    inter_m = [trimesh.load(p, process=False) for p in sorted((RUNS / "interp").glob("*.ply"))]
-    i_pts, empty = clouds(inter_m, args.points, 0)
-    steps = np.array([pairwise_chamfer(i_pts[i:i + 1], i_pts[i + 1:i + 2])[0, 0]
-                      for i in range(len(i_pts) - 1)])
-    res["interp_max_over_mean"] = float(steps.max() / steps.mean()) if empty == 0 else None
+    a, b, res["interp_max_over_mean"], empty = interpolation(gen, records["train"], args)
     built = records["train"] + records["test_clips"] + records["test_species"] + records["rest"]
     res.update(purity_summary(built))
     res["fit_fscore_min"] = float(min(m["fscore"] for m in runs["fit"]["shapes"].values()))
@@ -274,11 +268,57 @@ def main():
     show = [r for r in records["train"] if r["frame"] == 0][::9][:4]
     picture(runs["fit"]["shapes"], records["rest"][::3][:4], show, RUNS / "samples", gen_names[:4],
             RESULTS / "animals.png")
-    from bench.report import table
-
     path = bench.write(res)
-    print("\n" + table("animals", json.loads(path.read_text())))
+    print("\n" + table(json.loads(path.read_text())))
     print(f"total {res['recipe']['total_s'] / 60:.1f} min; results in {RESULTS}")
+
+
+# ---- the table (bench/README.md) and the headline (README.md), from the result ----------
+def table(r: dict) -> str:
+    rows = [("generated", "generated (EDM, 18 Heun steps)"),
+            ("generated_churn", "generated (EDM, stochastic: 40 steps, S_churn 40)"),
+            ("train_set", "training meshes (ceiling)"),
+            ("train_decoded", "training latents decoded (the shape-latent model's ceiling)"),
+            ("noise", "noise latents N(mean, std), no diffusion (floor)")]
+    rows = [(k, label) for k, label in rows if k in r["clips"]]
+    lines = []
+    for key, title in (("clips", f"{r['n_heldout_clips']} shapes of training species at held-out clips"),
+                       ("species", f"{r['n_heldout_species']} shapes of held-out species")):
+        lines += [f"| vs {title} | MMD-CD (x1e-3) | COV-CD (%) | 1-NNA-CD (%) |", "|---|---|---|---|"]
+        lines += [f"| {label} | {1e3 * r[key][k]['mmd_cd']:.3f} | {100 * r[key][k]['cov_cd']:.1f} | "
+                  f"{100 * r[key][k]['nna_cd']:.1f} |" for k, label in rows]
+        lines.append("")
+    rc = r["recipe"]
+    interp = r["interp_max_over_mean"]
+    lines += [f"{r['n_train']} training animals ({rc['frames']} frames per clip); fit of the rest "
+              f"poses {rc['fit_steps']} steps, shape latents {rc['shape_latent_steps']}, diffusion "
+              f"{rc['diffusion_steps']}" + (f" (batches of {rc['diffusion_batch']})"
+                                            if rc.get("diffusion_batch") else "")
+              + (f" on {rc['diffusion_space_dim']} principal axes of the "
+              f"latents" if rc.get("diffusion_space_dim") else "")
+              + (" (the others from the nearest training latent)"
+                 if rc.get("diffusion_pca_complete") == "nearest" else "")
+              + (f", trained on the training latents and {rc['diffusion_transferred']} pose-transferred "
+                 f"ones" if rc.get("diffusion_transferred") else "")
+              + (f". Generated rows: {rc['sets']} set{'s' if rc['sets'] > 1 else ''} of as many shapes as "
+                 f"the reference; ceiling: {rc['train_subsets']} training subsets" if rc.get("sets") else "")
+              + ". Memorisation: median Chamfer from a generated animal to its "
+              f"nearest training animal {1e3 * r['nearest_train_cd_median']:.3f} x1e-3. "
+              f"{rc['interp'][0]} -> {rc['interp'][1]}: largest consecutive-step Chamfer "
+              + (f"{interp:.2f} x their mean" if interp is not None else "undefined (an empty mesh)")
+              + f". GCs on {r['n_train'] + r['n_heldout_clips'] + r['n_heldout_species'] + 12} "
+              f"posed meshes: coverage >= {r['coverage_min']:.5f}, purity mean "
+              f"{100 * r['purity_mean']:.2f}%, worst {100 * r['purity_worst']:.2f}%; rest-pose fits "
+              f"({rc.get('fit', 'the 12 in one run')}) F-score@0.01 >= {r['fit_fscore_min']:.3f}."]
+    return "\n".join(lines)
+
+
+def headline(r):
+    c = r["clips"]
+    return (f"{r['n_train']} posed animals: vs held-out clips 1-NNA {pct(c['generated']['nna_cd'], 1)}"
+            f" (ceiling {pct(c['train_set']['nna_cd'], 1)}, floor {pct(c['noise']['nna_cd'], 1)});"
+            f" rig GCs purity >= {pct(r['purity_worst'], 1)}; rest-pose fits F >= "
+            f"{r['fit_fscore_min']:.3f}")
 
 
 if __name__ == "__main__":

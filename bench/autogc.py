@@ -1,6 +1,6 @@
-"""Automatic GCs (docs/autogc.md, issue 11): what a user gets on meshes no one annotated.
+"""Automatic GCs (docs/autogc.md): what a user gets on meshes no one annotated.
 
-    python bench/autogc.py [--creatures 16] [--fit-creatures 4] [--steps 1500] [--resolution 128]
+    python -m bench.autogc [--creatures 16] [--fit-creatures 4] [--steps 1500] [--resolution 128]
 
 1. Annotate with the default settings (conf/annotate/default.yaml): pyvista's ant (15 pieces)
    and airplane (open), and `--creatures` procedural creatures (true template: 10 parts). Per
@@ -33,16 +33,17 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import numpy as np
+from bench._harness import Bench, cached_run_fit, load_1min
+from bench._tables import pct, rows_table
+
+if TYPE_CHECKING:
+    import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-from bench._harness import Bench, cached_run_fit, load_1min  # noqa: E402
-
 RUNS = ROOT / "bench/runs/autogc"
 RESULTS = ROOT / "bench/results"
 CREATURES = ROOT / ".cache/datasets/creatures_n64_s0"
@@ -55,6 +56,8 @@ METHODS = ("auto", "annotated", "axis")
 def single_gc_shares(true_gcs, auto_gcs, points) -> np.ndarray:
     """(T,) per true GC: the largest share of its surface samples inside one automatic GC. A
     sample belongs to the true GC it is relatively nearest to (smallest rho)."""
+    import numpy as np
+
     from ngc_gen.data.autogc.coverage import rho_matrix
     from ngc_gen.data.mesh.sampling import gc_membership
 
@@ -80,6 +83,8 @@ def warm_up(mesh: str) -> float:
 
 def annotate_all(names: dict, hand: dict) -> tuple[list[dict], dict]:
     """Automatic annotations of every mesh (written to RUNS/annotations) and their figures."""
+    import numpy as np
+
     from ngc_gen.data.annotations import load_annotation, save_annotation
     from ngc_gen.data.autogc.auto import AutoGCSettings, auto_annotation
     from ngc_gen.data.autogc.coverage import coverage_stats
@@ -120,6 +125,8 @@ def annotate_all(names: dict, hand: dict) -> tuple[list[dict], dict]:
 
 def single_gc_best(true_gcs, auto_gcs, points, part_name: str) -> str:
     """Name of the automatic GC holding the largest share of a true part's samples."""
+    import numpy as np
+
     from ngc_gen.data.autogc.coverage import rho_matrix
     from ngc_gen.data.mesh.sampling import gc_membership
 
@@ -203,9 +210,10 @@ def cd_noise_floor(name: str, seed: int = 0, n: int = 30000) -> float:
 
 def edits(checkpoint: str, anns: dict, resolution: int) -> list[dict]:
     """A leg raised on the automatically annotated creature and ant (bench/deform.py's bend)."""
+    import numpy as np
     import yaml
 
-    from bench.deform import Case, run_case
+    from bench._handles import Case, run_case
     from ngc_gen.data.annotations import annotation_from_dict, load_annotation
     from ngc_gen.data.mesh.io import load_mesh, normalize
     from ngc_gen.lit.checkpoint import load_autodecoder
@@ -254,33 +262,10 @@ def picture(anns: dict, names: list[str], path: Path) -> None:
                 cell=(360, 270))
 
 
-def main():
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--creatures", type=int, default=16)
-    ap.add_argument("--fit-creatures", type=int, default=4)
-    ap.add_argument("--steps", type=int, default=1500)
-    ap.add_argument("--resolution", type=int, default=128)
-    ap.add_argument("--edit-resolution", type=int, default=192)
-    ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1],
-                    help="training seeds of the fits; cd_* are their means (one seed moved a "
-                         "creature's auto/axis ratio by up to 0.1)")
-    ap.add_argument("--skip-fits", action="store_true")
-    args = ap.parse_args()
-    bench = Bench("autogc")
-    t_start = time.perf_counter()
-
-    import torch
-
-    from ngc_gen.data.procedural.creatures import build_creatures
-
-    torch.set_num_threads(1)  # a shared 2-core machine: one thread is faster
-    build_creatures(CREATURES, 64, seed=0)
-    creatures = [f"creature_{i:04d}" for i in range(args.creatures)]
-    hand = {**HAND, **{c: CREATURES / f"{c}.yaml" for c in creatures}}
-    meshes = {**MESHES, **{c: str(CREATURES / f"{c}.ply") for c in creatures}}
-    warmup_s = warm_up(meshes[creatures[0]])
-    rows, anns = annotate_all(meshes, hand)
-    by_name = {r["name"]: r for r in rows}
+def part_stats(by_name: dict, creatures: list[str]) -> tuple[dict, dict, dict]:
+    """How the automatic GCs split the true parts: over the creatures (GC count, share of a
+    part in one GC), the ant's legs, the airplane's fuselage, wings and tail."""
+    import numpy as np
 
     cr = [by_name[c] for c in creatures]
     err = np.array([abs(r["n_gcs"] - 10) for r in cr])
@@ -305,6 +290,44 @@ def main():
     flat = [x for v in air_best.values() for x in v]
     air_stats = {"best_auto_gc": air_best, "separate": len(flat) == len(set(flat)),
                  "part_single_gc": air["part_single_gc"]}
+    return creature_stats, ant_stats, air_stats
+
+
+def parse_args():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--creatures", type=int, default=16)
+    ap.add_argument("--fit-creatures", type=int, default=4)
+    ap.add_argument("--steps", type=int, default=1500)
+    ap.add_argument("--resolution", type=int, default=128)
+    ap.add_argument("--edit-resolution", type=int, default=192)
+    ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1],
+                    help="training seeds of the fits; cd_* are their means (one seed moved a "
+                         "creature's auto/axis ratio by up to 0.1)")
+    ap.add_argument("--skip-fits", action="store_true")
+    return ap.parse_args()
+
+
+def main():
+    import numpy as np
+
+    args = parse_args()
+    bench = Bench("autogc")
+    t_start = time.perf_counter()
+
+    import torch
+
+    from ngc_gen.data.procedural.creatures import build_creatures
+
+    torch.set_num_threads(1)  # a shared 2-core machine: one thread is faster
+    build_creatures(CREATURES, 64, seed=0)
+    creatures = [f"creature_{i:04d}" for i in range(args.creatures)]
+    hand = {**HAND, **{c: CREATURES / f"{c}.yaml" for c in creatures}}
+    meshes = {**MESHES, **{c: str(CREATURES / f"{c}.ply") for c in creatures}}
+    warmup_s = warm_up(meshes[creatures[0]])
+    rows, anns = annotate_all(meshes, hand)
+    by_name = {r["name"]: r for r in rows}
+
+    creature_stats, ant_stats, air_stats = part_stats(by_name, creatures)
 
     fit_names = ["ant", "airplane"] + creatures[: args.fit_creatures]
     fits = {}                               # (method, seed) -> the fit's metrics
@@ -397,6 +420,62 @@ def print_summary(res: dict) -> None:
     print(f"airplane: fuselage / wings / tail separate: {res['airplane']['separate']} "
           f"{res['airplane']['best_auto_gc']}")
     print(f"total {res['settings']['total_s']:.0f} s")
+
+
+# ---- the table (bench/README.md) and the headline (README.md), from the result ----------
+AUTOGC_COLUMNS = [("cd_auto", "CD auto"), ("cd_annotated", "CD hand"), ("cd_axis", "CD axis")]
+
+
+def table(r: dict) -> str:
+    t = r["targets"]
+    ratio = lambda key, name: (f"{t[key][name]:.2f}" if name in t.get(key, {}) else "-")  # noqa: E731
+    rows = []
+    for m in r["meshes"]:
+        fitted = m.get("cd_auto") is not None
+        per = t.get("cd_surface_auto_over_axis_per_seed", {}).get(m["name"])
+        rows.append([m["name"], m["n_gcs"], pct(m["coverage"], 3), f"{m['overlap']:.2f}",
+                     f"{m['time_s']:.1f}"]
+                    + [f"{m[k]:.2e}" if fitted else "-" for k, _ in AUTOGC_COLUMNS]
+                    + [ratio("cd_auto_over_annotated", m["name"]),
+                       ratio("cd_auto_over_axis", m["name"]),
+                       ratio("cd_annotated_over_axis", m["name"]),
+                       ratio("cd_noise_floor_over_axis", m["name"]),
+                       ratio("cd_surface_auto_over_annotated", m["name"]),
+                       ratio("cd_surface_auto_over_axis", m["name"])
+                       + (" (" + "/".join(f"{x:.2f}" for x in per) + ")" if per else ""),
+                       ratio("cd_surface_annotated_over_axis", m["name"]),
+                       f"{m['nc_auto']:.3f}" if m.get("nc_auto") is not None else "-"])
+    s = r["settings"]
+    seeds = "/".join(map(str, s["seeds"]))
+    lines = rows_table(["mesh", "GCs", "coverage", "overlap", "seconds"]
+                       + [c for _, c in AUTOGC_COLUMNS]
+                       + ["auto / hand", "auto / axis", "hand / axis", "floor / axis",
+                          "surface CD: auto / hand", f"auto / axis (seed {seeds})",
+                          "hand / axis", "NC auto"], rows)
+    c, ant, air = r["creatures"], r["ant"], r["airplane"]
+    lines += ["", f"Creatures ({c['n_shapes']}, true template: 10 parts): GC count off by "
+                  f"{c['count_err_mean']:.2f} on average, at most {c['count_err_max']}; a true part "
+                  f"has on average {pct(c['part_single_gc_mean'], 1)} of its surface samples "
+                  f"inside one automatic GC, the worst part {pct(c['part_single_gc_worst'], 1)} "
+                  f"({c['parts_below_0.8']} of {c['parts_total']} parts below 80%). The ant: every "
+                  f"leg its own GC: {'yes' if ant['legs_own_gc'] else 'no'}; the airplane: "
+                  f"fuselage, wings and tail in different GCs: "
+                  f"{'yes' if air['separate'] else 'no'}. Fits: {s['steps']} steps, seeds "
+                  f"{', '.join(map(str, s['seeds']))} (CDs are their means), meshes at "
+                  f"{s['resolution']}^3; annotation warm-up {s['warmup_s']:.1f} s; "
+                  f"{s['total_s']:.0f} s in all."]
+    if r.get("edits"):
+        lines += ["", "Leg raised by handles on automatic GCs: " + "; ".join(
+            f"{e['name']}: eps_V {pct(e['eps_v'])}, eps_A {pct(e['eps_a'])} (ARAP eps_V "
+            f"{pct(e['arap_eps_v'])})" for e in r["edits"]) + "."]
+    return "\n".join(lines)
+
+
+def headline(r):
+    t, c = r["targets"], r["creatures"]
+    return (f"{len(r['meshes'])} meshes, coverage >= {pct(t['coverage_min'], 2)}, at most "
+            f"{t['time_s_max']:.1f} s each; {pct(c['part_single_gc_mean'], 1)} of a creature part "
+            f"in one GC")
 
 
 if __name__ == "__main__":

@@ -1,9 +1,9 @@
 """DDP step time on CPU: the same fit run as one process (trainer=cpu) and as two (trainer=ddp,
 gloo), each process with one torch thread and the same batch per process.
 
-    python bench/ddp.py [--steps 150] [--warmup 20] [--batch 4096] [--repeats 2]
+    python -m bench.ddp [--steps 150] [--warmup 20] [--batch 4096] [--repeats 2]
 
-Each run is the real command (`train.py stage=fit ...`); a callback (StepTimer, below) records
+Each run is the real command (`train.py stage=fit ...`); a callback (bench/_step_timer.py) records
 the wall time of every optimizer step on every rank, and the first `warmup` steps are dropped.
 One process and two processes run alternately `repeats` times, so both see the same drift of
 the machine's load. Writes bench/results/ddp.json: step_s_1proc, step_s_2proc (median seconds
@@ -22,31 +22,12 @@ import statistics
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
-from lightning.pytorch.callbacks import Callback
+from bench._harness import Bench, load_1min
+from bench._tables import rows_table
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-from bench._harness import Bench, load_1min  # noqa: E402
-
-
-class StepTimer(Callback):
-    """Lightning callback (built by Hydra from `+callbacks.timer._target_=ddp.StepTimer`) that
-    writes <out_dir>/rank<r>.json: the perf_counter time after every optimizer step."""
-
-    def __init__(self, out_dir: str):
-        self.out_dir, self.times = Path(out_dir), []
-
-    def on_train_batch_end(self, trainer, pl_module, outputs, batch, batch_idx) -> None:
-        self.times.append(time.perf_counter())
-
-    def on_train_end(self, trainer, pl_module) -> None:
-        self.out_dir.mkdir(parents=True, exist_ok=True)
-        (self.out_dir / f"rank{trainer.global_rank}.json").write_text(
-            json.dumps({"times": self.times, "world_size": trainer.world_size}))
-
 
 def meshes(folder: Path) -> Path:
     import trimesh
@@ -60,13 +41,14 @@ def meshes(folder: Path) -> Path:
 def run(trainer: str, work: Path, tag: str, steps: int, batch: int) -> list[float]:
     """One `train.py stage=fit` run; the per-step seconds of its rank 0."""
     out = work / tag
-    env = {**os.environ, "PYTHONPATH": f"{ROOT}{os.pathsep}{ROOT / 'bench'}",
+    env = {**os.environ, "PYTHONPATH": str(ROOT),
            "OMP_NUM_THREADS": "1"}
     args = [sys.executable, str(ROOT / "train.py"), "stage=fit", f"trainer={trainer}",
             "data=folder", f"data.path={work / 'meshes'}", f"paths.cache_dir={work / 'cache'}",
             "prepare.n_samples=40000", f"batch_size={batch}", f"trainer.max_steps={steps}",
             "trainer.enable_progress_bar=false", "extract.resolution=16", "threads=1",
-            "+callbacks.timer._target_=ddp.StepTimer", f"+callbacks.timer.out_dir={out}",
+            "+callbacks.timer._target_=bench._step_timer.StepTimer",
+            f"+callbacks.timer.out_dir={out}",
             f"hydra.run.dir={out / 'run'}"]
     r = subprocess.run(args, cwd=ROOT, env=env, capture_output=True, text=True)
     if r.returncode != 0:
@@ -111,6 +93,25 @@ def main() -> None:
           f"{two / one:.2f}, throughput x{result['speedup_samples_per_s']:.2f}; load "
           f"{m['load_1min_before']} -> {m['load_1min_after']} on {m['cpus']} cores")
     print(f"wrote {path}")
+
+
+# ---- the table (bench/README.md) and the headline (README.md), from the result ----------
+def table(r: dict) -> str:
+    rows = [["1 process (`trainer=cpu`)", f"{1e3 * r['step_s_1proc']:.1f}",
+             f"{r['samples_per_s_1proc'] / 1e3:.0f}k"],
+            ["2 processes (`trainer=ddp`, gloo)", f"{1e3 * r['step_s_2proc']:.1f}",
+             f"{r['samples_per_s_2proc'] / 1e3:.0f}k"],
+            ["2 / 1", f"{r['step_ratio_2_to_1']:.2f}x", f"{r['speedup_samples_per_s']:.2f}x"]]
+    lines = rows_table(["setting", "ms per step", "samples/s"], rows)
+    lines += ["", f"{r['batch_per_process']} samples per process per step, "
+                  f"{r['threads_per_process']} torch thread per process; median over "
+                  f"{r['steps_timed']} steps after {r['warmup_steps']}, "
+                  f"{len(r['runs_step_s']['cpu'])} runs of each, alternating."]
+    return "\n".join(lines)
+
+
+def headline(r):
+    return f"2 CPU processes: {r['speedup_samples_per_s']:.2f}x the samples per second of one"
 
 
 if __name__ == "__main__":

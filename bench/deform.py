@@ -1,6 +1,6 @@
 """Volume and area preservation under handle deformation (paper Tables 2-3): NGC vs libigl ARAP.
 
-    python bench/deform.py [--steps 1500] [--resolution 224] [--refit] [--arap-iters 100]
+    python -m bench.deform [--steps 1500] [--resolution 224] [--refit] [--arap-iters 100]
 
 Inputs: a square bar (generated here, one straight GC along it), a procedural creature and the ant,
 fitted together once with NGC (small preset; the fit is kept in the bench's fit cache,
@@ -32,23 +32,17 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
-import sys
-import time
-from dataclasses import dataclass
+import statistics
 from pathlib import Path
 
-import numpy as np
+from bench._handles import BOUND, FIXED_T, Case, run_case
+from bench._harness import Bench, cached_run_fit
+from bench._tables import pct
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-from bench._harness import Bench, cached_run_fit  # noqa: E402
-
 BAR_DIR = ROOT / ".cache/bench/deform/bars"
 RESULTS = ROOT / "bench/results"
 CREATURE = "creature_0000"
-BOUND = 1.25            # extraction grid [-1.25, 1.25]^3: bent bars leave the unit cube
-FIXED_T = 0.1           # the handle GC's own start region that stays (t <= 0.1)
 
 # the bar: 1.6 long along x (already in the normalised frame: longest side 2 x 0.8), square
 # cross-section 0.2 x 0.2 with rounded edges; one straight GC from x = -0.7 to 0.7
@@ -60,6 +54,7 @@ BAR_ROUND = 0.025
 def make_bar(out_dir: Path = BAR_DIR, spacing: float = 0.016) -> Path:
     """A watertight rounded square bar (marching cubes of its SDF) and its one-GC annotation;
     written once. Returns the annotation path."""
+    import numpy as np
     import trimesh
     import yaml
 
@@ -119,50 +114,6 @@ def fitted(steps: int, refit: bool) -> dict:
 
 
 # ---- cases -----------------------------------------------------------------------------------
-def rotation(axis, degrees) -> np.ndarray:
-    from scipy.spatial.transform import Rotation
-
-    a = np.asarray(axis, float)
-    return Rotation.from_rotvec(a / np.linalg.norm(a) * math.radians(degrees)).as_matrix()
-
-
-@dataclass
-class Case:
-    """A handle drag: the vertices of `gc` over t in `at` move by a rigid motion.
-
-    bend: the piece of the GC between t = FIXED_T and t = at[0] is wrapped onto a circular arc
-    of `degrees` turning toward `up` (its chord direction d, the arc in the plane of d and up),
-    and the handle region follows the arc's end rigidly: a constant-curvature bend, the
-    motion an arc-length preserving deformation can meet. twist: the handles turn about the
-    GC's axis (its chord)."""
-
-    name: str
-    shape: str
-    gc: str
-    kind: str                 # bend | twist
-    degrees: float
-    at: tuple = (0.9, 1.0)
-    up: tuple = (0.0, 0.0, 1.0)
-    picture: bool = False
-
-    def motion(self, gc) -> tuple[np.ndarray, np.ndarray]:
-        """(R, t): handle targets are H @ R.T + t."""
-        p_f, p_h = gc.to_world(np.array([[2 * FIXED_T - 1, 0, 0], [2 * self.at[0] - 1, 0, 0]]))
-        chord = p_h - p_f
-        d = chord / np.linalg.norm(chord)
-        if self.kind == "twist":
-            return rotation(d, self.degrees), p_h - rotation(d, self.degrees) @ p_h
-        if self.kind != "bend":
-            raise ValueError(self.kind)
-        n = np.asarray(self.up, float) - (np.asarray(self.up, float) @ d) * d
-        n /= np.linalg.norm(n)
-        th = math.radians(self.degrees)
-        rho = np.linalg.norm(chord) / th
-        R = rotation(np.cross(d, n), self.degrees)  # turns d toward n
-        P = p_f + rho * math.sin(th) * d + rho * (1 - math.cos(th)) * n
-        return R, P - R @ p_h
-
-
 CASES = [
     Case("bar_bend_90", "bar", "bar", "bend", 90.0, picture=True),
     Case("bar_bend_180", "bar", "bar", "bend", 180.0, picture=True),
@@ -175,140 +126,9 @@ CASES = [
 ]
 
 
-def constraints(case: Case, gcs, V):
-    """Handle and fixed vertex indices of the input mesh (disjoint). The handle GC's part is
-    the vertices inside it or, outside every GC, nearest to it; the fixed vertices are the rest
-    of the mesh plus the part's start region t <= FIXED_T."""
-    from ngc_gen.edit.program import region_mask
-
-    rel = np.stack([g.to_relative(V) for g in gcs])  # (K, N, 3)
-    measure = np.clip(np.abs(rel[..., 0]) - 1, 0, None) ** 2 + rel[..., 1] ** 2 + rel[..., 2] ** 2
-    k = [g.name for g in gcs].index(case.gc)
-    gc = gcs[k]
-    part = (measure[k] <= 1.0) | (measure.argmin(0) == k)
-    handle = part & region_mask(gc, V, case.at)
-    fixed = (~part | region_mask(gc, V, (0.0, FIXED_T))) & ~handle
-    return np.flatnonzero(handle), np.flatnonzero(fixed)
-
-
-def arap(V, F, handle, fixed, targets, iters: int) -> tuple[np.ndarray, float]:
-    """libigl ARAP with handles moved and fixed vertices pinned; one pinned vertex for every
-    connected piece without a constraint. Returns (deformed vertices, seconds)."""
-    import igl
-    import trimesh
-
-    t0 = time.perf_counter()
-    b = np.concatenate([handle, fixed])
-    bc = np.concatenate([targets, V[fixed]])
-    labels = trimesh.graph.connected_component_labels(trimesh.Trimesh(V, F, process=False)
-                                                      .face_adjacency, node_count=len(F))
-    vlab = np.full(len(V), -1)
-    vlab[F.reshape(-1)] = np.repeat(labels, 3)
-    free = sorted(set(vlab[vlab >= 0].tolist()) - set(vlab[b].tolist()))
-    extra = np.array([np.flatnonzero(vlab == p)[0] for p in free], dtype=np.int64)
-    b = np.concatenate([b, extra]).astype(np.int64)
-    bc = np.concatenate([bc, V[extra]]) if len(extra) else bc
-    data = igl.ARAPData()
-    data.max_iter = int(iters)
-    igl.arap_precomputation(V, F, 3, b, data)
-    U = igl.arap_solve(np.ascontiguousarray(bc), data, V.copy())
-    return U, time.perf_counter() - t0
-
-
-def edit_to_mesh(case: Case, shape, gcs, R, t, handles, targets, fixed_pts, resolution: int,
-                 arap_iters: int, undeformed: dict, arap_at: int = 256):
-    """Seconds from handle targets to the edited mesh at `resolution`, the interactive loop:
-    the handle solve plus the incremental extraction (the undeformed shape was extracted
-    before, untimed, so its per-GC values sit in shape.cache and only the GCs the solve moved
-    are evaluated again); the solve gets the same handles as the case. At `arap_at` also
-    returns (ARAP seconds, vertex count): libigl ARAP with the same handle region and motion
-    on that undeformed NGC mesh (a mesh of NGC's vertex count), else None."""
-    import torch
-
-    from ngc_gen.edit import deform_by_handles
-
-    key = (case.shape, resolution)
-    with torch.inference_mode():
-        if key not in undeformed:
-            undeformed[key] = shape.mesh(resolution, BOUND).mesh
-        before = undeformed[key]
-        t0 = time.perf_counter()
-        new = deform_by_handles(gcs, handles, targets, fixed_pts)
-        shape.replaced(gcs=new).mesh(resolution, BOUND)
-        seconds = time.perf_counter() - t0
-    arap_matched = None
-    if resolution == arap_at:
-        V = np.asarray(before.vertices, dtype=np.float64)
-        F = np.asarray(before.faces, dtype=np.int64)
-        handle, fixed = constraints(case, gcs, V)
-        _, arap_s = arap(V, F, handle, fixed, V[handle] @ R.T + t, arap_iters)
-        arap_matched = (arap_s, int(len(V)))
-    return seconds, arap_matched
-
-
-def run_case(case: Case, module, shape_index: dict, inputs: dict, resolution: int,
-             arap_iters: int, undeformed: dict, matched: tuple = ()) -> dict:
-    import torch
-    import trimesh
-
-    from ngc_gen.edit import deform_by_handles
-    from ngc_gen.edit.ops import curve_points_at
-    from ngc_gen.eval import volume_area_change
-    from ngc_gen.shape import Shape, recorded_gcs
-
-    meta = module.hparams.meta["shapes"][shape_index[case.shape]]
-    gcs = recorded_gcs(meta)
-    codes = module.codes.weight[meta["code_offset"]:meta["code_offset"] + meta["n_codes"]].detach()
-    V, F = inputs[case.shape]
-    handle, fixed = constraints(case, gcs, V)
-    gc = next(g for g in gcs if g.name == case.gc)
-    R, t = case.motion(gc)
-    targets = V[handle] @ R.T + t
-
-    # one Shape per input shape, so its FieldCache carries the undeformed values across cases
-    shape = undeformed.setdefault(("shape", case.shape),
-                                  Shape(gcs, codes, module.decoder, name=case.shape))
-    with torch.no_grad():
-        if case.shape not in undeformed:
-            undeformed[case.shape] = shape.mesh(resolution, BOUND).mesh
-        before = undeformed[case.shape]
-        # the fixed region for NGC: the fixed vertices plus the skeletons of the other GCs (a
-        # part rooted inside the fixed body, like a tail in a torso, is far from its surface)
-        skeleton = [curve_points_at(g, np.linspace(0, 1, 33)) for g in gcs if g.name != case.gc]
-        fixed_pts = np.concatenate([V[fixed], *skeleton])
-        t0 = time.perf_counter()
-        new, info = deform_by_handles(gcs, V[handle], targets, fixed_pts, return_info=True)
-        solve_s = time.perf_counter() - t0
-        after = shape.replaced(gcs=new).mesh(resolution, BOUND).mesh
-        ngc_s = time.perf_counter() - t0
-    # where the handle GC carries the handle vertices (their relative coordinates)
-    new_gc = next(g for g in new if g.name == case.gc)
-    carried = new_gc.to_world(gc.to_relative(V[handle]))
-    ngc = {**volume_area_change(before, after), "time_s": ngc_s, "solve_s": solve_s,
-           "handle_err": float(np.linalg.norm(carried - targets, axis=1).max()),
-           "bent": sorted(info.bent), "followers": sorted(info.followers)}
-
-    for res in matched:  # edit-to-mesh at 128 / 256, ARAP on a mesh of NGC's vertex count
-        ngc[f"edit_to_mesh_s_{res}"], arap_matched = edit_to_mesh(
-            case, shape, gcs, R, t, V[handle], targets, fixed_pts, res, arap_iters, undeformed)
-        if arap_matched is not None:
-            ngc["arap_s_matched"], ngc["arap_matched_vertices"] = arap_matched
-
-    U, arap_s = arap(V, F, handle, fixed, targets, arap_iters)
-    m0 = trimesh.Trimesh(V, F, process=False)
-    m1 = trimesh.Trimesh(U, F, process=False)
-    res = {"name": case.name, "ngc": ngc,
-           "arap": {**volume_area_change(m0, m1), "time_s": arap_s,
-                    "handle_err": float(np.linalg.norm(U[handle] - targets, axis=1).max())},
-           "n_handles": int(len(handle)), "n_fixed": int(len(fixed)), "n_vertices": int(len(V)),
-           "degrees": case.degrees, "kind": case.kind, "gc": case.gc, "shape": case.shape}
-    res["_meshes"] = (m0, before, after, m1)
-    res["_focus"] = (np.minimum(gc.bounds()[0], new_gc.bounds()[0]),
-                     np.maximum(gc.bounds()[1], new_gc.bounds()[1]))
-    return res
-
-
 def mean_of(cases: list[dict]) -> dict:
+    import numpy as np
+
     keys = {"ngc": ("eps_v", "eps_a", "time_s", "solve_s"), "arap": ("eps_v", "eps_a", "time_s")}
     return {m: {k: float(np.mean([c[m][k] for c in cases])) for k in ks}
             for m, ks in keys.items()}
@@ -316,6 +136,8 @@ def mean_of(cases: list[dict]) -> dict:
 
 def matched_means(cases: list[dict]) -> dict:
     """edit_to_mesh_s_<res> and arap_s_matched, means over the cases that measured them."""
+    import numpy as np
+
     keys = sorted({k for c in cases for k in c["ngc"]
                    if k.startswith("edit_to_mesh_s_") or k == "arap_s_matched"})
     return {k: float(np.mean([c["ngc"][k] for c in cases if k in c["ngc"]])) for k in keys}
@@ -325,6 +147,8 @@ def picture(results: list[dict], path: Path, cell=(330, 250)) -> None:
     """Rows of cases, columns NGC before / NGC after / ARAP after; one camera per row, aimed at
     the handle GC before and after, so before and after compare directly. pyvista off screen
     (EGL)."""
+    import numpy as np
+
     import os
 
     os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
@@ -370,6 +194,8 @@ VIEWS = {"bar": (0.35, -1.0, 0.35), CREATURE: (-0.3, -1.0, 0.35), "ant": (0.4, -
 
 
 def main():
+    import numpy as np
+
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--steps", type=int, default=1500)
     ap.add_argument("--resolution", type=int, default=224)
@@ -389,7 +215,6 @@ def main():
 
     import yaml
 
-    from bench.report import table
     from ngc_gen.data.annotations import annotation_from_dict
     from ngc_gen.data.mesh.io import load_mesh, normalize
     from ngc_gen.lit.checkpoint import load_autodecoder
@@ -426,7 +251,44 @@ def main():
     path = bench.write(res)
     picture(results, args.results / "deform.png")
     print()
-    print(table("deform", json.loads(path.read_text())))
+    print(table(json.loads(path.read_text())))
+
+
+# ---- the table (bench/README.md) and the headline (README.md), from the result ----------
+def table(res: dict) -> str:
+    lines = ["| case | NGC eps_V | NGC eps_A | NGC time (s) (solve) | ARAP eps_V | ARAP eps_A | "
+             "ARAP time (s) |", "|---|---|---|---|---|---|---|"]
+    for c in res["cases"] + [{"name": "**mean**", **res["mean"]}]:
+        n, a = c["ngc"], c["arap"]
+        solve = f" ({n['solve_s']:.2f})" if "solve_s" in n else ""
+        lines.append(f"| {c['name']} | {100 * n['eps_v']:.2f}% | {100 * n['eps_a']:.2f}% | "
+                     f"{n['time_s']:.2f}{solve} | {100 * a['eps_v']:.2f}% | "
+                     f"{100 * a['eps_a']:.2f}% | {a['time_s']:.2f} |")
+    s, mv = res["settings"], res["mean"]
+    matched = {k: v for k, v in res.items() if k.startswith("edit_to_mesh_s_")}
+    if matched:
+        lines += ["", "| edit to mesh (handle solve + incremental extraction) | seconds |",
+                  "|---|---|"]
+        lines += [f"| NGC at {k.rsplit('_', 1)[1]}^3 | {v:.2f} |" for k, v in matched.items()]
+        if "arap_s_matched" in res:
+            nv = statistics.mean(c["ngc"]["arap_matched_vertices"] for c in res["cases"])
+            lines.append(f"| libigl ARAP on the undeformed NGC 256^3 mesh (mean {nv:.0f} "
+                         f"vertices), precomputation + solve | {res['arap_s_matched']:.2f} |")
+    b = s.get("bound", 1.25)
+    lines += ["", f"NGC meshes at {s['resolution']}^3 over [-{b}, {b}]^3, fitted {s['steps']} "
+                  f"steps (small preset), {s.get('threads')} torch threads; ARAP "
+                  f"{s['arap_iters']} iterations. NGC mean eps_V / ARAP mean eps_V = "
+                  f"{mv['ngc']['eps_v'] / mv['arap']['eps_v']:.2f}; eps_A ratio "
+                  f"{mv['ngc']['eps_a'] / mv['arap']['eps_a']:.2f} (paper Tables 2-3: NGC "
+                  f"0.1-2.6% vs ARAP 5-46% volume change)."]
+    return "\n".join(lines)
+
+
+def headline(r):
+    m = r["mean"]
+    return (f"volume change NGC {pct(m['ngc']['eps_v'])} vs ARAP {pct(m['arap']['eps_v'])} (mean "
+            f"of {len(r['cases'])} edits); edit to mesh at 256^3 {r['edit_to_mesh_s_256']:.2f} s vs "
+            f"ARAP {r['arap_s_matched']:.2f} s")
 
 
 if __name__ == "__main__":

@@ -1,6 +1,6 @@
 """The editor's response time: from an interaction to the updated mesh in the scene.
 
-    python bench/editor.py [--ckpt <fit checkpoint>] [--steps 1500] [--repeats 3] [--threads 1]
+    python -m bench.editor [--ckpt <fit checkpoint>] [--steps 1500] [--repeats 3] [--threads 1]
                            [--no-screenshot]
 
 Input: the ant and a procedural creature fitted together (`train.py stage=fit data=demo
@@ -41,16 +41,13 @@ from __future__ import annotations
 import argparse
 import os
 import statistics
-import sys
 import time
 from pathlib import Path
 
-import numpy as np
+from bench._harness import Bench, cached_run_fit
+from bench._tables import rows_table, span
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-from bench._harness import Bench, cached_run_fit  # noqa: E402
-
 RUN_DIR = ROOT / "bench/runs/editor"
 RESULTS = ROOT / "bench/results"
 SHAPES = {"ant": "leg_l1", "creature_0000": "leg_fl"}  # shape -> the GC the interactions edit
@@ -69,6 +66,8 @@ def fitted(steps: int, refit: bool = False, resolution: int = 64) -> Path:
 
 def interactions(session, gc: str):
     """{name: (act(i) -> Outcome)}: the i-th repeat of each interaction, each with a new value."""
+    import numpy as np
+
     g = session.shape.gcs[session.shape.index(gc)]
     p = g.curve.points[-1].copy()
     r = 0.5 * sum(g.keys[-1].radii)
@@ -252,7 +251,7 @@ def screenshot(cfg, path: Path) -> None:
     print(f"wrote {path}")
 
 
-def main() -> None:
+def parse_args():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--ckpt", default=None, help="a demo fit's checkpoint (default: fit once)")
     ap.add_argument("--steps", type=int, default=1500)
@@ -262,7 +261,11 @@ def main() -> None:
     ap.add_argument("--no-screenshot", action="store_true")
     ap.add_argument("--no-browser", action="store_true",
                     help="leave out the browser-side latency (headless Chromium)")
-    args = ap.parse_args()
+    return ap.parse_args()
+
+
+def main() -> None:
+    args = parse_args()
     bench = Bench("editor")
 
     import torch
@@ -335,6 +338,54 @@ def main() -> None:
                                       "editor.environment=null",
                                       f"editor.out_dir={RUN_DIR / 'editor'}"])
         screenshot(cfg, RESULTS / "editor.png")
+
+
+# ---- the table (bench/README.md) and the headline (README.md), from the result ----------
+def table(r: dict) -> str:
+    s = r["settings"]
+    rows = [[c["shape"], c["interaction"], f"{c['preview_s']:.2f}",
+             f"{c['preview_s'] / c['extract_preview_s']:.2f}", f"{c['refine_s']:.2f}",
+             c["n_faces"]] for c in r["cases"]]
+    lines = rows_table(["shape", "interaction", f"preview {s['preview_resolution']}^3 (s)",
+                        "x bare extraction", f"refined {s['refine_resolution']}^3 (s)", "faces"],
+                       rows)
+    ok = sum(c["preview_s"] <= 0.3 for c in r["cases"])
+    lines += ["", f"Medians of {s['repeats']}; {ok} of {len(r['cases'])} previews within the "
+                  f"0.3 s target."]
+    if r.get("browser"):
+        def sec(x):
+            return "-" if x is None else f"{x:.2f}"
+
+        target = s.get("browser_target_s", 0.5)
+        lines += ["", "In the browser (headless Chromium; input event -> mesh drawn):", ""]
+        lines += rows_table(
+            ["shape", "typed into", "preview's status line (s)", "preview drawn (s)",
+             "server preview extraction (s)", "refined drawn (s)",
+             "server refine extraction (s)"],
+            [[c["shape"], c["interaction"], sec(c.get("preview_status_s")), sec(c["preview_s"]),
+              sec(c["server_preview_s"]), sec(c["refine_s"]), sec(c["server_refine_s"])]
+             for c in r["browser"]])
+        ok = sum(c["preview_s"] is not None and c["preview_s"] <= target for c in r["browser"])
+        lines += ["", f"{ok} of {len(r['browser'])} previews drawn within the {target:g} s "
+                      f"target (refined: after the {s['refine_delay_s']:g} s idle delay)."]
+        first = [c["preview_s"] for c in r.get("browser_first_edits") or []
+                 if c["preview_s"] is not None]
+        if first:
+            lines += ["", "The first edits after the page opens, before these (the page compiles "
+                          "what it draws the first time): previews drawn in "
+                          + ", ".join(f"{x:.2f}" for x in first) + " s."]
+    return "\n".join(lines)
+
+
+def headline(r):
+    pre = [c["preview_s"] for c in r["cases"]]
+    ref = [c["refine_s"] for c in r["cases"]]
+    line = (f"an interaction to its preview in {span(pre)} s, refined at "
+            f"{r['settings']['refine_resolution']}^3 in {span(ref)} s (server side)")
+    drawn = [c["preview_s"] for c in r.get("browser", []) if c["preview_s"] is not None]
+    if drawn:
+        line += f"; drawn in headless Chromium {span(drawn)} s after the input"
+    return line
 
 
 if __name__ == "__main__":

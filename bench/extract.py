@@ -1,9 +1,10 @@
-"""Extraction benchmark: dense, prefiltered and sparse extraction of fitted shapes (issue 10).
+"""Extraction benchmark: dense, prefiltered and sparse extraction of fitted shapes.
 
-    python bench/extract.py [--resolutions 128 256 512] [--dense-max-evals 4e7] [--threads 2]
+    python -m bench.extract [--resolutions 128 256 512] [--dense-max-evals 4e7] [--threads 2]
 
-Shapes: the deformation bench's fit (bench/deform.py: a one-GC square bar, creature_0000 with 10 GCs
-and the ant with 15 GCs, small preset, 1500 steps; from its fit cache, trained if absent). Per shape
+Shapes: the deformation bench's fit (bench/deform.py: a one-GC square bar, creature_0000 with 10
+GCs and the ant with 15 GCs, small preset, 1500 steps; the newest in its fit cache: run
+`make bench-deform` first). Per shape
 and resolution R (grid over [-1, 1]^3):
 - dense: the network at every grid point of the box for every GC, dense_evals = R^3 x n_gcs.
   Timed where dense_evals <= --dense-max-evals; elsewhere dense_s is the same shape's seconds
@@ -35,17 +36,13 @@ import argparse
 import dataclasses
 import json
 import os
-import sys
 import time
 from pathlib import Path
 
-import numpy as np
+from bench._harness import Bench, latest_fit, load_1min
+from bench._tables import count, rows_table
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-sys.path.insert(0, str(ROOT / "bench"))
-from bench._harness import Bench, load_1min  # noqa: E402
-
 SHAPES = {"bar": "bar", "creature": "creature_0000", "ant": "ant"}   # label -> fitted name
 EDITED_GC = {"bar": "bar", "creature": "leg_fl", "ant": "leg_l1"}
 TARGET_R = 256
@@ -61,6 +58,8 @@ def chamfer(a, b, n: int = 30000, seed: int = 0, seed_b: int | None = None) -> f
 
 def faces_differing(a, b) -> int:
     """Faces (as their three vertex positions) of either mesh that the other lacks."""
+    import numpy as np
+
     def keys(m):
         v = np.ascontiguousarray(m.vertices[m.faces].reshape(len(m.faces), 9))
         return v.view(np.dtype((np.void, 72))).ravel()
@@ -113,8 +112,10 @@ def scaled(gc, factor: float):
 
 def run_shape(label: str, module, resolutions, dense_max_evals: float, rate_resolution: int,
               incremental_max: int, decoder: dict, repeats: int) -> list[dict]:
+    import numpy as np
+
     from ngc_gen.eval import mesh_chamfer
-    from ngc_gen.extract import FieldCache, extract_mesh
+    from ngc_gen.extract import extract_mesh
     from ngc_gen.shape import Shape, recorded_gcs
 
     meta = next(m for m in module.hparams.meta["shapes"] if m["name"] == SHAPES[label])
@@ -176,22 +177,30 @@ def run_shape(label: str, module, resolutions, dense_max_evals: float, rate_reso
         if R > incremental_max:
             print_case(case)
             continue
-        # incremental: one GC edited, the others from the cache
-        cache = FieldCache()
-        extract_mesh(gcs, fn, R, cache=cache, gc_keys=[gc_key(g, c) for g, c in zip(gcs, codes)])
-        j = [g.name for g in gcs].index(EDITED_GC[label])
-        edited = list(gcs)
-        edited[j] = scaled(gcs[j], 1.1)
-        keys = [gc_key(g, c) for g, c in zip(edited, codes)]
-        inc, s = timed(lambda: extract_mesh(edited, fn, R, cache=cache, gc_keys=keys))
-        full, s_full = timed(lambda: extract_mesh(edited, fn, R))
-        case.update(incremental_s=s, incremental_evals=inc.stats["n_network_evals"],
-                    full_after_edit_s=s_full, full_after_edit_evals=full.stats["n_network_evals"],
-                    incremental_identical=bool(
-                        np.array_equal(inc.mesh.vertices, full.mesh.vertices)
-                        and np.array_equal(inc.mesh.faces, full.mesh.faces)))
+        case.update(incremental(label, gcs, codes, fn, R))
         print_case(case)
     return cases
+
+
+def incremental(label: str, gcs, codes, fn, R: int) -> dict:
+    """One GC edited (scaled by 1.1), the others' values from the cache: its extraction's
+    seconds and evaluations against a full extraction of the edited shape."""
+    import numpy as np
+
+    from ngc_gen.extract import FieldCache, extract_mesh
+
+    cache = FieldCache()
+    extract_mesh(gcs, fn, R, cache=cache, gc_keys=[gc_key(g, c) for g, c in zip(gcs, codes)])
+    j = [g.name for g in gcs].index(EDITED_GC[label])
+    edited = list(gcs)
+    edited[j] = scaled(gcs[j], 1.1)
+    keys = [gc_key(g, c) for g, c in zip(edited, codes)]
+    inc, s = timed(lambda: extract_mesh(edited, fn, R, cache=cache, gc_keys=keys))
+    full, s_full = timed(lambda: extract_mesh(edited, fn, R))
+    return dict(incremental_s=s, incremental_evals=inc.stats["n_network_evals"],
+                full_after_edit_s=s_full, full_after_edit_evals=full.stats["n_network_evals"],
+                incremental_identical=bool(np.array_equal(inc.mesh.vertices, full.mesh.vertices)
+                                           and np.array_equal(inc.mesh.faces, full.mesh.faces)))
 
 
 def print_case(case: dict) -> None:
@@ -230,13 +239,13 @@ def main():
 
     import torch
 
-    from deform import fitted
     from ngc_gen.extract import SparseSettings
     from ngc_gen.lit.checkpoint import load_autodecoder
 
     torch.set_num_threads(args.threads)
-    fit = fitted(args.steps, refit=False)
-    module = load_autodecoder(fit["checkpoint"])
+    fit = latest_fit("deform", {"trainer.max_steps": args.steps})   # bench/deform.py's fit
+    checkpoint = str(fit.run_dir / "checkpoints/last.ckpt")
+    module = load_autodecoder(checkpoint)
     decoder = decoder_rate(module, args.threads)
     print(f"decoder: {decoder['rows_per_s_wall']:,.0f} rows/s wall ({args.threads} threads), "
           f"{decoder['rows_per_cpu_s_1_thread']:,.0f} rows per CPU second (1 thread), load "
@@ -249,8 +258,8 @@ def main():
     at = {c["shape"]: c for c in cases if c["resolution"] == TARGET_R}
     res = {
         "decoder": decoder,
-        "settings": {"bound": 1.0, "checkpoint": os.path.relpath(fit["checkpoint"], ROOT),
-                     "fit_steps": fit["steps"],
+        "settings": {"bound": 1.0, "checkpoint": os.path.relpath(checkpoint, ROOT),
+                     "fit_steps": fit.info["steps"],
                      "omp_wait_policy": os.environ.get("OMP_WAIT_POLICY"),
                      "sparse": dataclasses.asdict(SparseSettings()),
                      "dense_max_evals": args.dense_max_evals, "repeats": args.repeats,
@@ -275,6 +284,44 @@ def main():
     print("targets at 256:", json.dumps(res["targets"]))
     bench.write(res, path=args.out)
     print(f"saved {args.out.relative_to(ROOT) if args.out.is_relative_to(ROOT) else args.out}")
+
+
+# ---- the table (bench/README.md) and the headline (README.md), from the result ----------
+def table(r: dict) -> str:
+    rows = []
+    for c in r["cases"]:
+        dense = "-" if c["dense_s"] is None else \
+            f"{c['dense_s']:.0f}*" if c["dense_s_extrapolated"] else f"{c['dense_s']:.1f}"
+        cd = "0 (identical)" if c["identical_mesh"] else f"{c['cd_sparse_vs_prefiltered']:.1e}"
+        edit = (f"{c['incremental_s']:.2f} ({c['full_after_edit_s']:.2f})"
+                if "incremental_s" in c else "-")
+        rows.append([f"{c['name']} ({c['n_gcs']})", c["resolution"], count(c["dense_evals"]),
+                     count(c["prefiltered_evals"]),
+                     f"{count(c['sparse_evals'])} (1/{1 / c['sparse_over_dense_evals']:.0f})",
+                     dense, f"{c['prefiltered_s']:.2f}",
+                     f"{c['sparse_s']:.2f} ({c['sparse_cpu_s']:.2f})", cd, edit])
+    lines = rows_table(["shape (GCs)", "R", "dense evals", "prefiltered evals", "sparse evals",
+                        "dense s", "prefiltered s", "sparse s (CPU s)",
+                        "CD sparse vs prefiltered", "edit of one GC s (full s)"], rows)
+    d, t = r["decoder"], r["targets"]
+    met = lambda v: "met" if v else "not met"  # noqa: E731
+    at = t["at_resolution"]
+    lines += ["", f"* = extrapolated from the same shape's measured time per evaluation. "
+                  f"Decoder in the same run: {d['rows_per_s_wall'] / 1e3:.0f}k rows/s wall, "
+                  f"{d['rows_per_cpu_s_1_thread'] / 1e3:.0f}k rows per CPU second on one thread. "
+                  f"Targets at {at}: sparse evaluations <= 1/30 of dense "
+                  f"{met(all(t['sparse_evals_le_dense_over_30'].values()))}; CD < 1e-6 "
+                  f"{met(all(t['cd_lt_1e-6'].values()))}; creature sparse wall time <= 1 s "
+                  f"{met(t['creature_sparse_s_le_1'])}."]
+    return "\n".join(lines)
+
+
+def headline(r):
+    c = next(c for c in r["cases"] if c["shape"] == "creature" and c["resolution"] == 256)
+    return (f"creature at 256^3: 1/{1 / c['sparse_over_dense_evals']:.0f} of the dense "
+            f"evaluations, {c['sparse_s']:.2f} s, "
+            + ("mesh identical to the reference" if c["identical_mesh"] else
+               f"{c['faces_differing']} faces differ from the reference"))
 
 
 if __name__ == "__main__":

@@ -1,9 +1,9 @@
 """Fitting benchmark (paper Table 1 form): NGC (multi-GC), NGC (one GC) and DeepSDF trained on
 the same shapes with the same number of steps, batch size and samples per shape.
 
-    python bench/fit.py [--steps 1500] [--resolution 128]
-    python bench/fit.py --tag pe4 --set model.decoder.pe_frequencies=4 --methods ngc --limit 3
-    python bench/fit.py --deepsdf-long 20000      # DeepSDF's recipe, long (resumable)
+    python -m bench.fit [--steps 1500] [--resolution 128]
+    python -m bench.fit --tag pe4 --set model.decoder.pe_frequencies=4 --methods ngc --limit 3
+    python -m bench.fit --deepsdf-long 20000      # DeepSDF's recipe, long (resumable)
 
 Writes bench/results/fit.json ({methods: {ngc, ngc_1gc, deepsdf: {cd, hd, emd, nc, fscore,
 fragments, gt_fragments, train_s, load}}, shapes, junctions, ..., machine}; nc = mean normal
@@ -42,17 +42,16 @@ from __future__ import annotations
 import argparse
 import json
 import shutil
-import sys
 import time
 from pathlib import Path
 
-import numpy as np
+from bench._harness import Bench, load_avg
+from bench._tables import rows_table, sci
+from ngc_gen.data.atomic import atomic_write_text
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-from bench._harness import Bench, load_avg, write_atomic  # noqa: E402
-from bench.report import LABELS  # noqa: E402  (the table's method names)
 
+LABELS = {"ngc": "NGC, multi-GC", "ngc_1gc": "NGC, one GC", "deepsdf": "DeepSDF"}
 METHODS = {  # name -> (data config, model config, extra overrides)
     "ngc": ("fitbench", "small", []),
     "ngc_1gc": ("fitbench_1gc", "small", []),
@@ -124,6 +123,8 @@ def deepsdf_long(steps: int, resolution: int, batch_size: int, ngc_seconds: floa
     """DeepSDF's own recipe (model=deepsdf) trained for `steps` in run_root/deepsdf_long,
     resumed if it is there; its numbers at the end (or where it was stopped) and at the last
     wall-time mark not past `ngc_seconds` (the NGC run's training time)."""
+    import numpy as np
+
     import lightning as L
     import torch
 
@@ -181,6 +182,7 @@ def ceiling(resolution: int) -> dict:
     """What the metrics allow at this grid: every shape's exact signed distance (the training
     labels' own) meshed by the same marching cubes and scored like a fit. No fit can beat it
     by much: thin parts under a grid cell break up, and creases are rounded."""
+    import numpy as np
     import trimesh
 
     from bench._seams import exact_sdf_mesh
@@ -208,6 +210,7 @@ def ceiling(resolution: int) -> dict:
 
 
 def prefilter_check(checkpoint: str, resolution: int) -> dict:
+    import numpy as np
     import torch
 
     from ngc_gen.shape import autodecoder_mesh
@@ -257,6 +260,8 @@ def loss_last_fifth(clock_csv: Path, steps: int) -> list[float] | None:
     """[first, last]: the mean training loss of the first and of the last quarter of the
     clock rows over the last fifth of `steps` (bench/runs/fit/.../clock.csv), so the result
     says whether the loss still fell at the end; None with too few rows."""
+    import numpy as np
+
     if not clock_csv.is_file():
         return None
     rows = np.loadtxt(clock_csv, delimiter=",", ndmin=2)
@@ -286,7 +291,7 @@ def rescore(run_dir: Path, resolution: int) -> dict:
     coarse = COARSE if cfg.model.decoder.get("_target_", "").endswith("DeepSDFDecoder") else {}
     metrics.update(score_checkpoint(cfg, checkpoint, run_dir / "meshes", **coarse),
                    checkpoint=str(checkpoint))
-    write_atomic(metrics_path, json.dumps(metrics, indent=2))
+    atomic_write_text(metrics_path, json.dumps(metrics, indent=2))
     return metrics
 
 
@@ -316,7 +321,7 @@ def method_summary(metrics: dict) -> dict:
     return out
 
 
-def main():
+def parse_args():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--steps", type=int, default=None,
                     help=f"training steps (joint fits: {JOINT_STEPS}; --junctions: the fit recipe's)")
@@ -341,7 +346,11 @@ def main():
                     help="--junctions: only these meshes (ant, or ant_auto / cow_rig)")
     ap.add_argument("--fit-workers", type=int, default=2, help="--junctions: fits side by side")
     ap.add_argument("--refit", action="store_true", help="--junctions: fit again, not cached")
-    args = ap.parse_args()
+    return ap.parse_args()
+
+
+def main():
+    args = parse_args()
     if args.junctions:
         return junctions_main(args)
     args.steps = args.steps or JOINT_STEPS
@@ -397,13 +406,11 @@ def main():
     if args.tag is None and not args.deepsdf_long and (
             args.rescore or res.get("ceiling", {}).get("resolution") != args.resolution):
         res["ceiling"] = ceiling(args.resolution)
-    from bench.report import table
-
     if old.exists() and args.tag is None:   # the seams benchmark's entries (--junctions)
         res["junctions"] = earlier().get("junctions", [])
     bench.write(res)
     picture(res, out / "fit.png", run_root)
-    print(table("fit", earlier()))
+    print(table(earlier()))
     if "prefilter" in res:
         p = res["prefilter"]
         print(f"prefilter on {p['shape']} at {p['resolution']}^3: identical grid "
@@ -415,7 +422,6 @@ def main():
 def junctions_main(args) -> None:
     """--junctions: fit what is missing, merge the entries into fit.json, draw the close-ups."""
     from bench import _seams as junctions
-    from bench.report import fit_junctions
 
     bench = Bench("fit")
     for r in args.recipes:
@@ -429,6 +435,128 @@ def junctions_main(args) -> None:
     junctions.picture(res["junctions"], {**junctions.labelled_runs(), **runs},
                       bench.path.parent / "fit_junctions.png")
     print("\n".join(fit_junctions(res["junctions"])))
+
+
+# ---- the table (bench/README.md) and the headline (README.md), from the result ----------
+def _gt_fragments(res: dict):
+    counts = {m.get("gt_fragments") for m in res["methods"].values()} - {None}
+    return counts.pop() if len(counts) == 1 else "-"
+
+
+def _long_status(long: dict) -> str:
+    done = "it ran its whole schedule" if long["steps"] >= long["max_steps"] else \
+        f"it has not finished its schedule ({long['steps']} of {long['max_steps']} steps)"
+    fall = long.get("loss_last_fifth")
+    if not fall:
+        return done
+    a, b = fall
+    return (f"{done}; its training loss fell {100 * (a - b) / a:.0f}% over the last fifth of "
+            f"the steps ({a:.2e} -> {b:.2e})")
+
+
+def table(res: dict) -> str:
+    lines = ["| method | CD (x1e-4) | HD | EMD | NC | F@0.01 | fragments | train time (s) |",
+             "|---|---|---|---|---|---|---|---|"]
+    for name, label in LABELS.items():
+        if name not in res["methods"]:
+            continue
+        m = res["methods"][name]
+        lines.append(f"| {label} | {m['cd'] * 1e4:.2f} | {m['hd']:.4f} | {m['emd']:.4f} | "
+                     f"{m.get('nc', float('nan')):.3f} | {m.get('fscore', float('nan')):.3f} | "
+                     f"{m.get('fragments', '-')} | {m['train_s']:.0f} |")
+    long = res.get("deepsdf_long")
+    if long:
+        for label, m in (("DeepSDF, own recipe, at NGC's time", long.get("at_ngc_time")),
+                         (f"DeepSDF, own recipe, {long['steps']} steps", long)):
+            if m:
+                lines.append(f"| {label} | {m['cd'] * 1e4:.2f} | {m['hd']:.4f} | "
+                             f"{m['emd']:.4f} | {m['nc']:.3f} | {m['fscore']:.3f} | "
+                             f"{m['fragments']} | {m['train_s']:.0f} |")
+    r = (res["methods"]["ngc"]["cd"] / res["methods"]["deepsdf"]["cd"]
+         if {"ngc", "deepsdf"} <= set(res["methods"]) else float("nan"))
+    lines.append("")
+    lines.append(f"Mean over {len(res['shapes'])} shapes ({', '.join(res['shapes'])}); "
+                 f"{res['steps']} steps of {res['batch_size']} samples each, small presets "
+                 f"(~47k parameters each), meshes at {res['resolution']}^3. NGC CD / DeepSDF CD "
+                 f"= {r:.2f} (paper: 0.53). Fragments of the ground truth: "
+                 f"{_gt_fragments(res)}.")
+    if "ceiling" in res:
+        c = res["ceiling"]["mean"]
+        lines.append("")
+        lines.append(f"Ceiling at {res['ceiling']['resolution']}^3 (each shape's exact signed "
+                     f"distance meshed and scored the same way): CD {c['cd'] * 1e4:.2f}e-4, NC "
+                     f"{c['nc']:.3f}, F@0.01 {c['fscore']:.3f}, fragments {c['fragments']}.")
+    if long and "ngc" in res["methods"]:
+        lines.append("")
+        lines.append(f"DeepSDF, own recipe: lr halved every quarter of {long['max_steps']} "
+                     f"steps; stopped at step {long['steps']}, meshes at "
+                     f"{long.get('resolution', res['resolution'])}^3 (coarse-to-fine). NGC CD / "
+                     f"its CD = {res['methods']['ngc']['cd'] / long['cd']:.2f} (paper: 0.53); "
+                     f"{_long_status(long)}.")
+    p = res.get("prefilter")
+    if p:
+        lines.append("")
+        lines.append(f"GC prefilter on the fitted {p['shape']} at {p['resolution']}^3: grids "
+                     f"identical {p['identical_grid']}, meshes identical {p['identical_mesh']}; "
+                     f"{p['eval_ratio']:.0f}x fewer network evaluations than dense.")
+    if res.get("junctions"):
+        lines += ["", *fit_junctions(res["junctions"],
+                                     res.get("ceiling", {}).get("per_shape", {}))]
+    return "\n".join(lines)
+
+
+JUNCTION_TARGET = 1.3   # junction error / elsewhere error, distance and normal
+
+
+def fit_junctions(rows: list[dict], ceiling: dict | None = None) -> list[str]:
+    """fit.json's `junctions`: per shape and run, the fit's error where GCs meet / elsewhere
+    (distance, normal angle), extra pieces, NC and F@0.01, beside the ceiling's junction
+    ratios (the shape's exact SDF on the same grid, where measured); then how many meet the
+    targets."""
+    def r(x):
+        return "-" if x is None or x != x else f"{x:.2f}"
+
+    own = {(j["name"], j["gcs"]): j["ceiling"] for j in rows if j.get("ceiling")}
+
+    def ceil(j):   # the mesh's own ceiling (bench/_seams.py), else the fitbench's by name
+        c = own.get((j["name"], j["gcs"])) or (ceiling or {}).get(j["name"], {})
+        if "junction_ratio_dist" not in c:
+            return "-"
+        return f"{r(c['junction_ratio_dist'])} / {r(c['junction_ratio_normal'])}"
+
+    out = rows_table(["shape", "GCs", "recipe", "junction / elsewhere: distance", "normal",
+                      "extra pieces", "NC", "F@0.01", "ceiling: distance / normal"],
+                     [[j["name"], j["gcs"], j["recipe"], r(j["junction_ratio_dist"]),
+                       r(j["junction_ratio_normal"]), j["extra_pieces"], f"{j['nc']:.3f}",
+                       f"{j['fscore']:.3f}", ceil(j)] for j in rows])
+    for recipe in dict.fromkeys(j["recipe"] for j in rows):
+        mine = [j for j in rows if j["recipe"] == recipe]
+        ratios = [max(j["junction_ratio_dist"], j["junction_ratio_normal"]) for j in mine
+                  if j["junction_ratio_dist"] is not None]   # None: no junction
+        met = sum(x <= JUNCTION_TARGET for x in ratios)
+        capped = [j for j in mine if own.get((j["name"], j["gcs"]))
+                  and j["junction_ratio_dist"] is not None
+                  and own[(j["name"], j["gcs"])]["junction_ratio_dist"] is not None]
+        within = sum(j["junction_ratio_dist"] <= own[(j["name"], j["gcs"])]["junction_ratio_dist"]
+                     and j["junction_ratio_normal"]
+                     <= own[(j["name"], j["gcs"])]["junction_ratio_normal"] for j in capped)
+        out.append("")
+        out.append(f"{recipe}: junction / elsewhere <= {JUNCTION_TARGET} (distance and normal) "
+                   f"on {met} of {len(ratios)} meshes"
+                   + (f", worst {max(ratios):.2f}" if ratios else "")
+                   + (f"; at or below its mesh's ceiling on {within} of {len(capped)}"
+                      if capped else "")
+                   + f"; {sum(j['extra_pieces'] for j in mine)} extra pieces; NC >= 0.95 on "
+                   f"{sum(j['nc'] >= 0.95 for j in mine)}, F >= 0.95 on "
+                   f"{sum(j['fscore'] >= 0.95 for j in mine)} of {len(mine)}.")
+    return out
+
+
+def headline(r):
+    n, d = r["methods"]["ngc"], r["methods"]["deepsdf"]
+    return (f"{len(r['shapes'])} shapes, {r['steps']} steps: NGC CD {sci(n['cd'], -4)}, NC "
+            f"{n['nc']:.3f}, F {n['fscore']:.3f}; DeepSDF, same budget: {sci(d['cd'], -4)}, "
+            f"{d['nc']:.3f}, {d['fscore']:.3f}")
 
 
 if __name__ == "__main__":

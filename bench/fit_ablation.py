@@ -1,9 +1,9 @@
-"""Fit-quality ablation table (issue 12): the screening runs of `bench/fit.py --tag` side by side.
+"""Fit-quality ablation table: the screening runs of `bench/fit.py --tag` side by side.
 
-    python bench/fit.py --tag lr1e2 --methods ngc --threads 1 --set model.lr=1e-2   # one screen
-    python bench/fit.py --tag lr1e2 --methods ngc --rescore                         # new metrics
-    python bench/fit_ablation.py [TAG ...]                                          # the table
-    python bench/fit_ablation.py --picture baseline default   # fit_before_after.png, one camera
+    python -m bench.fit --tag lr1e2 --methods ngc --threads 1 --set model.lr=1e-2   # one screen
+    python -m bench.fit --tag lr1e2 --methods ngc --rescore                         # new metrics
+    python -m bench.fit_ablation [TAG ...]                                          # the table
+    python -m bench.fit_ablation --picture baseline default   # fit_before_after.png, one camera
 
 Reads bench/runs/fit/<tag>/fit.json (every tag, or those given; `baseline` is the default recipe)
 and bench/results/fit.json's ceiling, and writes bench/results/fit_ablation.json ({ceiling, runs:
@@ -20,9 +20,9 @@ import json
 import sys
 from pathlib import Path
 
+from bench._harness import Bench
+
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-from bench._harness import Bench  # noqa: E402
 RUNS = ROOT / "bench/runs/fit"
 OUT = ROOT / "bench/results"
 
@@ -49,7 +49,7 @@ def run_meshes(tag: str) -> Path:
     bench/runs/fit/ngc, what bench/results/fit.json reports)."""
     d = RUNS / "ngc" / "meshes" if tag == "default" else RUNS / tag / "ngc" / "meshes"
     if not d.is_dir():
-        raise SystemExit(f"no meshes in {d}: run `python bench/fit.py --tag {tag} ...` first")
+        raise SystemExit(f"no meshes in {d}: run `python -m bench.fit --tag {tag} ...` first")
     return d
 
 
@@ -81,19 +81,51 @@ def main():
     args = ap.parse_args()
     if args.picture:
         return picture(*args.picture, args.shapes, OUT / "fit_before_after.png")
-    from bench.report import table
-
     bench = Bench("fit_ablation")
     res = {"runs": collect(args.tags)}
     if not res["runs"]:   # a fresh checkout: keep the committed table rather than empty it
-        print(f"no screening runs in {RUNS}/*/fit.json (`python bench/fit.py --tag TAG ...` "
+        print(f"no screening runs in {RUNS}/*/fit.json (`python -m bench.fit --tag TAG ...` "
               f"makes one): {bench.path} left as it is")
         return 0
     fit = OUT / "fit.json"
     if fit.exists():
         res["ceiling"] = json.loads(fit.read_text()).get("ceiling")
-    print(table("fit_ablation", res))
+    print(table(res))
     print(f"saved {bench.write(res)}")
+
+
+# ---- the table (bench/README.md) and the headline (README.md), from the result ----------
+def table(res: dict) -> str:
+    lines = ["| run | overrides | grid | CD x1e-4 | NC | F@0.01 | fragments | HD | train_s "
+             "| load |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
+    c = res.get("ceiling")
+    if c:
+        m = c["mean"]
+        lines.append(f"| ceiling (exact SDF) | | {c['resolution']} | {m['cd'] * 1e4:.2f} | "
+                     f"{m['nc']:.3f} | {m['fscore']:.3f} | {m['fragments']} | {m['hd']:.4f} | "
+                     "| |")
+    order = sorted(res["runs"].items(),
+                   key=lambda kv: (not kv[0].startswith("baseline"), -kv[1]["nc"]))
+    for tag, r in order:
+        load = r.get("load") or []
+        load_s = f"{load[0]:.1f}-{load[3]:.1f}" if len(load) >= 4 else ""
+        mark = "" if r.get("surface_metrics") else " \u2020"
+        lines.append(f"| {tag} | {' '.join(r.get('overrides') or [])} | {r['resolution']} | "
+                     f"{r['cd'] * 1e4:.2f} | "
+                     f"{r['nc']:.3f}{mark} | {r['fscore']:.3f}{mark} | {r['fragments']} | "
+                     f"{r['hd']:.4f} | "
+                     f"{r['train_s']:.0f} | {load_s} |")
+    return "\n".join(lines)
+
+
+def headline(r):
+    runs = r["runs"]
+    best = max(runs, key=lambda k: runs[k]["fscore"])
+    b = runs["baseline"]
+    return (f"{len(runs)} recipes screened; best `{best}` against `baseline`: F {b['fscore']:.3f} "
+            f"-> {runs[best]['fscore']:.3f}, fragments {b['fragments']} -> "
+            f"{runs[best]['fragments']}")
 
 
 if __name__ == "__main__":

@@ -2,7 +2,7 @@
 training creatures, then MMD-CD, COV-CD and 1-NNA-CD of generated shapes against held-out
 creatures never seen in training.
 
-    python bench/generate.py [--n 64] [--shape-latent-steps N] [--diffusion-steps N]
+    python -m bench.generate [--n 64] [--shape-latent-steps N] [--diffusion-steps N]
 
 The recipe (steps, learning rates) is conf/experiment/generate.yaml's, the one make demo runs.
 
@@ -24,108 +24,21 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import sys
 import time
 from pathlib import Path
 
-import numpy as np
+from bench._generation import (RUNS, clouds, compose_batch_size, mesh_set, recipe_args,
+                               train)
+from bench._harness import Bench
+from bench._tables import pct, sci
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-from bench._harness import (Bench, FitCache, config_recipe, dataset_identity,  # noqa: E402
-                            link_latest)
-RUNS = ROOT / "bench/runs/generate"
 RESULTS = ROOT / "bench/results"
 
 
-def overrides(args) -> list[str]:
-    # the recipe is conf/experiment/generate.yaml's (make demo runs the same one)
-    return ["experiment=generate", "data=creatures", f"data.n={args.n}",
-            f"data.test_fraction={args.test_fraction}", f"data.seed={args.seed}",
-            f"prepare.n_samples={args.samples}",
-            f"prepare.cache_dir={ROOT}/.cache/prepared/creatures_gen{args.samples // 1000}k",
-            *([f"batch_size={args.batch_size}"] if args.batch_size else []),
-            "trainer.enable_progress_bar=false", "logger=csv", f"seed={args.seed}"]
-
-
-def compose_batch_size() -> int:
-    """The recipe's batch size (conf/experiment/generate.yaml)."""
-    from ngc_gen.app.runtime.config import compose_config
-
-    return int(compose_config(overrides=["experiment=generate"]).batch_size)
-
-
-def train(args) -> dict:
-    """The recipe's shape-latent and diffusion runs from the bench's fit cache
-    (.cache/bench/fits/generate), each keyed by its stage's whole config and the dataset's
-    identity (the diffusion config names its shape-latent run, so a new shape-latent fit means
-    a new diffusion fit), else trained now; --refit trains both again. bench/runs/generate/
-    shape_latent and diffusion link to them. -> {shape_latent, diffusion (their metrics),
-    shape_latent_dir, diffusion_dir, shape_latent_stage_s (when trained in this call)}."""
-    from omegaconf import open_dict
-
-    from ngc_gen.app.runtime.config import compose_config
-    from ngc_gen.app.stages.train_diffusion import run_diffusion
-    from ngc_gen.app.stages.train_shape_latent import run_shape_latent
-
-    cache = FitCache("generate")
-
-    def stage(name: str, cfg, run):
-        def fit(run_dir: Path) -> dict:
-            with open_dict(cfg):
-                cfg.run_dir = str(run_dir)
-            t0 = time.perf_counter()
-            run(cfg)
-            return {"stage_s": time.perf_counter() - t0, "label": name}
-
-        recipe = {"stage": name, "config": config_recipe(cfg), "data": dataset_identity(cfg)}
-        f = cache.get(recipe, fit, refit=getattr(args, "refit", False))
-        link_latest(RUNS / name, f.run_dir)
-        return f
-
-    times = {}
-    sl = stage("shape_latent", compose_config(overrides=overrides(args) + [
-        "stage=shape_latent", "shape_latent.preview=0"] + (
-            [f"shape_latent.max_steps={args.shape_latent_steps}"] if args.shape_latent_steps
-            else [])), run_shape_latent)
-    if not sl.reused:
-        times["shape_latent_stage_s"] = sl.info["stage_s"]
-    diff = stage("diffusion", compose_config(overrides=overrides(args) + [
-        "stage=diffusion", f"shape_latent_run={sl.run_dir}"] + (
-            [f"diffusion.max_steps={args.diffusion_steps}"] if args.diffusion_steps else [])),
-        run_diffusion)
-    sl_dir, diff_dir = sl.run_dir, diff.run_dir
-    sl = json.loads((sl_dir / "metrics.json").read_text())
-    diff = json.loads((diff_dir / "metrics.json").read_text())
-    return {"shape_latent": sl, "diffusion": diff, "shape_latent_dir": sl_dir,
-            "diffusion_dir": diff_dir, **times}
-
-
-def mesh_set(gen, latents, names, out_dir, resolution):
-    """Decode and mesh latents like sample.py does; returns (meshes, seconds per mesh)."""
-    import trimesh
-
-    from ngc_gen.app.runtime.outputs import extract_and_write
-    from ngc_gen.generate.shapes import decode_shapes
-
-    shapes = decode_shapes(gen.shape_latent, latents, names)
-    written, secs = extract_and_write(gen, shapes, out_dir, resolution)
-    return [trimesh.load(w.mesh, process=False) for w in written], secs
-
-
-def clouds(meshes, n_points: int, seed: int):
-    """(k, n, 3) surface clouds; an empty mesh counts as a cloud collapsed at the origin."""
-    from ngc_gen.eval import sample_point_clouds
-    from ngc_gen.eval.point_samples import is_empty
-
-    out = np.zeros((len(meshes), n_points, 3))
-    ok = [i for i, m in enumerate(meshes) if not is_empty(m)]
-    if ok:
-        out[ok] = sample_point_clouds([meshes[i] for i in ok], n_points, seed)
-    return out, len(meshes) - len(ok)
-
-
 def render(meshes, names, path: Path, cols: int = 4) -> None:
+    import numpy as np
+
     os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
     import pyvista as pv
 
@@ -145,24 +58,7 @@ def render(meshes, names, path: Path, cols: int = 4) -> None:
     p.close()
 
 
-def recipe_args(ap: argparse.ArgumentParser) -> None:
-    """The training recipe's options (dataset, samples, steps), shared with bench/condition.py,
-    which reuses these runs."""
-    ap.add_argument("--n", type=int, default=64, help="creatures in the dataset")
-    ap.add_argument("--test-fraction", type=float, default=0.25)
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--samples", type=int, default=50_000, help="prepare.n_samples per shape")
-    ap.add_argument("--batch-size", type=int, default=None,
-                    help="default: conf/experiment/generate.yaml's")
-    ap.add_argument("--shape-latent-steps", type=int, default=None,
-                    help="default: conf/experiment/generate.yaml's")
-    ap.add_argument("--diffusion-steps", type=int, default=None,
-                    help="default: conf/experiment/generate.yaml's")
-    ap.add_argument("--refit", action="store_true",
-                    help="train the shape-latent and diffusion runs again even if cached")
-
-
-def main():
+def parse_args():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     recipe_args(ap)
     ap.add_argument("--resolution", type=int, default=128)
@@ -175,7 +71,60 @@ def main():
     ap.add_argument("--threads", type=int, default=1,
                     help="torch threads (on a busy 2-core machine one thread trained 12x faster "
                          "than two: 59 vs 725 ms a step, measured)")
-    args = ap.parse_args()
+    return ap.parse_args()
+
+
+def score(sets: dict, ref, d_rr, points: int, res: dict) -> None:
+    """Each row's metrics against the reference clouds `ref` (pairwise distances `d_rr`), the
+    mean over its sets, into `res` (with per_set, n_sets and empty_meshes)."""
+    import numpy as np
+
+    from ngc_gen.eval import generation_metrics
+
+    for key, groups in sets.items():
+        per, empty = [], 0
+        for meshes in groups:
+            pts, e = clouds(meshes, points, 0)
+            per.append(generation_metrics(pts, ref, ref_ref=d_rr))
+            empty += e
+        res[key] = {k: float(np.mean([p[k] for p in per])) for k in per[0]}
+        res["per_set"][key], res["n_sets"][key], res["empty_meshes"][key] = per, len(per), empty
+
+
+def sample_sets(gen, args, train_meshes: list, n_ref: int, split: dict):
+    """The rows' sets of n_ref meshes: generated and noise shapes (disjoint sets), training
+    meshes and their decodings (random subsets, distinct shapes within one). -> (generate's
+    record, generated names, generated meshes, {row: [set of meshes]})."""
+    import numpy as np
+    import trimesh
+
+    from ngc_gen.app.stages.sample import generate
+
+    n_gen = args.sets * n_ref
+    sampled = generate(gen, RUNS / "samples", n=n_gen, seed=args.seed,
+                       resolution=args.resolution)
+    gen_names = sorted(sampled["shapes"])
+    gen_meshes = [trimesh.load(RUNS / "samples" / f"{n}.ply", process=False) for n in gen_names]
+    noise_lat = gen.noise_latents(n_gen, seed=args.seed + 1, kind="fitted")
+    noise_meshes, _ = mesh_set(gen, noise_lat, [f"noise_{i:03d}" for i in range(n_gen)],
+                               RUNS / "noise", args.resolution)
+    # the same training subsets for the meshes and their decodings
+    rng = np.random.default_rng(args.seed)
+    train_sets = [rng.choice(len(train_meshes), n_ref, replace=False)
+                  for _ in range(args.train_subsets)]
+    sets = {"generated": [gen_meshes[i:i + n_ref] for i in range(0, n_gen, n_ref)],
+            "noise": [noise_meshes[i:i + n_ref] for i in range(0, n_gen, n_ref)],
+            "train_set": [[train_meshes[i] for i in s] for s in train_sets]}
+    if not args.no_recon:
+        assert gen.names == split["train"]
+        recon, _ = mesh_set(gen, gen.train_latents, gen.names, RUNS / "train_recon",
+                            args.resolution)
+        sets["train_recon"] = [[recon[i] for i in s] for s in train_sets]
+    return sampled, gen_names, gen_meshes, sets
+
+
+def main():
+    args = parse_args()
     bench = Bench("generate")  # timings need an idle machine: its load is recorded
 
     import torch
@@ -185,8 +134,7 @@ def main():
 
     from ngc_gen.app.runtime.config import repo_root
     from ngc_gen.data.datasets import Creatures
-    from ngc_gen.eval import generation_metrics, pairwise_chamfer
-    from ngc_gen.app.stages.sample import generate
+    from ngc_gen.eval import pairwise_chamfer
     from ngc_gen.generate import load_generator
 
     t_start = time.perf_counter()
@@ -202,28 +150,7 @@ def main():
 
     runs = train(args)
     gen = load_generator(runs["diffusion_dir"])
-    n_gen = args.sets * n_ref
-
-    sampled = generate(gen, RUNS / "samples", n=n_gen, seed=args.seed,
-                       resolution=args.resolution)
-    gen_names = sorted(sampled["shapes"])
-    gen_meshes = [trimesh.load(RUNS / "samples" / f"{n}.ply", process=False) for n in gen_names]
-    noise_lat = gen.noise_latents(n_gen, seed=args.seed + 1, kind="fitted")
-    noise_meshes, _ = mesh_set(gen, noise_lat, [f"noise_{i:03d}" for i in range(n_gen)],
-                               RUNS / "noise", args.resolution)
-    # training shapes: random subsets of n_ref (distinct shapes within a subset), the same for
-    # the meshes and their decodings
-    rng = np.random.default_rng(args.seed)
-    train_sets = [rng.choice(len(train_meshes), n_ref, replace=False)
-                  for _ in range(args.train_subsets)]
-    sets = {"generated": [gen_meshes[i:i + n_ref] for i in range(0, n_gen, n_ref)],
-            "noise": [noise_meshes[i:i + n_ref] for i in range(0, n_gen, n_ref)],
-            "train_set": [[train_meshes[i] for i in s] for s in train_sets]}
-    if not args.no_recon:
-        assert gen.names == split["train"]
-        recon, _ = mesh_set(gen, gen.train_latents, gen.names, RUNS / "train_recon",
-                            args.resolution)
-        sets["train_recon"] = [[recon[i] for i in s] for s in train_sets]
+    sampled, gen_names, gen_meshes, sets = sample_sets(gen, args, train_meshes, n_ref, split)
 
     ref, _ = clouds(ref_meshes, args.points, 0)
     d_rr = pairwise_chamfer(ref)
@@ -243,14 +170,7 @@ def main():
            "noise_is": "latents ~ N(mean, std^2) per dimension of the trained latents, decoded "
                        "with no diffusion",
            "n_sets": {}, "per_set": {}, "empty_meshes": {}}
-    for key, groups in sets.items():
-        per, empty = [], 0
-        for meshes in groups:
-            pts, e = clouds(meshes, args.points, 0)
-            per.append(generation_metrics(pts, ref, ref_ref=d_rr))
-            empty += e
-        res[key] = {k: float(np.mean([p[k] for p in per])) for k in per[0]}
-        res["per_set"][key], res["n_sets"][key], res["empty_meshes"][key] = per, len(per), empty
+    score(sets, ref, d_rr, args.points, res)
     res["timing"] = {"latent_s_per_shape": sampled["latent_s_per_shape"],
                      "mesh_s_per_shape": sampled["mesh_s_per_shape"],
                      "shape_latent_train_s": runs["shape_latent"]["train_s"],
@@ -262,11 +182,42 @@ def main():
         "edm_loss_untrained", "edm_loss_ema", "sample_to_train_median", "train_to_train_median",
         "steps")}
     render(gen_meshes[:8], gen_names[:8], RESULTS / "generate.png")
-    from bench.report import table
-
     path = bench.write(res)
-    print("\n" + table("generate", json.loads(path.read_text())))
+    print("\n" + table(json.loads(path.read_text())))
     print(f"total {res['timing']['total_s'] / 60:.1f} min; results in {RESULTS}")
+
+
+# ---- the table (bench/README.md) and the headline (README.md), from the result ----------
+def table(res: dict) -> str:
+    rows = [("generated", "generated (EDM, 18 Heun steps)"),
+            ("train_recon", "training latents, decoded (decoder ceiling)"),
+            ("train_set", "training meshes (ceiling)"),
+            ("train_decoded", "training latents decoded (the shape-latent model's ceiling)"),
+            ("noise", "noise latents N(mean, std), no diffusion (floor)")]
+    lines = ["| shapes vs held-out | MMD-CD (x1e-3) | COV-CD (%) | 1-NNA-CD (%) | sets |",
+             "|---|---|---|---|---|"]
+    for key, label in rows:
+        if key in res:
+            m, per = res[key], res["per_set"][key]
+            rng = lambda k, f: (f" ({f * min(p[k] for p in per):.0f}-"  # noqa: E731
+                                f"{f * max(p[k] for p in per):.0f})" if len(per) > 1 else "")
+            lines.append(f"| {label} | {1e3 * m['mmd_cd']:.3f} | {100 * m['cov_cd']:.1f}"
+                         f"{rng('cov_cd', 100)} | {100 * m['nna_cd']:.1f}{rng('nna_cd', 100)} | "
+                         f"{len(per)} |")
+    t = res["timing"]
+    lines += ["", f"{res['n_reference']} held-out creatures as the reference, {res['n_train']} "
+                  f"training creatures; shape latents {res['shape_latent_steps']} steps, "
+                  f"diffusion {res['diffusion_steps']} steps; sampling per shape: latent "
+                  f"{1e3 * t['latent_s_per_shape']:.0f} ms, mesh at {res['resolution']}^3 "
+                  f"{t['mesh_s_per_shape']:.2f} s ({res.get('threads', 1)} torch threads). "
+                  f"Targets: 1-NNA <= 65%, COV >= 50%."]
+    return "\n".join(lines)
+
+
+def headline(r):
+    g, t = r["generated"], r["train_set"]
+    return (f"MMD-CD {sci(g['mmd_cd'])}, COV {pct(g['cov_cd'], 1)}, 1-NNA {pct(g['nna_cd'], 1)} "
+            f"(training meshes {sci(t['mmd_cd'])}, {pct(t['cov_cd'], 1)}, {pct(t['nna_cd'], 1)})")
 
 
 if __name__ == "__main__":

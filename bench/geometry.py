@@ -1,6 +1,6 @@
 """Geometry benchmark: relative-coordinate throughput and data preparation time per shape.
 
-    python bench/geometry.py            # prints a table, writes bench/results/geometry.json
+    python -m bench.geometry            # prints a table, writes bench/results/geometry.json
 
 Throughput: 1M float32 points uniform in the bounding box of a curved, twisted 128-segment
 Bezier GC, best of 3 after a warm-up: relcoords_points_per_s in CPU seconds of one thread
@@ -17,21 +17,16 @@ Preparation: `prepare_shape` from scratch (empty cache) for 100k samples on the 
 """
 from __future__ import annotations
 
+import argparse
 import os
-import sys
 import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
-import torch
+from bench._harness import Bench, load_1min
+from bench._tables import count, rows_table
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-
-from bench._harness import Bench, load_1min  # noqa: E402
-from ngc_gen.geometry import GeneralizedCylinder  # noqa: E402
-from ngc_gen.geometry.closest_check import closest_point_check  # noqa: E402
 
 GC = {"name": "bench", "curve": {"type": "bezier", "points": [[-0.6, 0, 0], [-0.2, 0.4, 0.1],
                                                               [0.2, -0.3, 0.2], [0.6, 0.1, 0]]},
@@ -55,6 +50,8 @@ def best_of(fn, repeats=3):
 def polyline_relative(gc, q, chunk=1 << 14):
     """Baseline: project onto all segments of the 128-segment polyline, keep the nearest,
     offset in the frame at that parameter (no smooth-curve refinement)."""
+    import torch
+
     x, ps = gc.polyline.x.float(), gc.polyline.s.float()
     A, AB = x[:-1], x[1:] - x[:-1]
     out = []
@@ -75,6 +72,11 @@ def polyline_relative(gc, q, chunk=1 << 14):
 
 
 def bench_relcoords(n=1_000_000):
+    import numpy as np
+    import torch
+
+    from ngc_gen.geometry import GeneralizedCylinder
+
     gc = GeneralizedCylinder.from_dict(GC)
     lo, hi = gc.bounds()
     rng = np.random.default_rng(0)
@@ -110,6 +112,8 @@ def bench_relcoords(n=1_000_000):
 
 
 def bench_closest_point():
+    from ngc_gen.geometry.closest_check import closest_point_check
+
     return closest_point_check()
 
 
@@ -133,6 +137,8 @@ def bench_prepare():
 
 
 def _time_prepare(shapes, settings, prepare_shape):
+    import numpy as np
+
     per = {}
     with tempfile.TemporaryDirectory() as cache:
         for ann in shapes:
@@ -145,6 +151,9 @@ def _time_prepare(shapes, settings, prepare_shape):
 
 
 def main():
+    argparse.ArgumentParser(description=__doc__.splitlines()[0]).parse_args()
+    import torch
+
     torch.set_num_threads(1)  # one thread, CPU seconds: robust to other jobs on the machine
     bench = Bench("geometry")   # the machine record (bench/_harness.py) is added on writing
     res = {"omp_wait_policy": os.environ.get("OMP_WAIT_POLICY")}
@@ -171,6 +180,40 @@ def main():
         print(f"  {k:28s} {v['s']:.2f} s  coverage {v['coverage']:.5f}")
     out = bench.write(res)
     print(f"saved {out.relative_to(ROOT)}")
+
+
+# ---- the table (bench/README.md) and the headline (README.md), from the result ----------
+def table(r: dict) -> str:
+    names = ", ".join(r["prepare_shapes"])
+    load = r.get("load_1min_at_wall_timing")
+    rows = [["relative coordinates, float32, 1M points, 128-segment curve, all cores (wall)",
+             f"{r['relcoords_points_per_s_wall_all_cores'] / 1e6:.2f} M points/s"
+             + (f" (load {load:.1f})" if load is not None else "")],
+            ["the same, one thread", f"{r['relcoords_points_per_s'] / 1e6:.2f} M points per "
+                                     "CPU-second"],
+            ["baseline: projection onto all 128 polyline segments, one thread",
+             f"{r['polyline_points_per_s'] / 1e6:.2f} M points per CPU-second "
+             f"({r['speedup_vs_polyline']:.0f}x slower)"],
+            ["round-trip error `to_world(to_relative(q)) - q`, Newton on the smooth curve",
+             f"{r['roundtrip_err_newton']:.1e} (float32 points: "
+             f"{r['roundtrip_err_newton_float32']:.1e})"],
+            ["round-trip error, plain 128-segment polyline", f"{r['roundtrip_err_polyline']:.1e}"]]
+    if "closest_point_excess_max" in r:
+        rows.append(["closest point: largest excess of the computed foot's distance over the "
+                     f"brute force's ({count(r['closest_point_points'])} points, "
+                     f"{r['closest_point_gcs']} random Bezier GCs; target <= 1e-9)",
+                     f"{r['closest_point_excess_max']:.1e}"])
+    rows.append([f"preparation, {count(r['prepare_n_samples'])} samples, mean over {names}",
+                 f"{r['prepare_s_per_shape']:.2f} CPU-seconds per shape"])
+    return "\n".join(rows_table(["measure", "value"], rows))
+
+
+def headline(r):
+    line = (f"relative coordinates at {r['relcoords_points_per_s_wall_all_cores'] / 1e6:.1f}M "
+            f"points/s, round trip {r['roundtrip_err_newton']:.1e}")
+    if "closest_point_excess_max" in r:
+        line += f"; foot point within {r['closest_point_excess_max']:.0e} of the brute force's"
+    return line
 
 
 if __name__ == "__main__":

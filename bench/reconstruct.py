@@ -1,7 +1,7 @@
 """Reconstruction into a trained model vs a direct fit (issue: "a held-out creature reconstructed
 into the creature shape-latent model lands within 2x of the CD of the same shape fitted directly").
 
-    python bench/reconstruct.py [--shape-latent-run RUN] [--limit 4] [--refit]
+    python -m bench.reconstruct [--shape-latent-run RUN] [--limit 4] [--refit]
 
 - direct: `train.py stage=fit data=creatures data.split=test` (the demo's fit recipe: small
   preset, 1500 steps), the held-out creatures fitted with their own codes and a trained decoder;
@@ -24,15 +24,15 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-from bench._harness import (Bench, FitCache, cached_run_fit, config_recipe,  # noqa: E402
+from bench._generation import recipe_args, train
+from bench._harness import (Bench, FitCache, cached_run_fit, config_recipe,
                             dataset_identity, file_identity)
+from bench._tables import rows_table, span
 
+ROOT = Path(__file__).resolve().parents[1]
 
 def common(args) -> list[str]:
     return ["data=creatures", "data.split=test", f"data.limit={args.limit}",
@@ -82,9 +82,8 @@ def reconstructed(args, name: str, overrides: list[str]) -> dict:
 
 
 def default_shape_latent_run() -> Path:
-    """bench/generate.py's shape-latent run at its default recipe (its fit cache)."""
-    from bench.generate import recipe_args, train
-
+    """bench/generate.py's shape-latent run at its default recipe (the generate bench's fit
+    cache)."""
     ap = argparse.ArgumentParser()
     recipe_args(ap)
     return train(ap.parse_args([]))["shape_latent_dir"]
@@ -141,6 +140,31 @@ def main():
         if key in res:
             print(f"{key}: CD reconstructed / CD direct fit, mean {res[key]['mean']:.2f}, "
                   f"max {res[key]['max']:.2f} over {len(res['shapes'])} held-out creatures")
+
+
+# ---- the table (bench/README.md) and the headline (README.md), from the result ----------
+def table(r: dict) -> str:
+    rows = []
+    for key, label in (("ratio", "latent, then its codes refined (the default)"),
+                       ("ratio_latent_only", "latent alone"),
+                       ("ratio_decoded_gcs", "latent alone, meshed with the GCs it decodes to")):
+        if key in r:
+            per = list(r[key]["per_shape"].values())
+            rows.append([label, f"{r[key]['mean']:.2f}x ({span(per)}x)"])
+    lines = rows_table(["into the generation recipe's shape-latent model", "CD / direct fit's CD,"
+                        " mean (range)"], rows)
+    direct = list(r["direct"].values())
+    s = r["settings"]
+    lines += ["", f"{len(r['shapes'])} held-out creatures ({', '.join(r['shapes'])}), meshes at "
+                  f"{s['resolution']}^3; direct fit {s['fit_steps']} steps, CD "
+                  f"{span([1e5 * d for d in direct], '.1f')}e-5; latent "
+                  f"{r.get('reconstructed_steps')} steps, codes "
+                  f"{r.get('reconstructed_refine_steps')} steps; {s['seconds']:.0f} s in all."]
+    return "\n".join(lines)
+
+
+def headline(r):
+    return f"held-out creatures into the generator: CD {r['ratio']['mean']:.2f}x a direct fit"
 
 
 if __name__ == "__main__":

@@ -1,6 +1,6 @@
-"""The sparse extractor's settings: evaluations, exactness and time of each (issue 10).
+"""The sparse extractor's settings: evaluations, exactness and time of each.
 
-    python bench/sparse_settings.py [--variants band:track=false track track_near0:track_near=0
+    python -m bench.sparse_settings [--variants band:track=false track track_near0:track_near=0
                                      track_c1:lipschitz=1.0] [--resolutions 128 256] [--repeats 4]
 
 A variant is `label[:key=value,...]` over `SparseSettings` fields (the rest at their defaults):
@@ -24,21 +24,20 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import json
 import os
-import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-sys.path.insert(0, str(ROOT / "bench"))
 
-from bench._harness import Bench, FitCache  # noqa: E402
+from bench._harness import Bench, FitCache, latest_fit
+from bench._tables import rows_table
 
 
 def same_mesh(a, b) -> bool:
+    import numpy as np
+
     return bool(np.array_equal(a.vertices, b.vertices) and np.array_equal(a.faces, b.faces))
 
 
@@ -53,7 +52,31 @@ def parse_variant(text: str):
     return label, kwargs
 
 
-def main():
+def timed(settings: dict, gcs, rows, args) -> dict:
+    """Each variant's seconds on one shape at the largest resolution, the variants
+    interleaved `--repeats` times (all see the same drift of the machine's load)."""
+    import numpy as np
+
+    from ngc_gen.extract import extract_mesh
+
+    R = max(args.resolutions)
+    extract_mesh(gcs, rows, R)                                       # warm-up
+    runs = {c: [] for c in settings}
+    for _ in range(args.repeats):
+        for c, st in settings.items():
+            t0 = time.perf_counter()
+            extract_mesh(gcs, rows, R, settings=st)
+            runs[c].append(time.perf_counter() - t0)
+    timing = {}
+    for c, ts in runs.items():
+        timing[c] = {"best_s": min(ts), "median_s": float(np.median(ts)), "runs_s": ts,
+                     "resolution": R, "shape": "creature_0000 (deform fit)"}
+        print(f"creature_0000 R={R} {c}: best {min(ts):.3f} s, median "
+              f"{np.median(ts):.3f} s ({args.repeats} runs, interleaved)")
+    return timing
+
+
+def parse_args():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--variants", nargs="+",
                     default=["band:track=false", "track", "track_near0:track_near=0",
@@ -62,19 +85,23 @@ def main():
     ap.add_argument("--resolutions", type=int, nargs="+", default=[128, 256])
     ap.add_argument("--repeats", type=int, default=4)
     ap.add_argument("--threads", type=int, default=os.cpu_count() or 1)
-    args = ap.parse_args()
+    return ap.parse_args()
+
+
+def main():
+    args = parse_args()
     bench = Bench("sparse_settings")
 
     import torch
 
-    from deform import fitted
     from ngc_gen.eval import mesh_chamfer
     from ngc_gen.extract import SparseSettings, extract_mesh
     from ngc_gen.lit.checkpoint import load_autodecoder
     from ngc_gen.shape import shapes_from_autodecoder
 
     torch.set_num_threads(args.threads)
-    fits = {"deform": Path(fitted(1500, refit=False)["checkpoint"])}
+    deform = latest_fit("deform", {"trainer.max_steps": 1500})    # bench/deform.py's fit
+    fits = {"deform": deform.run_dir / "checkpoints/last.ckpt"}
     for f in FitCache("autogc").entries():          # oldest first: the latest of a label wins
         if (f.run_dir / "checkpoints/last.ckpt").exists():
             fits[f"autogc/{f.info['label']}"] = f.run_dir / "checkpoints/last.ckpt"
@@ -103,22 +130,7 @@ def main():
                     + ("" if case["identical"][c] else f" (CD {case['cd'][c]:.1e})")
                     for c in settings), flush=True)
 
-    timing = {}
-    if timing_input is not None:
-        gcs, rows = timing_input
-        R = max(args.resolutions)
-        extract_mesh(gcs, rows, R)                                       # warm-up
-        runs = {c: [] for c in settings}
-        for _ in range(args.repeats):
-            for c, st in settings.items():
-                t0 = time.perf_counter()
-                res = extract_mesh(gcs, rows, R, settings=st)
-                runs[c].append(time.perf_counter() - t0)
-        for c, ts in runs.items():
-            timing[c] = {"best_s": min(ts), "median_s": float(np.median(ts)), "runs_s": ts,
-                              "resolution": R, "shape": "creature_0000 (deform fit)"}
-            print(f"creature_0000 R={R} {c}: best {min(ts):.3f} s, median "
-                  f"{np.median(ts):.3f} s ({args.repeats} runs, interleaved)")
+    timing = {} if timing_input is None else timed(settings, *timing_input, args)
     base = next(iter(settings))
     summary = {c: {"identical": sum(x["identical"][c] for x in cases),
                         "cases": len(cases),
@@ -143,6 +155,37 @@ def main():
                         "fits": {k: os.path.relpath(v, ROOT) for k, v in fits.items()}},
            "cases": cases, "timing": timing, "summary": summary}
     print(f"wrote {bench.write(res)}")
+
+
+# ---- the table (bench/README.md) and the headline (README.md), from the result ----------
+def table(r: dict) -> str:
+    variants = r["settings"]["variants"]
+    varying = [k for k in next(iter(variants.values()))
+               if len({json.dumps(v[k]) for v in variants.values()}) > 1]
+    base = next(iter(variants))
+    rows = []
+    for label, s in r["summary"].items():
+        t = r["timing"].get(label)
+        time_s = (f"{t['median_s']:.2f} ({s['median_time_over_first']:.2f}x)" if t else "-")
+        ident = f"{s['identical']} of {s['cases']}" + (
+            f" (largest CD {s['cd_max']:.1e})" if s["identical"] < s["cases"] else "")
+        rows.append([f"`{label}`: " + ", ".join(f"{k}={variants[label][k]}" for k in varying),
+                     ident, f"{s['evals_over_first_min']:.2f}-{s['evals_over_first_max']:.2f}",
+                     time_s])
+    t0 = next(iter(r["timing"].values()), None)
+    timed = f"{t0['shape']} at {t0['resolution']}, median of {len(t0['runs_s'])}" if t0 else "-"
+    fits = sorted({c["fit"] for c in r["cases"]})
+    lines = rows_table(["settings", "meshes identical to prefiltered",
+                        f"evaluations vs `{base}`", f"time (s), {timed}"], rows)
+    lines += ["", f"{len(r['cases'])} meshes: {len({(c['fit'], c['shape']) for c in r['cases']})}"
+                  f" fitted shapes of {len(fits)} fits ({', '.join(fits)}) at "
+                  f"{', '.join(map(str, r['settings']['resolutions']))}."]
+    return "\n".join(lines)
+
+
+def headline(r):
+    t = r["summary"]["track"]
+    return f"default settings: {t['identical']} of {t['cases']} fitted meshes identical to the reference"
 
 
 if __name__ == "__main__":

@@ -21,21 +21,20 @@ generator's shape-latent model by stage=reconstruct (latent, then codes, --refin
 them: 1500, where the stage's default 600 leaves the codes short of converged): F-score@0.01.
 Writes bench/results/transfer.png: one transferred animal per species, GCs in template colours.
 
-    python bench/transfer.py [--limit N] [--workers W] [--no-generator]
+    python -m bench.transfer [--limit N] [--workers W] [--no-generator]
 """
 from __future__ import annotations
 
 import argparse
 import json
 import shutil
-import sys
 import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
 
-from bench._harness import Bench  # noqa: E402
+from bench._harness import Bench
+from bench._tables import pct, rows_table
 
 TEMPLATE = ROOT / "datasets/animals/quadruped_transfer.yaml"
 SAMPLES = 20000
@@ -124,8 +123,7 @@ def one(task):
 def _train_generator(kind: str, folder: Path, args) -> tuple:
     """Shape latents, then diffusion on one annotated folder with experiment=animals' recipe
     (steps from the bench's arguments); cached in the bench's fit cache."""
-    from bench.animals import cached_stage
-    from bench._harness import FitCache
+    from bench._harness import FitCache, cached_stage
     from ngc_gen.app.runtime.config import compose_config
     from ngc_gen.app.stages.train_diffusion import run_diffusion
     from ngc_gen.app.stages.train_shape_latent import run_shape_latent
@@ -136,10 +134,12 @@ def _train_generator(kind: str, folder: Path, args) -> tuple:
             f"prepare.cache_dir=${{paths.cache_dir}}/prepared/transfer_gen_{kind}"]
     sl = cached_stage(cache, f"shape_latent_{kind}", compose_config(overrides=[
         *base, "stage=shape_latent", "shape_latent.preview=0",
-        f"shape_latent.max_steps={args.shape_latent_steps}"]), run_shape_latent, False, RUNS)
+        f"shape_latent.max_steps={args.shape_latent_steps}"]), run_shape_latent, False,
+        RUNS / f"shape_latent_{kind}")
     diff = cached_stage(cache, f"diffusion_{kind}", compose_config(overrides=[
         *base, "stage=diffusion", f"shape_latent_run={sl.run_dir}",
-        f"diffusion.max_steps={args.diffusion_steps}"]), run_diffusion, False, RUNS)
+        f"diffusion.max_steps={args.diffusion_steps}"]), run_diffusion, False,
+        RUNS / f"diffusion_{kind}")
     print(f"generator on the {kind} GCs: {sl.run_dir} (shape latents), {diff.run_dir} "
           f"(diffusion){' (cached)' if sl.reused and diff.reused else ''}", flush=True)
     return sl, diff
@@ -153,7 +153,7 @@ def generator_rows(records: list[dict], clips_m: list, args) -> dict:
     import numpy as np
     import trimesh
 
-    from bench.animals import rows_for
+    from bench._generation import rows_for
     from ngc_gen.app.stages.sample import generate
     from ngc_gen.generate import load_generator
 
@@ -257,54 +257,20 @@ def _summary(rows, names):
             "s_per_mesh_mean": float(np.mean([r["seconds"] for r in ok])) if ok else None}
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--limit", type=int, default=None, help="posed animals (default: all 108)")
-    ap.add_argument("--creatures", type=int, default=24)
-    ap.add_argument("--workers", type=int, default=2)
-    ap.add_argument("--no-generator", action="store_true",
-                    help="skip the two generators and the held-out species' reconstruction")
-    ap.add_argument("--shape-latent-steps", type=int, default=10000,
-                    help="both generators' shape-latent steps (experiment=animals' own 10000; "
-                         "5000 halves the bench's time and reads a wider, noisier gap)")
-    ap.add_argument("--diffusion-steps", type=int, default=3000)
-    ap.add_argument("--refine-steps", type=int, default=1500,
-                    help="held-out reconstruction: reconstruct.refine_steps (the codes after the "
-                         "latent; the stage's default 600 leaves them short of converged)")
-    ap.add_argument("--sets", type=int, default=8,
-                    help="sets of as many samples as held-out clips, per generator (averaged)")
-    args = ap.parse_args()
-    bench = Bench("transfer")
+def creature_transfer(args) -> dict:
+    """A template from the true GCs of the first 8 creatures, transferred onto the next
+    `--creatures` ones: their summary (matched, purity, end points, seconds)."""
     import numpy as np
     import trimesh
-    import yaml
 
     from ngc_gen.data.annotations import load_annotation
     from ngc_gen.data.atomic import atomic_write_text
-    from ngc_gen.data.autogc.orient import Orientation
-    from ngc_gen.data.autogc.template import load_template
     from ngc_gen.data.autogc.calibrate import calibrate_ends
+    from ngc_gen.data.autogc.orient import Orientation
     from ngc_gen.data.autogc.transfer import TransferSettings, export_template
     from ngc_gen.data.mesh.sampling import sample_surface
-    from ngc_gen.data.rigs.animals import Animals
-    from ngc_gen.data.workers import map_shapes
-
-    conf = yaml.safe_load((ROOT / "conf/data/animals.yaml").read_text())
-    conf = {k: v for k, v in conf.items() if not k.startswith("_")}
-    conf.update(template=str(ROOT / "datasets/animals/quadruped.yaml"), rigs_dir=str(ROOT / ".cache/rigs"),
-                out_dir=str(ROOT / ".cache/datasets/animals_f1"), frames=1, split="all",
-                limit=args.limit, workers=args.workers)
-    records = Animals(**conf).build()
-    template = load_template(TEMPLATE)
-    for kind in ("rig", "transferred"):  # the training folders are rewritten on every run
-        shutil.rmtree(GEN / kind, ignore_errors=True)
-    tasks = [(r["name"], r["mesh"], r["annotation"], str(TEMPLATE), AXES,
-              str(GEN / "transferred") if r["split"] == "train" else None) for r in records]
-    rows = list(map_shapes(one, tasks, args.workers, min_items=4))
-    animals = _summary(rows, template.names)
-    animals["missing_counts"] = {n: sum(n in r.get("missing", []) for r in rows) for n in template.names}
-    # creatures: a template from the true GCs of the first 8, transferred onto the next ones
     from ngc_gen.data.procedural.creatures import build_creatures, creature_names
+    from ngc_gen.data.workers import map_shapes
 
     cdir = ROOT / ".cache/datasets/creatures_n64_s0"  # data=creatures' default set, built if missing
     z_up = Orientation(np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0]), ("given", "given"))
@@ -325,9 +291,13 @@ def main() -> None:
                {"up": "+z", "front": "+x"}) for stem in have[8:8 + args.creatures]]
     crows = list(map_shapes(one, ctasks, args.workers, min_items=4))
     creatures = _summary(crows, ctemplate.names)
-    # meshes of another kind
-    from tests.data.autogc.shapes import chair, sphere, torus
+    return creatures
+
+
+def other_kinds() -> tuple[list, dict]:
+    """The quadruped template on a chair, a torus and a sphere: (the refused, their errors)."""
     from ngc_gen.data.mesh.io import normalize
+    from tests.data.autogc.shapes import chair, sphere, torus
 
     refused, errors, tmp = [], {}, ROOT / ".cache/bench/transfer"
     tmp.mkdir(parents=True, exist_ok=True)
@@ -338,6 +308,56 @@ def main() -> None:
         if "error" in r:
             refused.append(make.__name__)
             errors[make.__name__] = r["error"]
+    return refused, errors
+
+
+def parse_args():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--limit", type=int, default=None, help="posed animals (default: all 108)")
+    ap.add_argument("--creatures", type=int, default=24)
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--no-generator", action="store_true",
+                    help="skip the two generators and the held-out species' reconstruction")
+    ap.add_argument("--shape-latent-steps", type=int, default=10000,
+                    help="both generators' shape-latent steps (experiment=animals' own 10000; "
+                         "5000 halves the bench's time and reads a wider, noisier gap)")
+    ap.add_argument("--diffusion-steps", type=int, default=3000)
+    ap.add_argument("--refine-steps", type=int, default=1500,
+                    help="held-out reconstruction: reconstruct.refine_steps (the codes after the "
+                         "latent; the stage's default 600 leaves them short of converged)")
+    ap.add_argument("--sets", type=int, default=8,
+                    help="sets of as many samples as held-out clips, per generator (averaged)")
+    return ap.parse_args()
+
+
+def main() -> None:
+    args = parse_args()
+    bench = Bench("transfer")
+
+    import trimesh
+    import yaml
+
+    from ngc_gen.data.annotations import load_annotation
+    from ngc_gen.data.autogc.template import load_template
+    from ngc_gen.data.rigs.animals import Animals
+    from ngc_gen.data.workers import map_shapes
+
+    conf = yaml.safe_load((ROOT / "conf/data/animals.yaml").read_text())
+    conf = {k: v for k, v in conf.items() if not k.startswith("_")}
+    conf.update(template=str(ROOT / "datasets/animals/quadruped.yaml"), rigs_dir=str(ROOT / ".cache/rigs"),
+                out_dir=str(ROOT / ".cache/datasets/animals_f1"), frames=1, split="all",
+                limit=args.limit, workers=args.workers)
+    records = Animals(**conf).build()
+    template = load_template(TEMPLATE)
+    for kind in ("rig", "transferred"):  # the training folders are rewritten on every run
+        shutil.rmtree(GEN / kind, ignore_errors=True)
+    tasks = [(r["name"], r["mesh"], r["annotation"], str(TEMPLATE), AXES,
+              str(GEN / "transferred") if r["split"] == "train" else None) for r in records]
+    rows = list(map_shapes(one, tasks, args.workers, min_items=4))
+    animals = _summary(rows, template.names)
+    animals["missing_counts"] = {n: sum(n in r.get("missing", []) for r in rows) for n in template.names}
+    creatures = creature_transfer(args)
+    refused, errors = other_kinds()
     generator, reconstructed = {k: {"mmd_cd": None, "nna_cd": None} for k in ("rig", "transferred")}, None
     if not args.no_generator:
         ok = {r["mesh"] for r in rows if "error" not in r}
@@ -376,6 +396,57 @@ def main() -> None:
     print(bench.write(result))
     print({k: result[k] for k in ("animals", "creatures", "generator", "reconstruct_heldout",
                                   "refused")})
+
+
+# ---- the table (bench/README.md) and the headline (README.md), from the result ----------
+def _spread(row: dict) -> str:
+    """' (sd over n sets: MMD-CD .., 1-NNA ..)' of a generator row that has it, else ''."""
+    sd = row.get("sd_over_sets")
+    return (f" (sd over sets: MMD-CD {1e3 * sd['mmd_cd']:.3f}, 1-NNA {pct(sd['nna_cd'], 1)})"
+            if sd else "")
+
+
+def table(r: dict) -> str:
+    a, c = r["animals"], r["creatures"]
+    rows = [["posed animals, rig withheld", a["n"], pct(a["matched"], 1), pct(a["purity_mean"], 1),
+             pct(a["purity_worst"], 1), f"{a['endpoint_err_median']:.3f}",
+             f"{a['s_per_mesh']:.1f}"],
+            ["procedural creatures, annotations withheld", c["n"], "", pct(c["purity_mean"], 1),
+             "", "", ""]]
+    lines = rows_table(["collection", "meshes", "matched", "purity mean", "purity worst",
+                        "endpoint error (median, x length)", "s / mesh"], rows)
+    gen = r.get("generator") or {}
+    measured = [k for k in ("rig", "transferred") if (gen.get(k) or {}).get("mmd_cd") is not None]
+    lines += ["", "Refused by the quadruped template: "
+              + (", ".join(f"`{n}`" for n in r["refused"]) or "none")
+              + " (of a chair, a torus and a sphere). Generator trained on transferred GCs "
+              + ("against rig GCs: " + "; ".join(
+                  f"{k} MMD-CD {1e3 * gen[k]['mmd_cd']:.3f} x1e-3, 1-NNA {pct(gen[k]['nna_cd'], 1)}"
+                  + _spread(gen[k]) for k in measured) if measured
+                  else "against rig GCs: not measured yet") + "."]
+    held = (r.get("reconstruct_heldout") or {}).get("fscore") or {}
+    if held:
+        steps = ((r.get("details") or {}).get("generator_recipe") or {}).get("reconstruct_refine_steps")
+        lines += ["", "Held-out species at rest, transferred and reconstructed into the transferred "
+                  "generator's shape-latent model (`stage=reconstruct`"
+                  + (f", `reconstruct.refine_steps={steps}`" if steps else "") + "): F-score@0.01 "
+                  + ", ".join(f"{n} {f:.3f}" for n, f in sorted(held.items())) + "."]
+    return "\n".join(lines)
+
+
+def headline(r):
+    a = r["animals"]
+    line = (f"quadruped template on {a['n']} posed animals, rig withheld: {pct(a['matched'], 1)} "
+            f"matched, purity {pct(a['purity_mean'], 1)} (worst GC {pct(a['purity_worst'], 1)}), "
+            f"ends {a['endpoint_err_median']:.3f} of a part's length; "
+            f"creatures {pct(r['creatures']['purity_mean'], 1)}")
+    gen = r.get("generator") or {}
+    rig, tr = gen.get("rig") or {}, gen.get("transferred") or {}
+    if rig.get("mmd_cd") and tr.get("mmd_cd"):
+        line += (f"; generator on transferred GCs vs rig GCs: MMD-CD "
+                 f"{100 * (tr['mmd_cd'] / rig['mmd_cd'] - 1):+.1f}%, 1-NNA "
+                 f"{100 * (tr['nna_cd'] / rig['nna_cd'] - 1):+.1f}%")
+    return line
 
 
 if __name__ == "__main__":

@@ -1,6 +1,6 @@
 """The up-axis rule of the pictures (`ngc_gen.viz.camera.detect_up`, `viz.up: auto`), measured.
 
-    python bench/up_axis.py [--creatures 64] [--creatures-dir DIR]
+    python -m bench.up_axis [--creatures 64] [--creatures-dir DIR]
 
 Meshes with a known up: pyvista's ant (+y), airplane (+z) and the procedural creatures (+z;
 read from DIR, default .cache/datasets/creatures_n64_s0, built there if missing). Each mesh is
@@ -13,26 +13,31 @@ axis_only, wrong}], totals, seconds_per_mesh, machine}; bench/_harness.py).
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import numpy as np
+from bench._harness import Bench
+from bench._tables import rows_table
+
+if TYPE_CHECKING:
+    import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-from bench._harness import Bench  # noqa: E402
-
 NAMES = {(0, 1): "+x", (0, -1): "-x", (1, 1): "+y", (1, -1): "-y", (2, 1): "+z", (2, -1): "-z"}
 
 
 def axis_name(v) -> str:
+    import numpy as np
+
     k = int(np.argmax(np.abs(v)))
     return NAMES[(k, int(np.sign(v[k])))]
 
 
 def rotation_to(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
     """A rotation by multiples of 90 degrees taking axis vector src to axis vector dst."""
+    import numpy as np
+
     if np.allclose(src, dst):
         return np.eye(3)
     if np.allclose(src, -dst):  # half turn about an axis perpendicular to both
@@ -45,6 +50,8 @@ def rotation_to(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
 
 
 def main() -> None:
+    import numpy as np
+
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--creatures", type=int, default=64)
     ap.add_argument("--creatures-dir", default=str(ROOT / ".cache/datasets/creatures_n64_s0"))
@@ -93,6 +100,33 @@ def main() -> None:
     path = bench.write({"meshes": rows, "totals": totals,
                         "seconds_per_mesh": float(np.mean(seconds))})
     print(f"wrote {path}")
+
+
+# ---- the table (bench/README.md) and the headline (README.md), from the result ----------
+def table(r: dict) -> str:
+    groups: dict[str, list] = {}
+    for m in r["meshes"]:
+        if m.get("up"):
+            key = "creatures" if m["name"].startswith("creature_") else m["name"]
+            groups.setdefault(key, []).append(m)
+    rows = []
+    for key, ms in groups.items():
+        label = f"{len(ms)} {key}" if key == "creatures" else key
+        rows.append([f"{label} (up {ms[0]['up']})", 6 * len(ms), sum(m["right"] for m in ms),
+                     sum(m["axis_only"] for m in ms), sum(m["wrong"] for m in ms)])
+    t = r["totals"]
+    rows.append(["**all**", t["orientations"], t["right"], t["axis_only"], t["wrong"]])
+    lines = rows_table(["meshes", "orientations", "right", "right axis, wrong sign", "wrong"],
+                       rows)
+    free = [f"{m['name']} {m['detected']['as shipped']}" for m in r["meshes"] if not m.get("up")]
+    lines += ["", f"{1e3 * r['seconds_per_mesh']:.0f} ms per mesh. Meshes with no natural up, "
+                  f"as shipped: {', '.join(free)}."]
+    return "\n".join(lines)
+
+
+def headline(r):
+    t = r["totals"]
+    return f"up axis right in {t['right']} of {t['orientations']} orientations"
 
 
 if __name__ == "__main__":

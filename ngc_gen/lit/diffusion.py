@@ -13,8 +13,8 @@ the residuals travel in the checkpoint). A few hundred latents of a few hundred 
 at most N - 1 directions and are strongly correlated (a pose moves every GC of a limb), so most
 directions of the per-dimension space carry little or no data; the denoiser then fits the
 directions that do.
-docs/generation.md has the measurements (what the dropped axes cost, and why whitening the kept
-axes made samples worse).
+bench/notes/generation.md has the measurements (what the dropped axes cost, and why whitening
+the kept axes made samples worse).
 
 Training data: batches of raw latents (B, dim), or (latents,) tuples as from a TensorDataset.
 """

@@ -1,27 +1,38 @@
 """bench/README.md's tables are generated from bench/results/*.json (bench/report.py), every
-result carries the harness's machine record, and every bench has its section and make target."""
+result carries the harness's machine record, and every bench is registered, has its section and
+its make target."""
 from __future__ import annotations
 
+import ast
 import json
 import re
 import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
 
+import bench
 from bench import _harness, report
 
 ROOT = Path(report.ROOT)
-BENCHES = sorted(p.stem for p in (ROOT / "bench").glob("*.py") if not p.stem.startswith("_")
+BENCHES = sorted(bench.BENCHES)
+MODULES = sorted(p.stem for p in (ROOT / "bench").glob("*.py") if not p.stem.startswith("_")
                  and p.stem != "report")
 RESULTS = sorted(p.stem for p in (ROOT / "bench/results").glob("*.json"))
+
+
+def test_every_bench_module_is_registered():
+    assert MODULES == BENCHES, ("bench/<name>.py and bench/__init__.py's BENCHES differ "
+                                "(a helper module's name starts with _)")
 
 
 def test_the_readme_tables_equal_the_results():
     text = report.README.read_text()
     fresh = report.render(text)
     assert fresh == text, ("bench/README.md differs from bench/results/*.json: run "
-                           "`make bench-report` (python bench/report.py)")
+                           "`make bench-report` (python -m bench.report)")
 
 
 def test_the_project_readme_results_equal_the_results(tmp_path):
@@ -113,14 +124,53 @@ def test_every_bench_writes_through_the_harness(name):
     assert "platform.python_version" not in src, f"bench/{name}.py records the machine itself"
 
 
-def test_every_bench_has_a_make_target_and_make_bench_runs_it():
-    make = re.sub(r"\\\n", " ", (ROOT / "Makefile").read_text())   # continued lines joined
-    listed = re.search(r"^BENCHES :=(.*)$", make, re.M).group(1).split()
+def test_every_bench_has_a_make_target_that_runs_its_module():
+    listed = subprocess.run([sys.executable, "-m", "bench"], cwd=ROOT, check=True,
+                            capture_output=True, text=True).stdout.split()
+    assert listed == [b.replace("_", "-") for b in bench.BENCHES]    # what `make bench` loops
     for name in BENCHES:
         target = f"bench-{name.replace('_', '-')}"
-        assert re.search(rf"^{target}:", make, re.M), f"Makefile has no {target} target"
-        assert re.search(rf"bench/{name}\.py", make), f"{target} does not run bench/{name}.py"
-        assert name.replace("_", "-") in listed, f"`make bench` does not run {target}"
+        out = subprocess.run(["make", "-n", "--no-print-directory", target], cwd=ROOT,
+                             capture_output=True, text=True)
+        assert out.returncode == 0, out.stderr
+        assert re.search(rf"-m bench\.{name}\b", out.stdout.splitlines()[-1]), \
+            f"make {target} does not run python -m bench.{name}"
+
+
+def test_the_bench_modules_keep_to_the_house_rules():
+    """Run as `python -m bench.<name>`: no sys.path edits; a bench reads another bench's fit
+    through the harness's cache and shares code through bench/_*.py helpers, never by
+    importing the other bench's module; no function over 80 lines."""
+    long, imports = [], []
+    for path in sorted((ROOT / "bench").glob("*.py")):
+        src = path.read_text()
+        assert "sys.path.insert" not in src, path.name
+        for node in ast.walk(ast.parse(src)):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) \
+                    and node.end_lineno - node.lineno + 1 > 80:
+                long.append(f"{path.name}:{node.name}")
+            names = []
+            if isinstance(node, ast.ImportFrom) and node.module:
+                names = [node.module] + [f"{node.module}.{a.name}" for a in node.names]
+            elif isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            for n in names:
+                parts = n.split(".")
+                if (parts[0] == "bench" and len(parts) > 1 and parts[1] in bench.BENCHES) \
+                        or parts[0] in bench.BENCHES:
+                    imports.append(f"{path.name}: {n}")
+    assert not long, f"functions over 80 lines: {long}"
+    assert not imports, f"a bench imported by another module: {imports}"
+
+
+def test_the_report_runs_on_the_standard_library():
+    """make bench-report runs under a bare python3: importing the report and every bench
+    module loads no numpy, torch or omegaconf (a bench imports them inside its functions)."""
+    code = ("import sys, importlib, bench, bench.report; "
+            "[importlib.import_module(f'bench.{b}') for b in bench.BENCHES]; "
+            "bad = {'numpy', 'torch', 'omegaconf', 'lightning', 'trimesh'} & set(sys.modules); "
+            "assert not bad, bad")
+    subprocess.run([sys.executable, "-c", code], cwd=ROOT, check=True)
 
 
 def test_a_partial_seams_run_keeps_the_other_meshes_entries():
@@ -152,12 +202,26 @@ def test_the_transfer_section_shows_the_generators_spread_and_the_heldout_recons
                                "sd_over_sets": {"mmd_cd": 0.0006, "nna_cd": 0.065}},
                        "transferred": {"mmd_cd": 0.0116, "nna_cd": 0.658}},
          "reconstruct_heldout": {"fscore": {"husky_rest": 0.916, "deer_rest": 0.885}}}
-    text = report.transfer(r)
+    from bench import transfer
+
+    text = transfer.table(r)
     assert "rig MMD-CD 10.300 x1e-3, 1-NNA 64.8% (sd over sets: MMD-CD 0.600, 1-NNA 6.5%)" in text
     assert "transferred MMD-CD 11.600 x1e-3, 1-NNA 65.8%." in text   # no spread recorded
     assert "F-score@0.01 deer_rest 0.885, husky_rest 0.916." in text
-    old = report.transfer({**base, "generator": None, "reconstruct_heldout": None})
+    old = transfer.table({**base, "generator": None, "reconstruct_heldout": None})
     assert "not measured yet" in old and "Held-out species" not in old
     # at a glance: the generator gap, relative, as the issue's line reads it
-    assert "MMD-CD +12.6%, 1-NNA +1.5%" in report._glance_transfer(r)
-    assert "generator" not in report._glance_transfer({**base, "generator": None})
+    assert "MMD-CD +12.6%, 1-NNA +1.5%" in transfer.headline(r)
+    assert "generator" not in transfer.headline({**base, "generator": None})
+
+
+def test_the_cli_table_shows_the_malformed_mesh_files_when_measured():
+    from bench import cli
+
+    base = json.loads((ROOT / "bench/results/cli.json").read_text())
+    assert "Malformed" not in cli.table(base)                 # an older result still renders
+    r = {**base, "malformed_mesh_s": {"gltf_bad_json": 1.1, "off_no_faces": 2.4},
+         "malformed_mesh_slowest_s": 2.4,
+         "targets": {**base["targets"], "malformed_mesh_slowest_s": 2.0}}
+    assert ("exit 2 after 1.10-2.40 s, slowest 2.40 s; 1 of 2 within the 2 s target"
+            in cli.table(r))

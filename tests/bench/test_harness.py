@@ -1,4 +1,4 @@
-"""bench/_harness.py: the atomic result writer, the machine record and the keyed fit cache."""
+"""bench/_harness.py: the result writer, the machine record and the keyed fit cache."""
 from __future__ import annotations
 
 import json
@@ -23,24 +23,22 @@ def leftovers(folder):
     return sorted(p.name for p in folder.iterdir() if p.name.endswith(".tmp"))
 
 
-def test_write_atomic_leaves_no_partial_file_on_an_exception(tmp_path, monkeypatch):
-    out = tmp_path / "r.json"
-    h.write_atomic(out, "old\n")
+def test_a_failed_result_write_keeps_the_old_result_whole(tmp_path, monkeypatch):
+    """Bench.write goes through the package's atomic writer: a failure mid-write (a full disk)
+    leaves the old result and no temp file."""
+    from ngc_gen.data import atomic
+
+    b = h.Bench("x", results=tmp_path)
+    b.write({"a": 1})
 
     def broken_fsync(*args):
         raise OSError(28, "No space left on device")   # mid-write: bytes written, not synced
 
-    monkeypatch.setattr(h.os, "fsync", broken_fsync)
+    monkeypatch.setattr(atomic.os, "fsync", broken_fsync)
     with pytest.raises(OSError):
-        h.write_atomic(out, "new and longer\n")
-    assert out.read_text() == "old\n"          # the old file, whole
-    assert leftovers(tmp_path) == []           # and no temp file beside it
-    monkeypatch.undo()
-    h.write_atomic(tmp_path / "fresh.json", "x")
-    with pytest.raises(OSError):
-        monkeypatch.setattr(h.os, "replace", broken_fsync)
-        h.write_atomic(tmp_path / "never.json", "y")
-    assert not (tmp_path / "never.json").exists() and leftovers(tmp_path) == []
+        b.write({"a": 2, "longer": "x" * 1000})
+    assert json.loads((tmp_path / "x.json").read_text())["a"] == 1
+    assert leftovers(tmp_path) == []
 
 
 def test_bench_write_refuses_a_result_that_is_not_json_and_keeps_the_old_one(tmp_path):
@@ -55,9 +53,11 @@ def test_bench_write_refuses_a_result_that_is_not_json_and_keeps_the_old_one(tmp
 
 
 @pytest.mark.parametrize("mask,mode", [(0o022, 0o644), (0o077, 0o600), (0o002, 0o664)])
-def test_write_atomic_mode_follows_the_umask(tmp_path, umask, mask, mode):
+def test_a_result_file_mode_follows_the_umask(tmp_path, umask, mask, mode):
+    """Results are readable by the group and others under the usual umask (0644), not
+    mkstemp's 0600."""
     umask(mask)
-    out = h.write_atomic(tmp_path / "r.json", b"{}")
+    out = h.Bench("r", results=tmp_path).write({})
     assert stat.S_IMODE(out.stat().st_mode) == mode
 
 
@@ -82,10 +82,9 @@ def test_the_harness_imports_with_the_standard_library_only():
     import subprocess
     import sys
 
-    code = ("import sys; sys.path.insert(0, %r); import bench._harness; "
-            "bad = {'torch', 'numpy', 'omegaconf'} & set(sys.modules); "
-            "assert not bad, bad" % str(h.ROOT))
-    subprocess.run([sys.executable, "-c", code], check=True)
+    code = ("import sys, bench._harness; "
+            "bad = {'torch', 'numpy', 'omegaconf'} & set(sys.modules); assert not bad, bad")
+    subprocess.run([sys.executable, "-c", code], check=True, cwd=h.ROOT)
 
 
 def counting_fit(calls):
@@ -177,3 +176,41 @@ def test_a_setting_at_its_neutral_value_leaves_the_recipe_key_as_it_was():
     for over in ("junction_weight=2", "prepare.pair_margin=0.1"):
         other = h.config_recipe(compose_config(overrides=["stage=fit", "data=ant", over]))
         assert h.recipe_key(other) != h.recipe_key(recipe), over
+
+
+def test_a_bench_reads_another_benchs_fit_from_the_cache(tmp_path):
+    """latest_fit: the newest complete fit of the other bench with the asked config values;
+    none: one line naming the make target that trains it."""
+    cache = h.FitCache("deform", root=tmp_path)
+    for steps, seed in ((1500, 0), (300, 0), (1500, 1)):
+        cache.get({"config": {"trainer": {"max_steps": steps}, "seed": seed}},
+                  counting_fit([]))
+    got = h.latest_fit("deform", {"trainer.max_steps": 1500}, root=tmp_path)
+    assert got.recipe["config"] == {"trainer": {"max_steps": 1500}, "seed": 1}
+    assert h.latest_fit("deform", {"trainer.max_steps": 300}, root=tmp_path).reused
+    with pytest.raises(SystemExit, match="run `make bench-deform` first"):
+        h.latest_fit("deform", {"trainer.max_steps": 99}, root=tmp_path)
+    with pytest.raises(SystemExit, match="make bench-sparse-settings"):
+        h.latest_fit("sparse_settings", root=tmp_path)
+
+
+def test_a_cached_stage_is_keyed_by_its_config_less_the_groups_it_never_reads(tmp_path,
+                                                                             monkeypatch):
+    from omegaconf import OmegaConf
+
+    monkeypatch.setattr(h, "dataset_identity", lambda cfg: {"shapes": "same"})
+    cache, runs = h.FitCache("generate", root=tmp_path / "fits"), []
+
+    def stage(cfg):
+        runs.append(cfg.run_dir)
+
+    cfg = lambda lr: OmegaConf.create({"run_dir": None, "model": {"w": 1},  # noqa: E731
+                                       "diffusion": {"lr": lr}})
+    first = h.cached_stage(cache, "shape_latent", cfg(1e-3), stage, link=tmp_path / "runs/sl",
+                           leave_out=("diffusion",))
+    again = h.cached_stage(cache, "shape_latent", cfg(5e-4), stage, link=tmp_path / "runs/sl",
+                           leave_out=("diffusion",))
+    assert not first.reused and again.reused and len(runs) == 1
+    assert (tmp_path / "runs/sl").resolve() == first.run_dir.resolve()
+    other = h.cached_stage(cache, "shape_latent", cfg(5e-4), stage)   # diffusion read now
+    assert not other.reused and len(runs) == 2 and first.info["label"] == "shape_latent"
