@@ -327,7 +327,35 @@ def parse_args():
                          "latent; the stage's default 600 leaves them short of converged)")
     ap.add_argument("--sets", type=int, default=8,
                     help="sets of as many samples as held-out clips, per generator (averaged)")
+    ap.add_argument("--collections-only", action="store_true",
+                    help="only the collections (0 A.D. and the animals turned at random, no axes "
+                         "given): its key in bench/results/transfer.json, the rest kept")
+    ap.add_argument("--collections-limit", type=int, default=None,
+                    help="meshes per collection (default: all)")
+    ap.add_argument("--zeroad-deb", default=None, help="the 0ad-data .deb (else ZEROAD_DEB, the "
+                    "cache, or apt-get download)")
     return ap.parse_args()
+
+
+def _collections(records: list[dict], args) -> dict:
+    """The collections' figures (bench/transfer_collections.py); their per-mesh rows beside the
+    results, in bench/results/transfer_collections.json."""
+    from bench.transfer_collections import collections
+
+    out = collections([r for r in records if r["split"] != "rest"], args.workers, args.zeroad_deb,
+                      args.collections_limit)
+    Bench("transfer_collections").write({"per_mesh": out.pop("per_mesh")})
+    return out
+
+
+def _collections_only(bench, records: list[dict], args) -> None:
+    """--collections-only: the `collections` key recomputed, every other key kept."""
+    path = ROOT / "bench/results/transfer.json"
+    old = json.loads(path.read_text()) if path.is_file() else {}
+    old.pop("machine", None)
+    old["collections"] = _collections(records, args)
+    print(bench.write(old))
+    print(json.dumps(old["collections"], indent=1))
 
 
 def main() -> None:
@@ -348,6 +376,8 @@ def main() -> None:
                 out_dir=str(ROOT / ".cache/datasets/animals_f1"), frames=1, split="all",
                 limit=args.limit, workers=args.workers)
     records = Animals(**conf).build()
+    if args.collections_only:
+        return _collections_only(bench, records, args)
     template = load_template(TEMPLATE)
     for kind in ("rig", "transferred"):  # the training folders are rewritten on every run
         shutil.rmtree(GEN / kind, ignore_errors=True)
@@ -380,6 +410,7 @@ def main() -> None:
         "generator": generator,
         "reconstruct_heldout": reconstructed,
         "refused": refused,
+        "collections": _collections(records, args),
         "details": {"animals": {k: animals[k] for k in ("purity_per_gc", "missing_counts",
                                                          "s_per_mesh_mean")},
                     "creatures": {k: creatures[k] for k in ("matched", "purity_worst", "purity_per_gc",
@@ -392,7 +423,8 @@ def main() -> None:
                     "refused_errors": errors,
                     "per_mesh": rows},
     }
-    picture([r for r in records if r["split"] != "rest"], ROOT / "bench/results/transfer.png")
+    if not result["collections"]["zeroad"].get("n"):  # else the 0 A.D. animals, turned
+        picture([r for r in records if r["split"] != "rest"], ROOT / "bench/results/transfer.png")
     print(bench.write(result))
     print({k: result[k] for k in ("animals", "creatures", "generator", "reconstruct_heldout",
                                   "refused")})

@@ -5,7 +5,11 @@ name: ant
 mesh: ant.ply            # relative to this file, absolute, or a resource such as pyvista:ant.ply
 normalize: {bound: 0.8}  # optional, default 0.8; false: the mesh is already in the GCs' frame
 gcs: [ {name, curve: {type, points}, up, keys: [{t, radii, twist}], caps}, ... ]
+frame: {up: [0, 1, 0], front: [0, 0, 1], from_mesh: [[3 x 3]], source: detected}  # optional
 ```
+
+`frame` (written by a template transfer): the GCs and the mesh are in a body frame (up, front:
+its axes), the mesh's coordinates turned by the rotation from_mesh before `normalize`.
 
 GC coordinates are in the normalised frame (after ``normalize``; with ``normalize: false``, the
 mesh's own coordinates, as in the ``edited.yaml`` that edit.py writes). Every problem raises
@@ -22,13 +26,16 @@ import yaml
 
 from ngc_gen.data.annotation_file import read_annotation_yaml
 from ngc_gen.data.atomic import atomic_write_text
+from ngc_gen.data.body_frame import frame_dict, read_frame
 from ngc_gen.data.errors import DataError
 from ngc_gen.data.mesh.io import is_resource, resolve_mesh_path
 from ngc_gen.geometry import GeneralizedCylinder, GeometryError
 from ngc_gen.values import NumberError, is_number, read_number
 
-# decoder_frame: written by sample.py beside re-centred GCs (read by conditioning, not by fits)
-TOP_KEYS = {"name", "mesh", "normalize", "gcs", "decoder_frame"}
+# decoder_frame: written by sample.py beside re-centred GCs (read by conditioning, not by fits);
+# frame: the body frame the shape is written in, and the rotation that writes the mesh in it
+# (ngc_gen.data.body_frame, docs/gcs.md)
+TOP_KEYS = {"name", "mesh", "normalize", "gcs", "decoder_frame", "frame"}
 NORMALIZE_KEYS = {"bound"}
 DEFAULT_BOUND = 0.8
 
@@ -58,6 +65,22 @@ class Annotation:
     gcs: list[GeneralizedCylinder]
     bound: float | None = DEFAULT_BOUND  # None: `normalize: false`, the mesh as it is
     source: Path | None = field(default=None, compare=False)
+    frame: dict | None = None  # {up, front[, from_mesh, source]}: `body_frame.read_frame`
+
+    def load_mesh(self):
+        """(mesh, center, scale): the mesh in the GCs' frame (turned by `frame.from_mesh` when
+        the frame records one, then normalised), with normalised = (turned - center) * scale."""
+        import numpy as np
+        import trimesh
+
+        from ngc_gen.data.mesh.io import load_mesh, normalize
+
+        mesh = load_mesh(self.mesh_path)
+        if self.frame is not None and self.frame.get("from_mesh") is not None:
+            R = np.asarray(self.frame["from_mesh"], np.float64)
+            mesh = trimesh.Trimesh(np.asarray(mesh.vertices, np.float64) @ R.T,
+                                   np.asarray(mesh.faces), process=False)
+        return normalize(mesh, self.bound)
 
     @property
     def mesh_path(self) -> Path:
@@ -82,12 +105,15 @@ class Annotation:
                 rel = None
             mesh = rel if rel is not None and Path(rel).parts[:1] != ("..",) \
                 else os.path.abspath(mesh)
-        return {
+        d = {
             "name": self.name,
             "mesh": Path(mesh).as_posix() if not is_resource(mesh) else mesh,
             "normalize": False if self.bound is None else {"bound": float(self.bound)},
             "gcs": [gc.to_dict() for gc in self.gcs],
         }
+        if self.frame is not None:
+            d["frame"] = frame_dict(self.frame)
+        return d
 
     def to_yaml(self, relative_to: str | os.PathLike | None = None) -> str:
         """YAML text of ``to_dict``; short lists inline so control points stay readable."""
@@ -238,7 +264,8 @@ def annotation_from_dict(d, source: str | os.PathLike | None = None) -> Annotati
         raise DataError(f"GC names {dupes} appear more than once", path=path, gc=dupes[0], field="name",
                         fix="give every GC a unique name")
     return Annotation(name=name, mesh=mesh, gcs=parsed,
-                      bound=None if bound is None else float(bound), source=path)
+                      bound=None if bound is None else float(bound), source=path,
+                      frame=read_frame(d.get("frame"), path))
 
 
 def load_annotation(path: str | os.PathLike) -> Annotation:

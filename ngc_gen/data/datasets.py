@@ -10,7 +10,7 @@ from pathlib import Path
 from ngc_gen.data.annotations import Annotation, load_annotation
 from ngc_gen.data.autogc.auto import AutoGCSettings, auto_annotation
 from ngc_gen.data.errors import DataError
-from ngc_gen.data.mesh_folder import mesh_files
+from ngc_gen.data.mesh_folder import mesh_files, run_annotations
 
 
 
@@ -56,7 +56,9 @@ class Combined:
 
 class MeshFolder:
     """Any directory of meshes; `<name>.yaml` beside a mesh annotates it, else automatic GCs
-    made with `annotate` (the `annotate` config group; default: one GC per limb or part)."""
+    made with `annotate` (the `annotate` config group; default: one GC per limb or part). A
+    folder with annotations and no meshes (a `stage=annotate` run directory) is its
+    annotations."""
 
     def __init__(self, name: str, path: str, bound: float = 0.8, annotate=None):
         self.name = name
@@ -70,6 +72,9 @@ class MeshFolder:
         return mesh_files(self.path)
 
     def shapes(self) -> list[Annotation]:
+        annotated = run_annotations(self.path)  # a stage=annotate run directory
+        if annotated:
+            return [load_annotation(a) for a in annotated]
         out = []
         for mesh in self.mesh_files():
             yml = mesh.with_suffix(".yaml")

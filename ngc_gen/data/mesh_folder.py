@@ -20,6 +20,21 @@ def mesh_files(folder: str | Path) -> list[Path]:
                         fix="pass data.path=/path/to/your/meshes")
     meshes = sorted(p for p in folder.iterdir() if p.suffix.lower() in MESH_SUFFIXES)
     if not meshes:
-        raise DataError(f"no meshes ({', '.join(sorted(MESH_SUFFIXES))}) in {folder}",
-                        fix="put mesh files in the folder or point data.path elsewhere")
+        raise DataError(f"no meshes ({', '.join(sorted(MESH_SUFFIXES))}) and no annotations in "
+                        f"{folder}", fix="put mesh files in the folder, point data.path at a "
+                                         "stage=annotate run directory, or elsewhere")
     return meshes
+
+
+def run_annotations(folder: str | Path) -> list[Path]:
+    """The annotations of a folder without meshes (a `stage=annotate` run directory: each
+    `<name>.yaml` names its mesh elsewhere), sorted by name; [] when it has meshes or none."""
+    folder = Path(folder)
+    if not folder.is_dir() or any(p.suffix.lower() in MESH_SUFFIXES for p in folder.iterdir()):
+        return []
+    out = []
+    for p in sorted(folder.glob("*.yaml")):
+        lines = p.read_text(encoding="utf-8", errors="replace").splitlines()
+        if any(x.startswith("mesh:") for x in lines) and any(x.startswith("gcs:") for x in lines):
+            out.append(p)
+    return out

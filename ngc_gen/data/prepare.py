@@ -27,7 +27,7 @@ import yaml
 from ngc_gen.data.annotations import Annotation, annotation_from_dict, load_annotation
 from ngc_gen.data.atomic import atomic_write
 from ngc_gen.data.errors import DataError
-from ngc_gen.data.mesh.io import load_mesh, normalize
+from ngc_gen.data.mesh.io import load_mesh
 from ngc_gen.data.mesh.sampling import gc_membership, sample_surface, sample_volume
 from ngc_gen.data.mesh.sdf import signed_distance
 from ngc_gen.geometry import GeneralizedCylinder
@@ -128,9 +128,14 @@ _SCALARS = {"name": str, "key": str, "annotation_yaml": str, "coverage": float, 
 
 def cache_key(mesh_bytes: bytes, annotation: Annotation, settings: PrepareSettings) -> str:
     """sha256 over the mesh file bytes, the annotation content (not its mesh path, so moving a
-    dataset keeps its cache) and the settings."""
+    dataset keeps its cache; of its body frame only the rotation from the mesh's coordinates,
+    which moves the samples: up and front name directions, they move nothing) and the
+    settings."""
     content = annotation.to_dict()
     content.pop("mesh")
+    rotation = (content.pop("frame", None) or {}).get("from_mesh")
+    if rotation is not None:
+        content["from_mesh"] = rotation
     h = hashlib.sha256()
     h.update(f"ngc-gen-prepare-v{CACHE_VERSION}".encode())
     h.update(hashlib.sha256(mesh_bytes).digest())
@@ -238,7 +243,7 @@ def compute_prepared(ann: Annotation, settings: PrepareSettings, key: str = "") 
     """Sample one shape (no cache involved); raises DataError on bad data or low coverage."""
     rng = np.random.default_rng(settings.seed)
     try:
-        mesh, center, scale = normalize(load_mesh(ann.mesh_path), ann.bound)
+        mesh, center, scale = ann.load_mesh()
         V, F = np.asarray(mesh.vertices), np.asarray(mesh.faces)
         exact, _ = sample_surface(V, F, settings.coverage_samples, rng)
     except DataError as e:
@@ -303,6 +308,7 @@ def prepare_shape(annotation: Annotation | str | os.PathLike, settings: PrepareS
     if path is not None and _stored_key(path) == key:
         shape = load_prepared(path)
         shape.from_cache = True
+        shape.annotation_yaml = ann.to_yaml()  # the frame as the annotation records it now
         log.info("%s: cached %s (coverage %.4f%%)", ann.name, path, 100 * shape.coverage)
         return shape
     start = time.perf_counter()

@@ -48,6 +48,8 @@ from ngc_gen.shape import PartFeatures
 from ngc_gen.shape.mixing import mixed_parts
 
 from .blend import mix_weight
+from .body import resolve_body_directions
+from .crossings import crossings
 from .errors import EditError, in_program
 from .handles import deform_by_handles
 from .ops import OPS, check_array, check_number, check_t, curve_points_at, local_motion
@@ -75,12 +77,13 @@ class EditProgram:
         """The `ngc_gen.shape.Shape` after this program: edited GCs, mixed parts, the program's
         smooth-union width; the per-op records go to `info["edit_log"]`. `Shape.edited` calls
         this (the shape layer does not import edits)."""
-        result = apply_program(self, shape.gcs, resolve)
+        result = apply_program(self, shape.gcs, resolve, frame=shape.info.get("frame"))
         index = {n: j for j, n in enumerate(shape.gc_names)}
         mixes = {**shape.mixes, **{index[n]: f for n, f in result.mixes.items()}}
         return shape.replaced(gcs=result.gcs, mixes=mixes, smooth=self.smooth_union,
                               info={**shape.info, "edit_log": result.log,
-                                    "program": self.name})
+                                    "program": self.name,
+                                    "crossings": crossings(shape.gcs, result.gcs)})
 
     @classmethod
     def from_dict(cls, d, source: str | None = None) -> "EditProgram":
@@ -328,15 +331,18 @@ def _mix_op(entry: dict, gcs: dict, resolve: SourceResolver | None, mixes: dict)
 
 
 def apply_program(program: EditProgram, gcs: list[GeneralizedCylinder],
-                  resolve: SourceResolver | None = None) -> ProgramResult:
+                  resolve: SourceResolver | None = None,
+                  frame: dict | None = None) -> ProgramResult:
     """Run the program's ops in order on `gcs` (never changed; GCs are immutable).
 
     resolve(shape, gc, ckpt) -> MixSource reads source parts for `mix` (None: mixing is an
-    error). Any problem raises EditError with the program and op index."""
+    error). frame: the shape's body frame {up, front}, which body directions (`axis: forward`)
+    resolve through (`body.resolve_body_directions`). Any problem raises EditError with the
+    program and op index."""
     state = {g.name: g for g in gcs}
     mixes: dict[str, PartFeatures] = {}
     log = []
-    for i, entry in enumerate(program.ops):
+    for i, entry in enumerate(resolve_body_directions(program.ops, frame, program.source)):
         op = entry["op"]
         try:
             if op == "handles":

@@ -19,6 +19,9 @@ from ngc_gen.values import NumberError, is_number, looks_like_number, read_numbe
 from .errors import EditError
 
 PROGRAM_KEYS = ("name", "description", "shape", "smooth_union", "ops")
+# directions in the shape's body frame (its annotation's `frame`: up, front; left = up x front),
+# usable wherever an op takes an axis or an offset; `-name` is the opposite direction
+BODY_DIRECTIONS = ("forward", "up", "left")
 # the blends of blend.BLEND_PARAMS (tests/edit/test_spec.py keeps them equal)
 BLEND_NAMES = ("replace", "constant", "linear", "truncated_linear", "smoothstep")
 
@@ -52,6 +55,26 @@ def _names(x) -> bool:
     return _name(x) or (isinstance(x, list) and len(x) > 0 and all(_name(v) for v in x))
 
 
+def body_direction(x) -> tuple[str, float] | None:
+    """(name, sign) of a body direction ('forward', '-up', ...), or None if x is not one."""
+    if not isinstance(x, str):
+        return None
+    name = x.strip()
+    sign = -1.0 if name.startswith("-") else 1.0
+    name = name.lstrip("+-")
+    return (name, sign) if name in BODY_DIRECTIONS and len(x.strip()) - len(name) <= 1 else None
+
+
+def _axis(x) -> bool:
+    return _vector(x) or body_direction(x) is not None
+
+
+def _offset(x) -> bool:
+    """[x, y, z], or a mapping of body directions to lengths ({forward: 0.1, up: 0.05})."""
+    return _vector(x) or (isinstance(x, dict) and len(x) > 0 and all(
+        body_direction(k) is not None and _number(v) for k, v in x.items()))
+
+
 def _point(x) -> bool:
     return _vector(x) or (isinstance(x, dict) and set(x) == {"gc", "t"} and _name(x["gc"])
                           and _number(x["t"]))
@@ -59,7 +82,7 @@ def _point(x) -> bool:
 
 def _rotation(x) -> bool:
     return (isinstance(x, dict) and {"axis", "degrees"} <= set(x)
-            and set(x) <= {"axis", "degrees", "pivot"} and _vector(x["axis"])
+            and set(x) <= {"axis", "degrees", "pivot"} and _axis(x["axis"])
             and _number(x["degrees"]) and (x.get("pivot") is None or _point(x["pivot"])))
 
 
@@ -101,13 +124,17 @@ TYPES = {
                          lambda x: _vector(x) or (isinstance(x, list) and len(x) > 0
                                                   and all(_vector(v) for v in x))),
     "vec3": FieldType("[x, y, z]", _vector),
+    "axis": FieldType("[x, y, z], or a body direction: forward, up, left, -forward, -up, -left "
+                      "(the shape's frame)", _axis),
+    "offset": FieldType("[x, y, z], or lengths along body directions: {forward: 0.1, up: 0.05}",
+                        _offset),
     "matrix": FieldType("a 3x3 rotation, rows [[..], [..], [..]]",
                         lambda x: isinstance(x, list) and len(x) == 3
                         and all(_vector(r) for r in x)),
     "point": FieldType("[x, y, z], or {gc: name, t: 0..1} (a curve point)", _point),
     "range": FieldType("[t_a, t_b] in [0, 1]", lambda x: _vector(x, 2)),
-    "rotation": FieldType("{axis: [x, y, z], degrees: number, pivot: point (optional)}",
-                          _rotation),
+    "rotation": FieldType("{axis: [x, y, z] or a body direction (-left: a leg swings forward), "
+                          "degrees: number, pivot: point (optional)}", _rotation),
     "attached": FieldType("{bent GC: [names of GCs that follow it]}",
                           lambda x: isinstance(x, dict) and all(
                               _name(k) and isinstance(v, list) and all(_name(n) for n in v)
@@ -168,16 +195,16 @@ OPS: dict[str, OpSpec] = {
                     {"gc": _f("gcs", True), "R": _f("matrix", True), "t": _f("vec3", True)},
                     "{op: rigid, gc: head, R: [[1, 0, 0], [0, 1, 0], [0, 0, 1]], t: [0, 0, 0.1]}"),
     "rotate": OpSpec("rotate the GCs about an axis through pivot (default: the first GC's start)",
-                     {"gc": _f("gcs", True), "axis": _f("vec3", True),
+                     {"gc": _f("gcs", True), "axis": _f("axis", True),
                       "degrees": _f("number", True), "pivot": _f("point")},
                      "{op: rotate, gc: [head, ear_l, ear_r], axis: [0, 1, 0], degrees: 20}"),
     "translate": OpSpec("move the GCs by offset",
-                        {"gc": _f("gcs", True), "offset": _f("vec3", True)},
+                        {"gc": _f("gcs", True), "offset": _f("offset", True)},
                         "{op: translate, gc: all, offset: [-0.06, 0, 0]}"),
     "handles": OpSpec("drag the handle points of gc over t in `at` by a rigid motion; the GCs "
                       "between them and the fixed region bend (arc length kept)",
                       {"gc": _f("gc", True), "at": _f("range"), "rotate": _f("rotation"),
-                       "translate": _f("vec3"),
+                       "translate": _f("offset"),
                        "fixed": _f("names", fix="whole GCs stay, e.g. fixed: [thorax]; to hold "
                                                 "part of the dragged GC, move `at` instead"),
                        "attached": _f("attached"), "on_unreachable": _f("on_unreachable")},

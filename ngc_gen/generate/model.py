@@ -55,6 +55,12 @@ class ShapeGenerator:
     def ngc(self):
         return self.shape_latent.ngc
 
+    @property
+    def frame(self) -> dict | None:
+        """The body frame {up, front} the training collection was written in (None: not
+        recorded); generated shapes are in it too."""
+        return (self.shape_latent.hparams.meta or {}).get("frame")
+
     def _need_diffusion(self, what: str):
         if self.diffusion is None:
             raise DataError(f"{what} needs a diffusion model, but {self.source} is a shape-latent "

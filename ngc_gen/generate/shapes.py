@@ -54,16 +54,20 @@ def normalise(mesh: trimesh.Trimesh, gcs: list[dict], bound: float = BOUND):
 
 
 def annotation_yaml(name: str, mesh: str, gcs: list[dict], bound: float | None = BOUND,
-                    frame: tuple | None = None) -> str:
+                    frame: tuple | None = None, body: dict | None = None) -> str:
     """Annotation YAML of docs/gcs.md (mesh path as given); bound None writes
     `normalize: false` (mesh and GCs in the decoder's frame, not normalised). frame: (center,
     scale) of the similarity x -> (x - center) * scale that took the decoder's frame to these
-    GCs, recorded as `decoder_frame` so a condition on this file can map them back."""
+    GCs, recorded as `decoder_frame` so a condition on this file can map them back. body: the
+    model's body frame {up, front} (`ngc_gen.data.body_frame`), recorded as `frame`."""
     d = {"name": name, "mesh": mesh,
          "normalize": False if bound is None else {"bound": float(bound)},
          "gcs": [rounded_gc_dict(g) for g in gcs]}
     if frame is not None:
         d["decoder_frame"] = {"center": [float(c) for c in frame[0]], "scale": float(frame[1])}
+    if body is not None:
+        d["frame"] = {"up": [float(x) for x in body["up"]],
+                      "front": [float(x) for x in body["front"]], "source": "model"}
     return yaml.safe_dump(d, sort_keys=False, default_flow_style=None, width=100)
 
 
@@ -79,22 +83,25 @@ class WrittenShape:
     n_faces: int
     info: dict = field(default_factory=dict)
     bound: float | None = BOUND      # the YAML's normalize bound (None: normalize: false)
+    body: dict | None = None         # the body frame {up, front} the YAML records
 
 
 def write_shape(out_dir: Path, name: str, mesh: trimesh.Trimesh, gcs: list[dict],
                 codes: torch.Tensor, info: dict | None = None,
-                bound: float | None = BOUND, frame: tuple | None = None) -> WrittenShape:
+                bound: float | None = BOUND, frame: tuple | None = None,
+                body: dict | None = None) -> WrittenShape:
     """<out_dir>/<name>.ply and <name>.yaml (mesh: <name>.ply, normalize: {bound: 0.8}, or
-    normalize: false for bound None; frame: `annotation_yaml`'s decoder frame)."""
+    normalize: false for bound None; frame, body: `annotation_yaml`'s decoder and body
+    frames)."""
     out_dir = Path(out_dir)
     ply, yml = out_dir / f"{name}.ply", out_dir / f"{name}.yaml"
     buf = io.BytesIO()
     mesh.export(buf, file_type="ply")
     atomic_write(ply, lambda f: f.write(buf.getvalue()))
-    atomic_write_text(yml, annotation_yaml(name, ply.name, gcs, bound, frame))
+    atomic_write_text(yml, annotation_yaml(name, ply.name, gcs, bound, frame, body))
     return WrittenShape(name, ply, yml, codes.detach().cpu().float(),
                         [rounded_gc_dict(g) for g in gcs], len(mesh.faces), dict(info or {}),
-                        bound)
+                        bound, body)
 
 
 def write_edit_checkpoint(path: Path, ngc, shapes: list[WrittenShape], source: str = "") -> Path:
@@ -109,7 +116,7 @@ def write_edit_checkpoint(path: Path, ngc, shapes: list[WrittenShape], source: s
     for s in shapes:
         metas.append({"name": s.name, "code_offset": offset, "n_codes": len(s.codes),
                       "annotation_yaml": annotation_yaml(s.name, str(Path(s.mesh).resolve()),
-                                                         s.gcs, s.bound)})
+                                                         s.gcs, s.bound, body=s.body)})
         offset += len(s.codes)
     module = AutoDecoder(kind="ngc", decoder=dict(ngc.config), n_codes=max(offset, 1), lr=0.0,
                          meta={"shapes": metas, "source": source})

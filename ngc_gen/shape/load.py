@@ -23,8 +23,9 @@ def shapes_from_autodecoder(module) -> dict[str, Shape]:
     out = {}
     for m in module.hparams.meta["shapes"]:
         codes = module.codes.weight[m["code_offset"]:m["code_offset"] + m["n_codes"]].detach()
+        d = yaml.safe_load(m["annotation_yaml"])
         out[m["name"]] = Shape(recorded_gcs(m), codes.clone(), module.decoder, name=m["name"],
-                               info={"mesh": yaml.safe_load(m["annotation_yaml"]).get("mesh")})
+                               info={"mesh": d.get("mesh"), "frame": d.get("frame")})
     return out
 
 

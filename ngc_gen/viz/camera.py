@@ -50,6 +50,15 @@ def up_vector(spec) -> np.ndarray | None:
                      f"{spec!r}; set it as viz.up=<value> (conf/viz/default.yaml)")
 
 
+def frame_up(spec, frame: dict | None):
+    """The `viz.up` a picture uses: a given axis as it is; for 'auto', the up of the body frame
+    the shapes were written in (an annotation's or a model's `frame`), when one is recorded;
+    else 'auto' (detected from the meshes)."""
+    if frame is not None and isinstance(spec, str) and spec.strip().lower() == "auto":
+        return [float(x) for x in frame["up"]]
+    return spec
+
+
 def _hull_area_2d(points: np.ndarray) -> float:
     from scipy.spatial import ConvexHull, QhullError
 

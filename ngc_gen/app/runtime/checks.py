@@ -252,10 +252,15 @@ def check_resume_from(cfg, kind: str) -> None:
 
 
 def check_shape_latent(cfg) -> None:
-    """stage=shape_latent: shape_latent.init_decoder, when given, is a fit run."""
+    """stage=shape_latent: shape_latent.init_decoder, when given, is a fit run; the annotation
+    files the data config reads share one body frame (YAML only, `check_frames`)."""
+    from omegaconf import OmegaConf
+
     from ngc_gen.lit.kinds import FIT, only
     from ngc_gen.lit.peek import check_kind, resolve_checkpoint
 
+    if cfg.get("data") is not None:
+        check_frames(OmegaConf.to_container(cfg.data, resolve=True, throw_on_missing=True))
     init = cfg.get("shape_latent", {}).get("init_decoder")
     if init is not None:
         fix = "pass shape_latent.init_decoder=<a `train.py stage=fit` run or its last.ckpt>"
@@ -379,7 +384,7 @@ def check_data(node) -> None:
     annotations of AnnotatedShapes, the meshes (and annotations beside them) of MeshFolder,
     the parts of Combined and the base of SingleGC. Generated datasets (Creatures) have no
     user files."""
-    from ngc_gen.data.mesh_folder import mesh_files
+    from ngc_gen.data.mesh_folder import mesh_files, run_annotations
 
     if isinstance(node, list):
         for part in node:
@@ -390,6 +395,9 @@ def check_data(node) -> None:
     target = str(node.get("_target_", "")).rsplit(".", 1)[-1]
     if target == "AnnotatedShapes":
         for a in node.get("annotations") or []:
+            check_annotation_file(a)
+    elif target == "MeshFolder" and run_annotations(node["path"]):  # an annotate run directory
+        for a in run_annotations(node["path"]):
             check_annotation_file(a)
     elif target == "MeshFolder":
         for mesh in mesh_files(node["path"]):
@@ -402,3 +410,33 @@ def check_data(node) -> None:
         check_data(node.get("parts"))
     elif target == "SingleGC":
         check_data(node.get("base"))
+
+
+def check_frames(node) -> None:
+    """The annotation files a MeshFolder or AnnotatedShapes config reads share one body frame
+    (`body_frame.collection_frame` on their `frame` keys, YAML only): what a generator needs,
+    refused in a second instead of after the meshes are read. A mesh without a YAML has no
+    frame of its own and does not count."""
+    from ngc_gen.data.annotation_file import read_annotation_yaml
+    from ngc_gen.data.body_frame import collection_frame
+    from ngc_gen.data.mesh_folder import mesh_files, run_annotations
+
+    if not isinstance(node, dict):
+        return
+    target = str(node.get("_target_", "")).rsplit(".", 1)[-1]
+    if target == "AnnotatedShapes":
+        files = [Path(a) for a in node.get("annotations") or []]
+    elif target == "MeshFolder":
+        files = run_annotations(node["path"]) or [
+            m.with_suffix(".yaml") for m in mesh_files(node["path"])
+            if m.with_suffix(".yaml").exists()]
+    else:
+        return
+    frames = []
+    for f in files:
+        d = read_annotation_yaml(f)
+        frame = d.get("frame") if isinstance(d, dict) else None
+        ok = isinstance(frame, dict) and all(
+            isinstance(frame.get(k), list) and len(frame[k]) == 3 for k in ("up", "front"))
+        frames.append((f.stem, frame if ok else None))
+    collection_frame(frames)

@@ -51,7 +51,7 @@ def extract_and_write(gen: ShapeGenerator, shapes: list[Shape], out_dir: Path,
                        f"GCs (empty mesh)")
         written.append(write_shape(out_dir, shape.name, mesh, gcs, shape.codes, info,
                                    BOUND if normalised else None,
-                                   (center, scale) if normalised else None))
+                                   (center, scale) if normalised else None, gen.frame))
     return written, seconds
 
 
@@ -66,7 +66,7 @@ def write_outputs(gen: ShapeGenerator, out_dir: Path, mode: str, written: list[W
     edit = edit_shapes if edit_shapes is not None else written
     ckpt = write_edit_checkpoint(workspace.shapes_checkpoint(out_dir), gen.ngc, edit,
                                  source=f"sample.py mode={mode} run={gen.source}")
-    summary = {"mode": mode, "source": gen.source, "out_dir": str(out_dir),
+    summary = {"mode": mode, "source": gen.source, "out_dir": str(out_dir), "frame": gen.frame,
                "edit_checkpoint": str(ckpt), "edit_shapes": [s.name for s in edit], **summary,
                "shapes": {s.name: {"mesh": str(s.mesh), "annotation": str(s.annotation), **s.info}
                           for s in written}}

@@ -10,7 +10,7 @@ and each mesh's GC names (what edit programs refer to).
 
 With `annotate.template=T` (a template YAML with `place`, e.g.
 datasets/animals/quadruped_transfer.yaml, or any annotated mesh's YAML) every mesh gets T's GCs
-instead (ngc_gen/data/autogc/transfer.py): the same names, order, degrees and keys, so one
+instead (ngc_gen/data/autogc/transfer/): the same names, order, degrees and keys, so one
 shape-latent layout and one edit program for the folder. A mesh that does not match is one
 line of the table and the rest are still annotated; the folder gets `transfer.png` (a colour
 per template GC across the meshes) and `transfer.json` (the table). `annotate.export_template=
@@ -31,7 +31,7 @@ from ngc_gen.data.atomic import atomic_write_text
 from ngc_gen.data.autogc.auto import AutoGCSettings, auto_annotation
 from ngc_gen.data.autogc.calibrate import calibrate_ends
 from ngc_gen.data.autogc.coverage import coverage_stats
-from ngc_gen.data.autogc.orient import detect_orientation, parse_axis
+from ngc_gen.data.autogc.orient import Orientation, gcs_orientation
 from ngc_gen.data.autogc.template import Template, load_template
 from ngc_gen.data.autogc.transfer import TransferSettings, export_template, transfer_template
 from ngc_gen.data.annotations import load_annotation
@@ -40,6 +40,7 @@ from ngc_gen.data.mesh.io import load_mesh, normalize
 from ngc_gen.data.mesh.sampling import sample_surface
 
 from ..runtime.config import instantiate
+from ..runtime.next_hint import next_command
 from ..runtime.training import start_run
 
 HEADER = "# written by `train.py stage=annotate` (automatic GCs); edit freely, or delete to redo\n"
@@ -71,7 +72,7 @@ def _picture(ann: Annotation, path: Path, up="auto") -> Path | None:
 
     from ngc_gen.viz import gc_labels, gcs_surface, render_grid, render_or_warn
 
-    mesh, _, _ = normalize(load_mesh(ann.mesh_path), ann.bound)
+    mesh, _, _ = ann.load_mesh()
     shell = gcs_surface(ann.gcs)
     return render_or_warn(render_grid, path,
                           [[(mesh, shell), (trimesh.Trimesh(shell.vertices, shell.faces), None,
@@ -83,15 +84,6 @@ def _picture(ann: Annotation, path: Path, up="auto") -> Path | None:
 def _surface(mesh, seed: int) -> np.ndarray:
     points, _ = sample_surface(mesh.vertices, mesh.faces, COVERAGE_SAMPLES, np.random.default_rng(seed + 1))
     return points
-
-
-def _orientation_of(gcs, points, d: dict):
-    curves = [np.asarray(g.to_world(np.stack([np.linspace(-1, 1, 17), np.zeros(17), np.zeros(17)], 1)))
-              for g in gcs]
-    volumes = [float(np.linalg.norm(np.diff(c, axis=0), axis=1).sum()) *
-               float(np.mean([np.prod(k["radii"]) for k in g.to_dict()["keys"]])) for c, g in zip(curves, gcs)]
-    return detect_orientation(curves, volumes, None, parse_axis(d.get("up"), "annotate.up"),
-                              parse_axis(d.get("front"), "annotate.front"), points)
 
 
 def load_transfer_template(path: str, d: dict) -> Template:
@@ -110,9 +102,10 @@ def load_transfer_template(path: str, d: dict) -> Template:
         raw = None
     if isinstance(raw, dict) and "mesh" in raw and isinstance(raw.get("gcs"), list):
         ann = load_annotation(p)
-        mesh, _, _ = normalize(load_mesh(ann.mesh_path), ann.bound)
+        mesh, _, _ = ann.load_mesh()
         points = _surface(mesh, int(d.get("seed", 0)))
-        t = export_template([(ann.gcs, points, _orientation_of(ann.gcs, points, d))], ann.name)
+        o = gcs_orientation(ann.gcs, points, d.get("up"), d.get("front"))
+        t = export_template([(ann.gcs, points, o)], ann.name)
         t = calibrate_ends(t, [(ann.name, mesh, ann.gcs)], TransferSettings.from_config(d))
         return Template(t.name, t.gcs, t.version, str(p), t.frame)
     return load_template(p)
@@ -156,7 +149,8 @@ def run_annotate(cfg: DictConfig) -> list[dict]:
         first = load_annotation(run_dir / f"{rows[0]['mesh']}.yaml")
         mesh, _, _ = normalize(load_mesh(first.mesh_path), first.bound)
         points = _surface(mesh, settings.seed)
-        t = export_template([(first.gcs, points, _orientation_of(first.gcs, points, conf))], first.name)
+        o = gcs_orientation(first.gcs, points, conf.get("up"), conf.get("front"))
+        t = export_template([(first.gcs, points, o)], first.name)
         t = calibrate_ends(t, [(first.name, mesh, first.gcs)], TransferSettings.from_config(conf))
         _write_template(t, Path(conf["export_template"]), f"the automatic GCs of {first.name}")
     print(f"run directory: {run_dir}")
@@ -170,33 +164,104 @@ def _write_template(t: Template, path: Path, what: str) -> None:
     print(f"template: {path}")
 
 
+def _hand_annotation(mesh_file: str) -> Path | None:
+    """The `<name>.yaml` beside a mesh that a user wrote (with GCs; not this stage's)."""
+    p = Path(mesh_file).with_suffix(".yaml")
+    if not p.is_file() or _ours(p):
+        return None
+    import yaml
+
+    try:
+        d = yaml.safe_load(p.read_text(encoding="utf-8"))
+    except yaml.YAMLError:
+        return None
+    return p if isinstance(d, dict) and d.get("gcs") else None
+
+
+def _transfer_one(name: str, mesh_file: str, bound, template: Template, st) -> tuple:
+    """(annotation in the template's frame, its mesh, the Transfer) of one mesh; DataError
+    when it does not match or its frame override cannot be read."""
+    from ngc_gen.data.autogc.frame import read_override, record, written
+
+    override, _ = read_override(mesh_file) if Path(mesh_file).exists() else (None, None)
+    raw = load_mesh(mesh_file)
+    mesh, center, scale = normalize(raw, bound)
+    tr = transfer_template(mesh, template, st, where=str(mesh_file), override=override)
+    mesh_w, gcs_w = written(raw, center, scale, tr.gcs, tr.rotation, bound)
+    frame = record(tr.orientation, Orientation(template.up, template.front), tr.source)
+    ann = Annotation(name=name, mesh=str(Path(mesh_file).resolve()), gcs=gcs_w, bound=bound,
+                     frame=frame)
+    return ann, mesh_w, tr
+
+
+def _beside(ann: Annotation, mesh_file: str, on: bool, up) -> str:
+    """write_beside: the annotation and its picture beside the mesh, never over a user's."""
+    if not on:
+        return ""
+    if not Path(mesh_file).exists():
+        return "not beside (a resource)"
+    target = Path(mesh_file).with_suffix(".yaml")
+    if not _ours(target):
+        return f"kept {target} (yours)"
+    _write_yaml(ann, target)
+    _picture(ann, target.with_name(f"{ann.name}_gcs.png"), up)
+    return f"beside: {target}"
+
+
 def run_transfer(cfg: DictConfig, run_dir: Path, conf: dict) -> list[dict]:
     """annotate.template: the template's GCs on every mesh (module docstring)."""
     template = load_transfer_template(conf["template"], conf)
     st = TransferSettings.from_config(conf)
     dataset = instantiate(cfg.data, "data")
-    rows, cells, shapes = [], [], []
+    rows, cells, shapes, bad = [], [], [], []
+    tf_up = [float(x) for x in template.up]
     for name, mesh_file, bound in _meshes(dataset):
         t0 = time.perf_counter()
+        hand = _hand_annotation(mesh_file)
         try:
-            mesh, _, _ = normalize(load_mesh(mesh_file), bound)
-            tr = transfer_template(mesh, template, st, where=str(mesh_file))
+            if hand is not None:  # a user's annotation: kept as it is, and used
+                ann = load_annotation(hand)
+                _write_yaml(ann, run_dir / f"{name}.yaml")
+                rows.append({"mesh": name, "hand": str(hand), "seconds": time.perf_counter() - t0})
+                print(f"{name}: kept your annotation {hand}", flush=True)
+                continue
+            ann, mesh, tr = _transfer_one(name, mesh_file, bound, template, st)
         except DataError as e:
             rows.append({"mesh": name, "error": str(e), "seconds": time.perf_counter() - t0})
-            print(f"{name}: {e}")
+            print(f"{name}: refused: {e}", flush=True)
+            if e.field is not None and e.field.startswith("frame"):
+                bad.append(e)
             continue
         seconds = time.perf_counter() - t0
-        ann = Annotation(name=name, mesh=str(Path(mesh_file).resolve()), gcs=tr.gcs, bound=bound)
         points = _surface(mesh, st.seed)
         stats = coverage_stats(ann.gcs, points)
         _write_yaml(ann, run_dir / f"{name}.yaml")
-        _picture(ann, run_dir / f"{name}_gcs.png", list(tr.orientation.up))
-        cells.append((f"{name} ({tr.orientation.describe()})", mesh, tr.gcs, tr.orientation.up))
-        shapes.append((tr.gcs, points, tr.orientation))
+        _picture(ann, run_dir / f"{name}_gcs.png", tf_up)
+        note = _beside(ann, mesh_file, bool(conf.get("write_beside")), tf_up)
+        cells.append((f"{name} ({tr.orientation.describe()})", mesh, ann.gcs, tf_up))
+        shapes.append((ann.gcs, points, Orientation(template.up, template.front, ("given", "given"))))
         rows.append({"mesh": name, "matched": tr.matched, "missing": tr.missing, "cost": tr.cost,
-                     "coverage": stats["coverage"], "seconds": seconds,
+                     "coverage": stats["coverage"], "seconds": seconds, "frame": ann.frame,
+                     "confidence": tr.confidence, "warnings": tr.warnings, "note": note,
                      "up": tr.orientation.up.tolist(), "front": tr.orientation.front.tolist()})
+        print(f"{name}: {len(tr.matched)}/{len(template.names)} matched, confidence "
+              f"{tr.confidence:.2f}, {tr.orientation.describe()}, {seconds:.1f} s"
+              + "".join(f"; warning: {w}" for w in tr.warnings) + (f"; {note}" if note else ""),
+              flush=True)
     print_transfer_table(rows, template)
+    _transfer_outputs(run_dir, rows, cells, shapes, template, conf)
+    print(f"run directory: {run_dir}")
+    print("next: " + next_command("train.py", ["stage=shape_latent", "data=folder",
+                                               f"data.path={run_dir}"],
+                                  drop=("data", "annotate")))
+    if bad:
+        raise DataError(f"{len(bad)} mesh(es) not annotated, their frame override is wrong; first: "
+                        f"{bad[0].what}", path=bad[0].path, field=bad[0].field, fix=bad[0].fix)
+    return rows
+
+
+def _transfer_outputs(run_dir: Path, rows, cells, shapes, template: Template, conf: dict) -> None:
+    """transfer.json, transfer.png and (annotate.export_template) the averaged template."""
     import json
 
     atomic_write_text(run_dir / "transfer.json", json.dumps(
@@ -211,19 +276,21 @@ def run_transfer(cfg: DictConfig, run_dir: Path, conf: dict) -> list[dict]:
         t = export_template(shapes, template.name, template)
         _write_template(t, Path(conf["export_template"]),
                         f"{len(shapes)} meshes annotated with template {template.source or template.name}")
-    print(f"run directory: {run_dir}")
-    return rows
 
 
 def print_transfer_table(rows: list[dict], template: Template) -> None:
     print(f"\ntemplate {template.name} ({template.source}): GCs {', '.join(template.names)}")
-    print(f"{'mesh':24s} {'matched':>8s} {'cost':>6s} {'coverage':>9s} {'seconds':>8s}  missing")
+    print(f"{'mesh':24s} {'matched':>8s} {'confidence':>10s} {'cost':>6s} {'coverage':>9s} "
+          f"{'seconds':>8s}  missing")
     for r in rows:
-        if "error" in r:
-            print(f"{r['mesh']:24s} {'refused':>8s} {'':>6s} {'':>9s} {r['seconds']:8.2f}  {r['error']}")
+        if "error" in r or "hand" in r:
+            what = ("refused", r["error"]) if "error" in r else ("yours", f"kept {r['hand']}")
+            print(f"{r['mesh']:24s} {what[0]:>8s} {'':>10s} {'':>6s} {'':>9s} {r['seconds']:8.2f}  "
+                  f"{what[1]}")
             continue
-        print(f"{r['mesh']:24s} {len(r['matched']):4d}/{len(template.names):<3d} {r['cost']:6.2f} "
-              f"{100 * r['coverage']:8.3f}% {r['seconds']:8.2f}  {', '.join(r['missing']) or '-'}")
+        print(f"{r['mesh']:24s} {len(r['matched']):4d}/{len(template.names):<3d} "
+              f"{r['confidence']:10.2f} {r['cost']:6.2f} {100 * r['coverage']:8.3f}% "
+              f"{r['seconds']:8.2f}  {', '.join(r['missing']) or '-'}")
 
 
 def print_table(rows: list[dict], settings: AutoGCSettings) -> None:

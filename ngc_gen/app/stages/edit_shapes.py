@@ -30,6 +30,9 @@ from ..runtime.config import sparse_settings
 from ..runtime.mix_sources import MixSources
 from ..runtime.programs import program_from_config
 
+# edit.png's cell (pixels): large enough that a moved limb shows (3 cells side by side)
+EDIT_CELL = (560, 440)
+
 def _json_safe(x):
     import numpy as np
 
@@ -70,9 +73,11 @@ def run_edit(cfg) -> dict:
 def _apply(cfg, parts: dict, out_dir: Path, renderer, t_start: float) -> dict:
     from ngc_gen.data.atomic import atomic_write_text
     from ngc_gen.data.errors import DataError
+    from ngc_gen.edit.crossings import crossing_warning
     from ngc_gen.edit.program import EditProgram
     from ngc_gen.lit.checkpoint import load_autodecoder
     from ngc_gen.shape import shapes_from_autodecoder
+    from ngc_gen.viz.camera import frame_up
 
     program = EditProgram(**parts)
     ckpt = fit_checkpoint(cfg.get("run"))
@@ -95,6 +100,9 @@ def _apply(cfg, parts: dict, out_dir: Path, renderer, t_start: float) -> dict:
     edited = original.edited(program, MixSources(shapes, original, checkpoint=ckpt))
     t_edit = time.perf_counter() - t0
     log = edited.info["edit_log"]
+    warning = crossing_warning(edited.info.get("crossings", {}))
+    if warning:
+        print(f"warning: {warning}", flush=True)
     mixes = {original.gc_names[j]: m.label for j, m in edited.mixes.items()}
 
     ex = cfg.extract
@@ -120,12 +128,13 @@ def _apply(cfg, parts: dict, out_dir: Path, renderer, t_start: float) -> dict:
     metrics.update(_mesh_stats(before.mesh, "before"), **_mesh_stats(after.mesh, "after"))
     metrics.update(time_edit_s=t_edit, time_extract_before_s=t_before,
                    time_extract_after_s=t_after, ops=log, mixes=mixes,
+                   crossings=edited.info.get("crossings", {}),
                    convention="eps_v = |V'-V|/V, eps_a = |A'-A|/A (fractions) of the deformed "
                               "vs the undeformed NGC mesh, marching cubes at the same "
                               "resolution; V from trimesh (watertight meshes)")
 
     _write_outputs(cfg, out_dir, shape, program, before.mesh, after.mesh, gcs, edited.gcs,
-                   metrics, renderer)
+                   metrics, renderer, original.info.get("frame"))
     metrics["time_total_s"] = time.perf_counter() - t_start
     metrics["out_dir"] = str(out_dir)
     atomic_write_text(workspace.metrics(out_dir), json.dumps(_json_safe(metrics), indent=2))
@@ -134,16 +143,19 @@ def _apply(cfg, parts: dict, out_dir: Path, renderer, t_start: float) -> dict:
 
 
 def _write_outputs(cfg, out_dir: Path, shape: str, program, before, after, gcs, edited_gcs,
-                   metrics: dict, renderer) -> None:
+                   metrics: dict, renderer, frame: dict | None = None) -> None:
     """The edit's files (nothing before wrote one): both meshes, edited.yaml, program.yaml and
-    the picture (its path into `metrics`). before, after: the meshes; gcs, edited_gcs: the GCs."""
+    the picture (its path into `metrics`). before, after: the meshes; gcs, edited_gcs: the GCs;
+    frame: the shape's body frame (edited.yaml keeps it; the picture stands on it)."""
     from ngc_gen.data.annotations import Annotation
     from ngc_gen.data.atomic import atomic_write, atomic_write_text
+    from ngc_gen.data.body_frame import read_frame
+    from ngc_gen.viz.camera import frame_up
 
     # GCs and mesh share the fitted NGC frame: `normalize: false` keeps it, so the file can be
     # prepared and fitted again as it is (an AnnotatedShapes list, docs/editing.md)
     edited = Annotation(name=f"{shape}_{program.name}", mesh=str(out_dir / workspace.DEFORMED),
-                        gcs=edited_gcs, bound=None)
+                        gcs=edited_gcs, bound=None, frame=read_frame(frame))
     header = (f"# GCs of '{shape}' after edit program '{program.name}' ({program.source}), in "
               f"the fitted NGC frame (normalize: false).\n# mesh: the deformed NGC mesh"
               + (f"; mixed parts (features, not stored here): {metrics['mixes']}"
@@ -159,14 +171,16 @@ def _write_outputs(cfg, out_dir: Path, shape: str, program, before, after, gcs, 
     if cfg.get("picture", True):
         metrics["picture"] = render_edit(before, gcs, after, edited_gcs,
                                          workspace.picture(out_dir, "edit"), program.name,
-                                         up=cfg.viz.up, renderer=renderer)
+                                         up=frame_up(cfg.viz.up, frame), renderer=renderer)
 
 
 def render_edit(before, gcs, after, edited_gcs, path: Path, program: str,
-                up="auto", renderer=None) -> str | None:
-    """edit.png: the shape before and after, its GCs drawn translucent, one camera for both,
-    looking across the edited GCs' motion (`viz.camera.edit_view`); `up`: `viz.up`.
-    `renderer`: a `BackgroundRenderer` to draw in (None: draw here)."""
+                up="auto", renderer=None, cell=EDIT_CELL) -> str | None:
+    """edit.png: the shape before and after (bare, so no GC shell hides the moved part), then
+    the GCs after the edit (solid) over the GCs before (translucent); one camera for all three,
+    looking across the edited GCs' motion (`viz.camera.edit_view`); `up`: `viz.up` (or the
+    shape's body frame, `viz.camera.frame_up`). `renderer`: a `BackgroundRenderer` to draw in
+    (None: draw here)."""
     import numpy as np
 
     from ngc_gen.viz import gcs_surface, render_grid, render_or_warn
@@ -177,8 +191,9 @@ def render_edit(before, gcs, after, edited_gcs, path: Path, program: str,
     view = edit_view(np.concatenate([np.asarray(m.vertices) for m in (before, after, *shells)]),
                      gcs, edited_gcs, u)
     draw = render_or_warn if renderer is None else renderer.render
-    done = draw(render_grid, path, [[(before, shells[0]), (after, shells[1])]],
-                col_titles=["before", f"after {program}"], frame="row", view=view, up=u)
+    done = draw(render_grid, path, [[before, after, (shells[1], shells[0])]],
+                col_titles=["before", f"after {program}", "GCs after (solid), before"],
+                frame="row", view=view, up=u, cell=cell)
     return None if done is None else str(done)
 
 

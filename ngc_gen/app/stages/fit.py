@@ -69,7 +69,7 @@ def run_fit(cfg: DictConfig) -> dict:
                    checkpoint=str(workspace.last_checkpoint(run_dir)))
     atomic_write_text(workspace.metrics(run_dir), json.dumps(metrics, indent=2))
     render_comparison(gt, run_dir, gcs=named_gcs(prepared) if kind == "ngc" else None,
-                      up=cfg.viz.up)
+                      up=prepared_up(cfg.viz.up, prepared))
     print_metrics(metrics)
     print(f"run directory: {run_dir}")
     return metrics
@@ -119,6 +119,15 @@ def comparison_rows(gt: dict, meshes_dir: Path, gcs: dict | None = None) -> list
             truth = (truth, gcs_surface(gcs[n]), gc_labels(gcs[n]))
         rows.append([truth, trimesh.load(meshes_dir / f"{n}.ply", process=False)])
     return rows
+
+
+def prepared_up(spec, prepared):
+    """`viz.up` for a picture of prepared shapes: the body frame they all record, when they do
+    (`viz.camera.frame_up`)."""
+    from ngc_gen.data.body_frame import shared_frame
+    from ngc_gen.viz.camera import frame_up
+
+    return frame_up(spec, shared_frame([s.annotation().frame for s in prepared]))
 
 
 def render_comparison(gt: dict, run_dir: Path, gcs: dict | None = None, up="auto") -> None:

@@ -85,9 +85,10 @@ def _codes(cfg: DictConfig, path: Path, recon: ReconstructSettings) -> dict:
     from ngc_gen.lit.checkpoint import load_autodecoder
     from ngc_gen.lit.reconstruct import codes_only_autodecoder
 
-    from .fit import named_gcs, print_metrics, render_comparison, score_fit, shapes_meta
-    from .prepare_data import prepare_dataset
     from ..runtime.training import start_run, train
+    from .fit import (named_gcs, prepared_up, print_metrics, render_comparison, score_fit,
+                      shapes_meta)
+    from .prepare_data import prepare_dataset
 
     fit = load_autodecoder(path)
     run_dir = start_run(cfg)
@@ -106,7 +107,7 @@ def _codes(cfg: DictConfig, path: Path, recon: ReconstructSettings) -> dict:
                    checkpoint=str(workspace.last_checkpoint(run_dir)))
     atomic_write_text(workspace.metrics(run_dir), json.dumps(metrics, indent=2))
     render_comparison(gt, run_dir, gcs=named_gcs(prepared) if kind == "ngc" else None,
-                      up=cfg.viz.up)
+                      up=prepared_up(cfg.viz.up, prepared))
     print_metrics(metrics)
     print(f"run directory: {run_dir}\nedit one: python edit.py run={run_dir} "
           f"shape={prepared[0].name} edit=<program>")
@@ -161,10 +162,10 @@ def _latents(cfg: DictConfig, path: Path, recon: ReconstructSettings) -> dict:
     from ngc_gen.lit.reconstruct import latent_only_module
     from ngc_gen.lit.shape_latent import ShapeLatentModule
 
-    from .fit import print_metrics
+    from ..runtime.training import start_run, train
+    from .fit import prepared_up, print_metrics
     from .prepare_data import prepare_dataset
     from .train_shape_latent import save_latents, template_and_targets
-    from ..runtime.training import start_run, train
 
     gcs_from = recon.gcs
     trained_model = ShapeLatentModule.from_checkpoint(path)
@@ -177,7 +178,8 @@ def _latents(cfg: DictConfig, path: Path, recon: ReconstructSettings) -> dict:
                         "and keys)", field="data",
                         fix="annotate the meshes with the model's template (e.g. held-out "
                             "creatures), or reconstruct into a fit run instead")
-    meta = {"dataset": str(cfg.data.name), "reconstructed_into": str(path),
+    frame = (trained_model.hparams.meta or {}).get("frame")  # the model's body frame
+    meta = {"dataset": str(cfg.data.name), "reconstructed_into": str(path), "frame": frame,
             "shapes": [{"name": s.name, "annotation_yaml": s.annotation_yaml} for s in prepared]}
     module = latent_only_module(trained_model, vectors, meta,
                                 latent_lr=recon.latent_lr,
@@ -205,7 +207,7 @@ def _latents(cfg: DictConfig, path: Path, recon: ReconstructSettings) -> dict:
                "checkpoint": str(last), "latents": str(workspace.latents(run_dir)),
                "edit_checkpoint": str(workspace.shapes_checkpoint(run_dir)), "resolution": res,
                "outputs": OUTPUTS}
-    picture = render_reconstruction(prepared, run_dir, up=cfg.viz.up)
+    picture = render_reconstruction(prepared, run_dir, up=prepared_up(cfg.viz.up, prepared))
     if picture is not None:
         metrics["picture"] = str(picture)
     atomic_write_text(workspace.metrics(run_dir), json.dumps(metrics, indent=2))
@@ -247,7 +249,8 @@ def _mesh_reconstructions(cfg: DictConfig, module, prepared, run_dir: Path, gcs_
             atomic_write(workspace.mesh(run_dir, shape.name),
                          lambda f, m=mesh: f.write(m.export(file_type="ply")))
             m, gcs, _, _ = normalise(mesh, shape.gc_dicts())
-            written.append(write_shape(run_dir / "shapes", shape.name, m, gcs, shape.codes))
+            written.append(write_shape(run_dir / "shapes", shape.name, m, gcs, shape.codes,
+                                       body=(module.hparams.meta or {}).get("frame")))
     return per, written
 
 

@@ -14,6 +14,7 @@ from ngc_gen.lit import kinds
 
 from ..runtime import checks
 from ..runtime.errors import ConfigError
+from .collection import check_collection
 
 
 @dataclass(frozen=True)
@@ -51,7 +52,7 @@ STAGES = {
     "reconstruct": Stage("ngc_gen.app.stages.reconstruct_shapes:run_reconstruct", steps=True,
                          mesh_folder=True, extracts=True, check=checks.check_reconstruct),
     "pipeline": Stage("ngc_gen.app.stages.pipeline:run_pipeline", mesh_folder=True,
-                      extracts=True, previews=True),
+                      extracts=True, previews=True, check=check_collection),
 }
 
 # the commands beside train.py: edit.py and sample.py (the pipeline runs them as steps too)

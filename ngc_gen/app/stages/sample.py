@@ -18,6 +18,7 @@ from ngc_gen.edit import BLEND_PARAMS, EditError, mix_weight
 from ngc_gen.generate.latents import latent_path
 from ngc_gen.generate.model import ShapeGenerator
 from ngc_gen.generate.shapes import decode_shapes
+from ngc_gen.viz.camera import frame_up
 
 from ..runtime.checks import check_sample
 from ..runtime.config import sparse_settings
@@ -161,14 +162,15 @@ def run_sample(cfg) -> dict:
                   settings=sparse_settings(cfg.extract.sparse))
     out_dir = Path(c["out_dir"])
     summary = MODE_RUNNERS[mode](gen, out_dir, mode_settings(cfg), common)
+    up = frame_up(c["viz"]["up"], gen.frame)  # upright in the collection's body frame
     if c.get("picture", True) and mode == "condition":
         from .sample_condition import render_condition
-        picture = render_condition(summary, workspace.picture(out_dir, "sample"), up=c["viz"]["up"])
+        picture = render_condition(summary, workspace.picture(out_dir, "sample"), up=up)
         if picture is not None:
             print(f"picture: {picture}")
     elif c.get("picture", True):
         picture = render_shapes(summary, workspace.picture(out_dir, "sample"),
-                                one_row=mode != "generate", up=c["viz"]["up"])
+                                one_row=mode != "generate", up=up)
         if picture is not None:
             print(f"picture: {picture}")
     return summary

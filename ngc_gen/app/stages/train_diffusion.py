@@ -18,10 +18,11 @@ from torch.utils.data import RandomSampler, Sampler
 from ngc_gen import workspace
 from ngc_gen.data.atomic import atomic_write_text
 
+from ..runtime.next_hint import SAMPLE_KEYS, next_command
 from .train_shape_latent import with_stage_steps
 
 # settings of the `diffusion` group the stage reads itself (not LatentDiffusion arguments)
-RUNNER_KEYS = ("batch_size", "batches_per_epoch", "max_steps", "pose_transfer")
+RUNNER_KEYS = ("batch_size", "batches_per_epoch", "max_steps", "pose_transfer", "augment")
 EVAL_SEED, SAMPLE_SEED = 1, 0  # the EDM loss before/after and the nearest-neighbour samples
 
 
@@ -72,6 +73,38 @@ def transferred_latents(shape_latent, settings) -> torch.Tensor:
     return moved
 
 
+def template_parents(path, annotate: dict | None = None) -> dict:
+    """{GC name: parent name} of a GC template file, or of an annotated mesh's YAML used as a
+    template (its tree inferred, as `annotate.template` takes it)."""
+    from .annotate import load_transfer_template
+
+    return {g.name: g.parent for g in load_transfer_template(str(path), dict(annotate or {})).gcs}
+
+
+def augmented_latents(shape_latent, settings, annotate=None) -> torch.Tensor:
+    """`diffusion.augment`: random GC edits of every training shape until there are
+    `min_latents` latents (none when there are that many shapes), and with `transfer` every
+    shape in each other's pose (ngc_gen.generate.augment)."""
+    from ngc_gen.generate.augment import edited_latents, transferred_latents
+
+    s = dict(settings)
+    parents = template_parents(s["template"], annotate)
+    n = len(shape_latent.names)
+    copies = max(0, -(-int(s.get("min_latents", 256)) // n) - 1)
+    if copies == 0:
+        print(f"augment: {n} shapes, at least {s.get('min_latents', 256)}: no GC edits", flush=True)
+        return torch.zeros(0, shape_latent.latents.weight.shape[1])
+    ranges = {k: s[k] for k in ("swing", "stretch", "scale", "twist", "swing_min_length")
+              if s.get(k) is not None}
+    out = [edited_latents(shape_latent, parents, copies, int(s.get("seed", 0)), **ranges)]
+    if s.get("transfer", True) and n > 1:
+        out.append(transferred_latents(shape_latent, parents))
+    out = torch.cat(out)
+    print(f"augment: {len(out)} latents from GC edits of the {n} training shapes ({copies} each"
+          f"{', and each in the others poses' if len(out) > copies * n else ''})", flush=True)
+    return out
+
+
 def run_diffusion(cfg: DictConfig) -> dict:
     import lightning as L
     from torch.utils.data import DataLoader, TensorDataset
@@ -90,13 +123,17 @@ def run_diffusion(cfg: DictConfig) -> dict:
     if cfg.diffusion.get("pose_transfer"):
         latents = torch.cat([latents, transferred_latents(shape_latent,
                                                           cfg.diffusion.pose_transfer)])
+    n_transferred = len(latents) - n_shapes
+    if cfg.diffusion.get("augment"):
+        latents = torch.cat([latents, augmented_latents(shape_latent, cfg.diffusion.augment,
+                                                        cfg.get("annotate"))])
     run_dir = start_run(cfg, fixed_seeds={"edm_loss_eval": EVAL_SEED, "samples": SAMPLE_SEED})
 
     L.seed_everything(cfg.seed, workers=True, verbose=False)
     module = instantiate_group(
         cfg.diffusion, RUNNER_KEYS, dim=latents.shape[1],
         meta={"shape_latent_checkpoint": str(ckpt), "names": shape_latent.names,
-              "n_latents": n_shapes})
+              "n_latents": n_shapes, "frame": (shape_latent.hparams.meta or {}).get("frame")})
     module.fit_standardisation(latents)
     before = module.evaluate_loss(latents, seed=EVAL_SEED, repeats=8)
     dataset = TensorDataset(latents)
@@ -110,7 +147,8 @@ def run_diffusion(cfg: DictConfig) -> dict:
     after = module.evaluate_loss(latents, seed=EVAL_SEED, repeats=8, use_ema=True)
     samples = module.sample(min(256, 4 * len(latents)), seed=SAMPLE_SEED)
     metrics = {"steps": int(trainer.global_step), "start_step": start_step, "train_s": train_s,
-               "n_latents": n_shapes, "n_transferred": int(len(latents) - n_shapes),
+               "n_latents": n_shapes, "n_transferred": int(n_transferred),
+               "n_augmented": int(len(latents) - n_shapes - n_transferred),
                "batch_size": batch,
                "dim": int(latents.shape[1]),
                "space_dim": module.space_dim,
@@ -118,16 +156,19 @@ def run_diffusion(cfg: DictConfig) -> dict:
                else None,
                "edm_loss_untrained": before, "edm_loss_ema": after,
                **nearest_neighbour_stats(samples, latents, module.latent_std),
+               "frame": (shape_latent.hparams.meta or {}).get("frame"),
                "checkpoint": str(workspace.last_checkpoint(run_dir)),
                "shape_latent_checkpoint": str(ckpt)}
     atomic_write_text(workspace.metrics(run_dir), json.dumps(metrics, indent=2))
     rest = ", the others from the nearest latent" if metrics["pca_complete"] == "nearest" else ""
     space = f" ({module.space_dim} principal axes{rest})" if metrics["pca_complete"] else ""
-    moved = f" + {len(latents) - n_shapes} pose-transferred" if len(latents) > n_shapes else ""
+    moved = (f" + {n_transferred} pose-transferred" if n_transferred else "") + (
+        f" + {metrics['n_augmented']} GC-edited" if metrics["n_augmented"] else "")
     print(f"\ndiffusion: {n_shapes}{moved} latents x {latents.shape[1]} dims{space}, "
           f"{metrics['steps']} steps in {train_s:.0f} s; EDM loss {before:.3f} (untrained) -> "
           f"{after:.3f} (EMA)")
     print(f"  nearest training latent (std units): samples {metrics['sample_to_train_median']:.2f}"
           f" median, training latents to each other {metrics['train_to_train_median']:.2f}")
-    print(f"run directory: {run_dir}\nnext: python sample.py run={run_dir} mode=generate n=16")
+    hint = next_command("sample.py", [f"run={run_dir}", "mode=generate", "n=16"], keep=SAMPLE_KEYS)
+    print(f"run directory: {run_dir}\nnext: {hint}")
     return metrics

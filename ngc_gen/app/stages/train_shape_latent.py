@@ -20,11 +20,13 @@ from omegaconf import DictConfig, open_dict
 
 from ngc_gen import workspace
 from ngc_gen.data.atomic import atomic_write, atomic_write_text
+from ngc_gen.data.body_frame import collection_frame
 from ngc_gen.data.errors import DataError
 from ngc_gen.data.prepare import PreparedShape
 
 from ..runtime.config import sparse_settings
 from ..runtime.config import instantiate_group
+from ..runtime.next_hint import next_command
 from ..runtime.training import start_run, train
 
 LATENTS_KIND = "ngc_gen.shape_latents"
@@ -56,30 +58,37 @@ def template_and_targets(prepared: list[PreparedShape]):
     return template, vectors
 
 
-def check_layouts(annotations) -> None:
+def check_layouts(annotations) -> dict | None:
     """Every shape has the first one's GC layout (names in order, curve degrees, up vectors,
-    key t's): checked on the annotations, before any mesh is prepared, so a folder whose GCs
-    differ fails in seconds, not after preparing every mesh. DataError naming the shape."""
+    key t's) and all share one body frame: checked on the annotations, before any mesh is
+    prepared, so a folder whose GCs differ fails in seconds, not after preparing every mesh.
+    Returns the collection's frame {up, front} (None: no shape records one); DataError naming
+    the shape."""
     from ngc_gen.models.shape_decoder import GCTemplate
 
     if not annotations:
-        return
+        return None
+    frame = collection_frame([(a.name, a.frame) for a in annotations])
     dicts = [[g.to_dict() for g in a.gcs] for a in annotations]
     template = GCTemplate.from_gcs(dicts[0], where=f"shape {annotations[0].name}")
     for d, a in zip(dicts[1:], annotations[1:]):
         template.check(d, where=f"shape {a.name}")
+    return frame
 
 
-def build_module(cfg: DictConfig, template, vectors, prepared: list[PreparedShape]):
+def build_module(cfg: DictConfig, template, vectors, prepared: list[PreparedShape],
+                 frame: dict | None = None):
     """The `shape_latent` group's ShapeLatentModule (`_target_`; its NGC decoder is the `model`
-    group's), with the annotated parameter vectors as targets."""
+    group's), with the annotated parameter vectors as targets; `frame`, the collection's body
+    frame, goes into its meta (every sample, picture and edit of the model reads it there)."""
     from .fit import model_kind
 
     if model_kind(cfg) != "ngc":
         raise DataError(f"stage shape_latent needs an NGC decoder, model is {model_kind(cfg)!r}",
                         field="model", fix="use model=small or model=paper")
     meta = {"dataset": str(cfg.data.name),
-            "shapes": [{"name": s.name, "annotation_yaml": s.annotation_yaml} for s in prepared]}
+            "shapes": [{"name": s.name, "annotation_yaml": s.annotation_yaml} for s in prepared],
+            "frame": frame}
     module = instantiate_group(cfg.shape_latent, RUNNER_KEYS, n_shapes=len(prepared),
                                template=template.to_dict(), meta=meta)
     module.set_targets(vectors)
@@ -154,12 +163,14 @@ def run_shape_latent(cfg: DictConfig) -> dict:
 
     cfg = with_stage_steps(cfg, "shape_latent")
     # bad data fails before the run directory is made; GCs of another layout before preparing
-    prepared = prepare_dataset(cfg, check_annotations=check_layouts)
+    found = {}
+    prepared = prepare_dataset(cfg, check_annotations=lambda a: found.update(
+        frame=check_layouts(a)))
     template, vectors = template_and_targets(prepared)
     run_dir = start_run(cfg)
     L.seed_everything(cfg.seed, workers=True, verbose=False)
     dm = PreparedDataModule(prepared, mode="ngc", batch_size=cfg.batch_size, seed=cfg.seed)
-    module = build_module(cfg, template, vectors, prepared)
+    module = build_module(cfg, template, vectors, prepared, found.get("frame"))
     trainer, train_s, start_step = train(cfg, run_dir, module, datamodule=dm)
     if trainer.global_rank != 0:
         return {}
@@ -170,7 +181,7 @@ def run_shape_latent(cfg: DictConfig) -> dict:
     metrics.update(steps=int(trainer.global_step), start_step=start_step, train_s=train_s,
                    n_shapes=len(prepared),
                    latent_dim=int(module.latents.weight.shape[1]), n_params=template.size,
-                   gcs=template.names, checkpoint=str(last),
+                   gcs=template.names, frame=found.get("frame"), checkpoint=str(last),
                    latents=str(workspace.latents(run_dir)))
     n_prev = int(cfg.shape_latent.preview)
     if n_prev > 0:
@@ -188,6 +199,9 @@ def run_shape_latent(cfg: DictConfig) -> dict:
     print(f"  decoded GCs vs annotated: control points {p['point_mean']:.4f} mean / "
           f"{p['point_max']:.4f} max, radii {100 * p['radius_rel']:.2f}%, caps "
           f"{100 * p['cap_rel']:.2f}%, twist {p['twist_deg']:.2f} deg")
-    print(f"run directory: {run_dir}\nnext: python train.py stage=diffusion "
-          f"shape_latent_run={run_dir}")
+    f = found.get("frame")
+    print("  body frame: " + (f"up {f['up']}, front {f['front']} (pictures, edits and samples "
+                              f"use it)" if f else "none recorded (pictures detect up)"))
+    hint = next_command("train.py", ["stage=diffusion", f"shape_latent_run={run_dir}"])
+    print(f"run directory: {run_dir}\nnext: {hint}")
     return metrics

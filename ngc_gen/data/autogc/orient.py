@@ -185,3 +185,16 @@ def detect_orientation(curves: list[np.ndarray], volumes, trunk: int | None = No
     front = front - (front @ up) * up
     front = front / np.linalg.norm(front)
     return Orientation(up=up, front=front, source=(src_up, src_front))
+
+
+def gcs_orientation(gcs, points: np.ndarray, up=None, front=None) -> Orientation:
+    """The body frame of annotated GCs (their curves and volumes as the parts) over surface
+    samples `points` (N, 3); up, front: `annotate.up` / `annotate.front` specs (auto: detect)."""
+    n = 17
+    line = np.stack([np.linspace(-1, 1, n), np.zeros(n), np.zeros(n)], 1)
+    curves = [np.asarray(g.to_world(line)) for g in gcs]
+    volumes = [float(np.linalg.norm(np.diff(c, axis=0), axis=1).sum()) *
+               float(np.mean([np.prod(k["radii"]) for k in g.to_dict()["keys"]]))
+               for c, g in zip(curves, gcs)]
+    return detect_orientation(curves, volumes, None, parse_axis(up, "annotate.up"),
+                              parse_axis(front, "annotate.front"), points)

@@ -24,6 +24,7 @@ import numpy as np
 import yaml
 
 from ngc_gen.data.annotations import Annotation, load_annotation
+from ngc_gen.data.body_frame import read_frame
 from ngc_gen.data.atomic import atomic_write, atomic_write_text
 from ngc_gen.data.autogc.template import load_template
 from ngc_gen.data.errors import DataError
@@ -81,7 +82,7 @@ class Animals:
                  heldout_clips: list[str], heldout_clips_by_species: dict | None = None,
                  frames: int = 5, split: str = "train", limit: int | None = None,
                  gcs: dict | None = None, download: bool = True, workers: int | None = None,
-                 progress: bool | None = None):
+                 progress: bool | None = None, frame: dict | None = None):
         if split not in SPLITS:
             raise DataError(f"animals split must be one of {', '.join(SPLITS)}, got {split!r}",
                             field="data.split", fix="e.g. data.split=train")
@@ -121,6 +122,9 @@ class Animals:
         self.split, self.limit = split, limit
         self.settings = RigGCSettings.from_config(gcs)
         self.download, self.workers, self.progress = download, workers, progress
+        # the rigs' body frame, recorded in every shape's annotation (not part of the build)
+        self.frame = read_frame(None if frame is None else {**dict(frame), "source": "dataset"},
+                                "data.frame")
 
     @property
     def gcs(self) -> dict:
@@ -207,7 +211,10 @@ class Animals:
                  "annotation": str(out / f"{e['name']}.yaml")} for e in entries]
 
     def shapes(self) -> list[Annotation]:
-        return [load_annotation(r["annotation"]) for r in self.build()]
+        out = [load_annotation(r["annotation"]) for r in self.build()]
+        for a in out:
+            a.frame = a.frame or self.frame
+        return out
 
     def gc_names(self) -> list[str]:
         return load_template(self.template).names

@@ -118,10 +118,12 @@ def joint_depth(rig: Rig) -> np.ndarray:
     return depth
 
 
-def gc_of_joint(template: Template, rig: Rig) -> tuple[np.ndarray, dict]:
-    """(J,) template GC index of every joint (-1: claimed by none) and the resolved chains.
+def gc_of_joint(template: Template, rig: Rig, joint_map=None) -> tuple[np.ndarray, dict]:
+    """(J,) template GC index of every joint (-1: claimed by none) and the resolved chains:
+    `joint_map`'s (a `skeleton_map.JointMap`) when given, else by the template's joint names.
     DataError when a joint carrying skin weight is claimed by no GC."""
-    resolved = template.resolve_joints(rig.joint_names, joint_depth(rig), rig.source)
+    resolved = joint_map.resolved if joint_map is not None else \
+        template.resolve_joints(rig.joint_names, joint_depth(rig), rig.source)
     owner = np.full(len(rig.joints), -1)
     for g, name in enumerate(template.names):
         owner[resolved[name]["skinned"]] = g
@@ -310,22 +312,53 @@ def closed_posed_mesh(V: np.ndarray, F: np.ndarray, resolution: int, seed: int =
         else proxy.components[0]
 
 
-def pose_shape(rig: Rig, template: Template, clip: str | None = None, time: float = 0.0,
-               settings: RigGCSettings | None = None, name: str | None = None) -> PosedShape:
-    """The rig at `time` of `clip` (None: rest) as a closed normalised mesh with the
-    template's GCs. DataError (naming the rig, the shape and the numbers) when the GCs cover
-    less than `settings.min_coverage` of its surface."""
-    st = settings or RigGCSettings()
-    where = f"{rig.source}" + (f" [{name}]" if name else "")
-    owner_j, resolved = gc_of_joint(template, rig)
-    G = len(template.gcs)
-    rng = np.random.default_rng(st.seed)
+def template_in_frame(template: Template, joint_map) -> Template:
+    """The template with its vectors (GC `up`, carve `side`) turned from its own frame into the
+    rig's body frame of `joint_map` (unchanged without a map or when the template has no
+    `frame`: its vectors are then taken as written in the rig's frame)."""
+    if joint_map is None or template.frame is None:
+        return template
+    src = np.stack([template.front, np.cross(template.up, template.front), template.up], 1)
+    dst = np.stack([joint_map.front, joint_map.left, joint_map.up], 1)
+    R = dst @ np.linalg.inv(src)
+
+    def turn(v):
+        return tuple(float(x) for x in R @ np.asarray(v, np.float64))
+
+    gcs = tuple(dataclasses.replace(
+        g, up=turn(g.up), carve=None if g.carve is None else {
+            **g.carve, "side": None if g.carve["side"] is None else turn(g.carve["side"])})
+        for g in template.gcs)
+    return dataclasses.replace(template, gcs=gcs)
+
+
+@dataclass
+class _Posed:
+    """What the GC fits of one pose share: normalised posed vertices, mesh, joints, bone axes,
+    skin matrices, surface samples and the GC owning each."""
+
+    V: np.ndarray
+    mesh: trimesh.Trimesh
+    center: np.ndarray
+    scale: float
+    joints: np.ndarray
+    axes: np.ndarray | None
+    skin_m: np.ndarray
+    fit_pts: np.ndarray
+    owner: np.ndarray
+    ref_owner: np.ndarray
+    tree: cKDTree
+
+
+def _posed(rig: Rig, owner_j: np.ndarray, G: int, clip, time, st: RigGCSettings,
+           rng: np.random.Generator) -> _Posed:
+    """Pose, close and normalise the rig; sample its surface and give every sample the GC that
+    holds most of its skin weight."""
     V = rig.posed(clip, time)
     closed = closed_posed_mesh(V, rig.faces, st.resolution, st.seed)
     mesh, center, scale = normalize(closed, st.bound)
     joints = (rig.joint_positions(clip, time) - center) * scale
     axes = rig.bone_axes(clip, time)  # normalising is a similarity: directions unchanged
-    # per-vertex weight of each GC, then per surface sample of the posed (open) mesh
     wgc = np.zeros((len(V), G))
     cols = owner_j[rig.skin_joints]
     np.add.at(wgc, (np.repeat(np.arange(len(V)), cols.shape[1]), np.clip(cols, 0, None).ravel()),
@@ -336,40 +369,45 @@ def pose_shape(rig: Rig, template: Template, clip: str | None = None, time: floa
     MV, MF = np.asarray(mesh.vertices), np.asarray(mesh.faces)
     pts, _ = sample_surface(MV, MF, st.samples, rng)
     fit_pts = np.concatenate([MV, pts])
-    owner = ref_owner[tree.query(fit_pts, k=1)[1]]
-    floor = 1e-3 * 2.0 * st.bound
+    return _Posed(V=V, mesh=mesh, center=center, scale=float(scale), joints=joints, axes=axes,
+                  skin_m=rig.skin_matrices(clip, time)[:, :3, :3], fit_pts=fit_pts,
+                  owner=ref_owner[tree.query(fit_pts, k=1)[1]], ref_owner=ref_owner, tree=tree)
 
-    def chain_gc(g, own, trim=(0.5, OUTLIER)):
-        tgc, chain = template.gcs[g], resolved[template.gcs[g].name]["chain"]
-        poly = chain_polyline(joints[chain], own, tgc.extend,
-                              axes[chain[0]] if axes is not None and len(chain) == 1 else None)
-        return template_gc(tgc, poly, own, st.margin, floor, where, trim)
 
-    # carved GCs (template `carve`): the part of a source GC's own surface that stands out of
-    # the source's core GC, which is refitted without it (twice: the first fit still holds it)
+def _carved_gcs(template: Template, resolved: dict, ps: _Posed, chain_gc):
+    """(carved entries, their source GCs' core GCs, the carved entries present on this rig,
+    the samples' owners with the carved parts moved to their GCs)."""
     names = template.names
-    skin_m = rig.skin_matrices(clip, time)[:, :3, :3]
     carved = []
     for g, tgc in enumerate(template.gcs):
         if tgc.carve is not None:
             src = names.index(tgc.carve["from"])
             j0 = resolved[names[src]]["chain"][0]
-            side = None if tgc.carve["side"] is None else skin_m[j0] @ np.asarray(tgc.carve["side"])
+            side = None if tgc.carve["side"] is None \
+                else ps.skin_m[j0] @ np.asarray(tgc.carve["side"])
             carved.append((g, src, None if side is None else side / np.linalg.norm(side),
-                           joints[j0]))
+                           ps.joints[j0]))
     core = {}
     for src in sorted({c[1] for c in carved}):
-        keep = owner == src
-        for _ in range(2):
-            core[src] = chain_gc(src, fit_pts[keep], CORE_TRIM)
-            keep = carve_owner(core, [c for c in carved if c[1] == src], fit_pts, owner) == src
-    carved_owner = carve_owner(core, carved, fit_pts, owner)
+        keep = ps.owner == src
+        for _ in range(2):  # the first fit still holds the part
+            core[src] = chain_gc(src, ps.fit_pts[keep], CORE_TRIM)
+            mine = [c for c in carved if c[1] == src]
+            keep = carve_owner(core, mine, ps.fit_pts, ps.owner) == src
+    carved_owner = carve_owner(core, carved, ps.fit_pts, ps.owner)
     # a part with too few samples is absent on this rig: its samples stay with the source
     present = [c for c in carved if (carved_owner == c[0]).sum() >= CARVE_MIN]
-    owner = carve_owner(core, present, fit_pts, owner)
+    return carved, core, present, carve_owner(core, present, ps.fit_pts, ps.owner)
+
+
+def _fit_gcs(template: Template, ps: _Posed, owner, carved, core, present, chain_gc,
+             st: RigGCSettings, where) -> list[GeneralizedCylinder]:
+    """Every template GC fitted to its own samples, grown alone to hold them, then together to
+    cover the surface."""
+    floor = 1e-3 * 2.0 * st.bound
     gcs = []
     for g, tgc in enumerate(template.gcs):
-        own = fit_pts[owner == g]
+        own = ps.fit_pts[owner == g]
         if tgc.carve is None:
             gcs.append(chain_gc(g, own))
             continue
@@ -385,17 +423,43 @@ def pose_shape(rig: Rig, template: Template, clip: str | None = None, time: floa
         if len(poly) < 2:
             poly = np.stack([poly[0], poly[0] + 1e-2 * np.asarray(tgc.up, np.float64)])
         gcs.append(template_gc(tgc, poly, own, st.margin, floor, where))
-    for g in range(G):  # alone: a sample inside another GC must still end up in its own
-        own = fit_pts[owner == g]
+    for g in range(len(gcs)):  # alone: a sample inside another GC must still end up in its own
+        own = ps.fit_pts[owner == g]
         rho, _ = rho_matrix([gcs[g]], own)
         reach = np.inf if template.gcs[g].carve is not None else OWN_REACH  # a carved part: all its own
         gcs[g] = grow_to_cover([gcs[g]], own[rho[0] <= reach])[0]
-    gcs = grow_to_cover(gcs, fit_pts)
+    return grow_to_cover(gcs, ps.fit_pts)
+
+
+def pose_shape(rig: Rig, template: Template, clip: str | None = None, time: float = 0.0,
+               settings: RigGCSettings | None = None, name: str | None = None,
+               joint_map=None) -> PosedShape:
+    """The rig at `time` of `clip` (None: rest) as a closed normalised mesh with the
+    template's GCs; the joints of each GC by `joint_map` (`skeleton_map.JointMap`, whose body
+    frame the template's vectors are turned into) or else by the template's joint names.
+    DataError (naming the rig, the shape and the numbers) when the GCs cover less than
+    `settings.min_coverage` of its surface."""
+    st = settings or RigGCSettings()
+    where = f"{rig.source}" + (f" [{name}]" if name else "")
+    template = template_in_frame(template, joint_map)
+    owner_j, resolved = gc_of_joint(template, rig, joint_map)
+    G = len(template.gcs)
+    ps = _posed(rig, owner_j, G, clip, time, st, np.random.default_rng(st.seed))
+    floor = 1e-3 * 2.0 * st.bound
+
+    def chain_gc(g, own, trim=(0.5, OUTLIER)):
+        tgc, chain = template.gcs[g], resolved[template.gcs[g].name]["chain"]
+        axis = ps.axes[chain[0]] if ps.axes is not None and len(chain) == 1 else None
+        poly = chain_polyline(ps.joints[chain], own, tgc.extend, axis)
+        return template_gc(tgc, poly, own, st.margin, floor, where, trim)
+
+    carved, core, present, owner = _carved_gcs(template, resolved, ps, chain_gc)
+    gcs = _fit_gcs(template, ps, owner, carved, core, present, chain_gc, st, where)
+    MV, MF = np.asarray(ps.mesh.vertices), np.asarray(ps.mesh.faces)
     check, _ = sample_surface(MV, MF, st.check_samples, np.random.default_rng([st.seed, 1]))
-    check_owner = carve_owner(core, present, check, ref_owner[tree.query(check, k=1)[1]])
+    check_owner = carve_owner(core, present, check, ps.ref_owner[ps.tree.query(check, k=1)[1]])
     pp, pg, _ = gc_membership(check, gcs)
-    covered = np.bincount(pp, minlength=len(check)) > 0
-    coverage = float(covered.mean())
+    coverage = float((np.bincount(pp, minlength=len(check)) > 0).mean())
     own_in = np.zeros(G)
     np.add.at(own_in, pg[check_owner[pp] == pg], 1.0)
     n_own = np.bincount(check_owner, minlength=G)
@@ -405,6 +469,6 @@ def pose_shape(rig: Rig, template: Template, clip: str | None = None, time: floa
                         f"(need {st.min_coverage})", path=where, field="gcs",
                         fix="raise data.gcs.samples or data.gcs.margin, or give the uncovered "
                             "part a GC in the template")
-    return PosedShape(mesh=mesh, gcs=[rounded_gc_dict(g.to_dict()) for g in gcs],
-                      coverage=coverage, purity=purity, joints=joints, center=center,
-                      scale=float(scale))
+    return PosedShape(mesh=ps.mesh, gcs=[rounded_gc_dict(g.to_dict()) for g in gcs],
+                      coverage=coverage, purity=purity, joints=ps.joints, center=ps.center,
+                      scale=ps.scale)
