@@ -11,4 +11,5 @@ Standard library only: `make bench-report` and `python -m bench` run under a bar
 
 BENCHES = ("geometry", "up_axis", "fit", "fit_ablation", "deform", "extract", "autogc",
            "sparse_settings", "editor", "generate", "condition", "reconstruct", "ddp", "demo",
-           "cli", "animals", "transfer", "zeroad_collection", "collection")
+           "cli", "animals", "transfer", "zeroad_collection", "collection",
+           "export")
