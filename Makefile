@@ -5,7 +5,7 @@ VENV ?= .venv
 TORCH_SPEC ?= torch==2.13.0
 BIN := $(VENV)/bin
 
-.PHONY: setup chromium test test-all bench bench-report demo demo-animals demo-collection clean
+.PHONY: setup chromium gltf-validator blender test test-all bench bench-report demo demo-animals demo-collection clean
 
 $(BIN)/activate:
 	$(PY) -m venv $(VENV)
@@ -26,7 +26,7 @@ $(VENV)/.installed-dev: $(VENV)/.installed
 	$(BIN)/pip install -q --no-compile -e ".[dev,skeleton]"
 	touch $@
 
-setup: $(VENV)/.installed-dev chromium
+setup: $(VENV)/.installed-dev chromium gltf-validator
 
 # Debian's chromium for the editor's browser test (Playwright drives it; never `playwright
 # install`): installed when missing and we are root or have passwordless sudo.
@@ -35,6 +35,23 @@ chromium:
 	  if [ "$$(id -u)" = 0 ]; then apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium; \
 	  elif sudo -n true 2>/dev/null; then sudo apt-get update -qq && sudo DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium; \
 	  else echo "note: no /usr/bin/chromium and no root/sudo to install it: the editor's browser test will skip"; fi; \
+	fi
+
+# Khronos glTF-Validator (npm) for the exported GLBs' tests: installed under .cache (ignored by
+# git) when node and npm are there; the export tests check files without it otherwise
+GLTF_VALIDATOR := .cache/gltf-validator
+gltf-validator:
+	@if [ ! -d $(GLTF_VALIDATOR)/node_modules/gltf-validator ]; then \
+	  if command -v npm >/dev/null; then mkdir -p $(GLTF_VALIDATOR) && npm install --prefix $(GLTF_VALIDATOR) --no-audit --no-fund --silent gltf-validator; \
+	  else echo "note: no npm: the export tests run without Khronos glTF-Validator"; fi; \
+	fi
+
+# Debian's Blender (large) for the export's slow test and bench: the file imported headless
+blender:
+	@if [ ! -x /usr/bin/blender ]; then \
+	  if [ "$$(id -u)" = 0 ]; then apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq blender python3-numpy; \
+	  elif sudo -n true 2>/dev/null; then sudo apt-get update -qq && sudo DEBIAN_FRONTEND=noninteractive apt-get install -y -qq blender python3-numpy; \
+	  else echo "note: no /usr/bin/blender and no root/sudo to install it: the Blender check will skip"; fi; \
 	fi
 
 # the tests in TEST_WORKERS processes (pytest-xdist), a module's tests on one worker (its shared
@@ -46,7 +63,7 @@ PYTEST := $(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadscope
 test: setup
 	$(PYTEST) -m "not slow"
 
-test-all: setup
+test-all: setup blender
 	$(PYTEST)
 
 demo: $(VENV)/.installed  # (no browser needed) the whole pipeline: fit, edit, shape latents, diffusion, sample (conf/experiment/demo.yaml)
@@ -94,6 +111,9 @@ bench-extract: setup
 
 bench-condition: setup
 	$(BIN)/python -m bench.condition --sweep
+
+bench-export: setup blender  # rigged GLBs: validator, Blender, correctives vs skinning (docs/export.md)
+	$(BIN)/python -m bench.export
 
 bench-demo:  # make demo on a fresh clone of HEAD, timed (stdlib only: the clone sets itself up)
 	$(PY) -m bench.demo

@@ -9,6 +9,7 @@ that has one) by calling the `table(result)` and `headline(result)` of its modul
 Standard library only: `make bench-report` and `python -m bench` run under a bare python3.
 """
 
-BENCHES = ("geometry", "up_axis", "fit", "fit_ablation", "deform", "extract", "autogc",
+BENCHES = ("geometry", "up_axis", "fit", "fit_ablation", "seams", "deform", "extract", "autogc",
            "sparse_settings", "editor", "generate", "condition", "reconstruct", "ddp", "demo",
-           "cli", "animals", "transfer", "zeroad_collection", "collection")
+           "cli", "animals", "transfer", "zeroad_collection", "collection",
+           "export")

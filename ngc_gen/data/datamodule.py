@@ -2,7 +2,9 @@
 
 mode="ngc": one row per (sample, containing GC) pair; code id = global GC index, coords =
 relative [u, a, b] (computed once at preparation). mode="deepsdf": one row per sample; code id =
-shape index, coords = normalised world xyz. Both models read batches the same way.
+shape index, coords = normalised world xyz. Both models read batches the same way. With a
+blend width (the blended union, `ngc_gen.geometry.union`) an ngc batch also carries each row's
+share of its sample (`blend_shares`), which the loss weighs rows by.
 """
 from __future__ import annotations
 
@@ -33,6 +35,21 @@ def training_rows(shapes: list[PreparedShape], mode: str):
     return (torch.from_numpy(np.concatenate(ids)),
             torch.from_numpy(np.concatenate(coords).astype(np.float32)),
             torch.from_numpy(np.concatenate(sdf).astype(np.float32)), offset)
+
+
+def blend_shares(shapes: list[PreparedShape], width: float) -> torch.Tensor:
+    """(R,) float32 in `training_rows(shapes, "ngc")` order: the row's GC weight in the blended
+    union of that width over the sum of the weights of its sample's GCs (1 for a sample one
+    GC holds)."""
+    from ngc_gen.geometry import GeneralizedCylinder, fade_weight
+
+    out = []
+    for s in shapes:
+        w = fade_weight(GeneralizedCylinder.relative_measure(s.pair_rel.astype(np.float64)),
+                        width)
+        total = np.bincount(s.pair_point, weights=w, minlength=len(s.points))
+        out.append(w / total[s.pair_point])
+    return torch.from_numpy(np.concatenate(out).astype(np.float32))
 
 
 def shared_rows(shapes: list[PreparedShape]) -> torch.Tensor:
@@ -71,8 +88,9 @@ class ShuffledBatches(Dataset):
     per-row indexing through a DataLoader would dominate the step time on CPU). With row
     `weights`, an epoch draws as many rows with replacement, in proportion to them."""
 
-    def __init__(self, ids, coords, sdf, batch_size: int, seed: int = 0, weights=None):
-        self.ids, self.coords, self.sdf = ids, coords, sdf
+    def __init__(self, ids, coords, sdf, batch_size: int, seed: int = 0, weights=None,
+                 shares=None):
+        self.ids, self.coords, self.sdf, self.shares = ids, coords, sdf, shares
         self.batch_size, self.seed, self.weights = batch_size, seed, weights
         self.set_epoch(0)
 
@@ -89,18 +107,24 @@ class ShuffledBatches(Dataset):
 
     def __getitem__(self, i: int):
         idx = self.perm[i * self.batch_size:(i + 1) * self.batch_size]
-        return self.ids[idx], self.coords[idx], self.sdf[idx]
+        if self.shares is None:
+            return self.ids[idx], self.coords[idx], self.sdf[idx]
+        return self.ids[idx], self.coords[idx], self.sdf[idx], self.shares[idx]
 
 
 class PreparedDataModule(L.LightningDataModule):
     def __init__(self, shapes: list[PreparedShape], mode: str = "ngc", batch_size: int = 8192,
-                 seed: int = 0, code_balance: float = 0.0, junction_weight: float = 0.0):
+                 seed: int = 0, code_balance: float = 0.0, junction_weight: float = 0.0,
+                 blend: float = 0.0):
+        """blend: the blended union's width (0: the min; rows carry no shares)."""
         super().__init__()
         self.shapes, self.mode = shapes, mode
         ids, coords, sdf, self.n_codes = training_rows(shapes, mode)
         shared = shared_rows(shapes) if mode == "ngc" and junction_weight else None
+        shares = blend_shares(shapes, blend) if mode == "ngc" and blend else None
         self.train_set = ShuffledBatches(ids, coords, sdf, batch_size, seed,
-                                         row_weights(ids, code_balance, shared, junction_weight))
+                                         row_weights(ids, code_balance, shared, junction_weight),
+                                         shares)
 
     def set_epoch(self, epoch: int) -> None:
         self.train_set.set_epoch(epoch)

@@ -75,12 +75,14 @@ class EditProgram:
 
     def apply_to(self, shape, resolve: "SourceResolver | None" = None):
         """The `ngc_gen.shape.Shape` after this program: edited GCs, mixed parts, the program's
-        smooth-union width; the per-op records go to `info["edit_log"]`. `Shape.edited` calls
+        smooth-union width (a shape with the blended union keeps it: it has no seam to
+        smooth); the per-op records go to `info["edit_log"]`. `Shape.edited` calls
         this (the shape layer does not import edits)."""
         result = apply_program(self, shape.gcs, resolve, frame=shape.info.get("frame"))
         index = {n: j for j, n in enumerate(shape.gc_names)}
         mixes = {**shape.mixes, **{index[n]: f for n, f in result.mixes.items()}}
-        return shape.replaced(gcs=result.gcs, mixes=mixes, smooth=self.smooth_union,
+        return shape.replaced(gcs=result.gcs, mixes=mixes,
+                              smooth=0.0 if shape.blend else self.smooth_union,
                               info={**shape.info, "edit_log": result.log,
                                     "program": self.name,
                                     "crossings": crossings(shape.gcs, result.gcs)})

@@ -2,7 +2,8 @@
 
 Grid over [-bound, bound]^3 with `resolution` points per axis; a grid point outside every GC gets
 a positive background value; a point inside several GCs takes the minimum of their SDFs (or their
-smooth minimum of width `smooth`, folded in GC order); marching cubes at level 0. Three methods
+smooth minimum of width `smooth`, folded in GC order), or with `blend` > 0 their blend weighted by
+where the point lies in each GC (`ngc_gen.geometry.union`); marching cubes at level 0. Three methods
 compute the same values wherever the mesh needs them:
 
 * "sparse" (default): coarse-to-fine over blocks that may hold the surface, marching cubes only
@@ -55,7 +56,8 @@ def gc_list(gcs) -> list[GeneralizedCylinder]:
 
 def extract_mesh(gcs: Sequence[GeneralizedCylinder], rows_fn: RowsFn, resolution: int = 256,
                  bound: float = 1.0, method: str = "sparse", smooth: float = 0.0,
-                 cache: FieldCache | None = None, gc_keys: Sequence[Hashable] | None = None, *,
+                 blend: float = 0.0, blend_k: float = 0.0, cache: FieldCache | None = None,
+                 gc_keys: Sequence[Hashable] | None = None, *,
                  chunk: int = 65536, background: float | None = None, fixed_batch: bool = False,
                  device=None, keep_values: bool = False, settings: SparseSettings | None = None,
                  progress: bool | None = None, slab_points: int = 1 << 18) -> ExtractionResult:
@@ -68,6 +70,8 @@ def extract_mesh(gcs: Sequence[GeneralizedCylinder], rows_fn: RowsFn, resolution
     method: "sparse" | "prefiltered" | "dense" (module docstring).
     smooth: 0 takes the hard minimum over the GCs containing a point; k > 0 their polynomial
       smooth minimum of width k (`ngc_gen.geometry.smooth`), a smooth union where parts overlap.
+    blend, blend_k: the blended union's width in (0, 1] and softness (`ngc_gen.geometry.union`;
+      blend 0: the min / smooth min above; with a blend, smooth must be 0).
     cache, gc_keys: with a `FieldCache`, per-GC values are kept under gc_keys[i] (hashable; the
       caller's key for GC i's parameters and code) and only GCs with new keys are evaluated
       (sparse only); the mesh equals a full re-extraction.
@@ -92,8 +96,8 @@ def extract_mesh(gcs: Sequence[GeneralizedCylinder], rows_fn: RowsFn, resolution
     """
     t_start = time.perf_counter()
     gcs = gc_list(gcs)
-    smooth = float(smooth)
-    _check_arguments(gcs, resolution, method, smooth, cache, gc_keys, keep_values)
+    smooth, blend = float(smooth), float(blend)
+    _check_arguments(gcs, resolution, method, smooth, cache, gc_keys, keep_values, blend)
     grid = Grid(int(resolution), float(bound))
     background = grid.spacing if background is None else float(background)
     if not (np.isfinite(background) and background > 0):
@@ -103,18 +107,16 @@ def extract_mesh(gcs: Sequence[GeneralizedCylinder], rows_fn: RowsFn, resolution
 
     values = None
     if method == "sparse":
-        if cache is None:
-            stores = [PointStore() for _ in gcs]
-            hits = 0
-        else:
+        stores, hits = [PointStore() for _ in gcs], 0
+        if cache is not None:
             got = [cache.get(k, grid.resolution, grid.bound) for k in gc_keys]
             stores, hits = [s for s, _ in got], sum(h for _, h in got)
         stats.update(cache_hits=hits, cache_misses=len(gcs) - hits)
         mesh, values = extract_sparse(gcs, grid, stores, queue_args, stats, smooth, background,
-                                      settings or SparseSettings(), keep_values)
+                                      settings or SparseSettings(), keep_values, blend, blend_k)
     else:
         flat = evaluate_grid(gcs, grid, queue_args, stats, smooth, method == "prefiltered",
-                             slab_points, progress)
+                             slab_points, progress, blend, blend_k)
         covered = np.isfinite(flat)
         stats["n_covered"] = int(covered.sum())
         flat[~covered] = background
@@ -124,13 +126,14 @@ def extract_mesh(gcs: Sequence[GeneralizedCylinder], rows_fn: RowsFn, resolution
         stats["seconds_marching"] = time.perf_counter() - t0
     stats.update(n_grid_points=grid.n_points, n_gcs=len(gcs), resolution=grid.resolution,
                  bound=grid.bound, background=background, method=method, smooth=smooth,
-                 fixed_batch=bool(fixed_batch), n_faces=len(mesh.faces),
-                 n_vertices=len(mesh.vertices))
+                 blend=blend, blend_k=blend_k if blend else 0.0, fixed_batch=bool(fixed_batch),
+                 n_faces=len(mesh.faces), n_vertices=len(mesh.vertices))
     stats["seconds"] = time.perf_counter() - t_start
     return ExtractionResult(mesh, stats, values if keep_values else None)
 
 
-def _check_arguments(gcs, resolution, method, smooth, cache, gc_keys, keep_values) -> None:
+def _check_arguments(gcs, resolution, method, smooth, cache, gc_keys, keep_values,
+                     blend=0.0) -> None:
     """ValueError for an argument of `extract_mesh` it cannot work with; `GridTooLarge` for a
     resolution that does not fit in memory (checked before any grid is allocated)."""
     if method not in METHODS:
@@ -138,6 +141,13 @@ def _check_arguments(gcs, resolution, method, smooth, cache, gc_keys, keep_value
     if not smooth >= 0.0:
         raise ValueError(f"smooth must be >= 0 (0: hard minimum; k > 0: smooth-min width), "
                          f"got {smooth!r}")
+    if blend:
+        from ngc_gen.geometry.union import check_width
+
+        check_width(blend)
+        if smooth:
+            raise ValueError(f"pass a smooth-min width or a blend width, not both (smooth="
+                             f"{smooth}, blend={blend})")
     check_resolution(int(resolution), method, keep_values)
     if cache is not None and method != "sparse":
         raise ValueError(f"a FieldCache works with method='sparse', not {method!r}")

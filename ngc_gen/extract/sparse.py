@@ -50,9 +50,9 @@ import numpy as np
 from numba import njit, prange
 
 from ngc_gen.geometry import GeneralizedCylinder
-from ngc_gen.geometry.smooth import smooth_min
 
 from . import settle
+from .fold import fold
 from .grid import Grid
 from .marching import CORNERS, cells_mesh, crossing
 from .sparse_state import GCState, Keys, SparseField, overlap_counts, positions, r_min
@@ -292,28 +292,14 @@ def finest_cells(field_: SparseField, states: list[GCState], parents: list, lips
     return n_cells
 
 
-def fold(values: list[np.ndarray], inside: list[np.ndarray], smooth: float) -> np.ndarray:
-    """Min (smooth = 0) or smooth-min of width `smooth` over the GCs holding each point, in GC
-    order (the same fold as the dense path); +inf where no GC holds the point."""
-    acc = None
-    for v, ins in zip(values, inside):
-        v = np.where(ins, v, np.float32(np.inf)).astype(np.float32)
-        if acc is None:
-            acc = v
-        elif smooth == 0.0:
-            acc = np.minimum(acc, v)
-        else:
-            with np.errstate(invalid="ignore"):
-                both = np.isfinite(acc) & np.isfinite(v)
-                acc = np.where(both, smooth_min(acc, v, smooth), np.minimum(acc, v))
-            acc = acc.astype(np.float32)
-    return acc
-
-
 def extract_sparse(gcs: list[GeneralizedCylinder], grid: Grid, stores: list[PointStore],
                    queue_args: dict, stats: dict, smooth: float, background: float,
-                   settings: SparseSettings, keep_values: bool = False):
-    """-> (mesh, values or None). stats gain per-level counts."""
+                   settings: SparseSettings, keep_values: bool = False, blend: float = 0.0,
+                   blend_k: float = 0.0):
+    """-> (mesh, values or None). stats gain per-level counts. blend > 0: the blended union,
+    whose value in a block another GC finds deep may still be positive (a weighted mean, not a
+    minimum), so no GC drops another's blocks there; blend_k its softness."""
+    union = (blend, blend_k)
     keys = Keys(grid.resolution)
     field_ = SparseField(grid, keys, queue_args, stats)
     counts = overlap_counts(gcs)
@@ -326,6 +312,8 @@ def extract_sparse(gcs: list[GeneralizedCylinder], grid: Grid, stores: list[Poin
     deep: dict[int, list[np.ndarray]] = {}     # blocks inside some N_i with f_i < 0
 
     def drop_deep(parents=None):   # another GC's deep block: the field is negative there
+        if blend > 0:
+            return
         merged = {S: sorted_unique(np.concatenate(D)) for S, D in deep.items()}
         for n, st in enumerate(states):
             ok = ~inside_deep(st.blocks, merged, keys)
@@ -376,25 +364,27 @@ def extract_sparse(gcs: list[GeneralizedCylinder], grid: Grid, stores: list[Poin
         step //= 2
 
     return complete_and_mesh(field_, states, keys, grid, stats, smooth, background,
-                             keep_values)
+                             keep_values, union)
 
 
 def complete_and_mesh(field_: SparseField, states: list[GCState], keys: Keys, grid: Grid,
-                      stats: dict, smooth: float, background: float, keep_values: bool):
+                      stats: dict, smooth: float, background: float, keep_values: bool,
+                      union: tuple[float, float] = (0.0, 0.0)):
     """After the refinement: the active cells of all GCs, F at their corners from every GC
-    holding them, the surface closed, marching cubes. -> (mesh, values or None)."""
+    holding them (union: the blend's width and softness, `field_values`), the surface closed,
+    marching cubes. -> (mesh, values or None)."""
     t0 = time.perf_counter()
     evals0 = stats["n_network_evals"]
     cells = sorted_unique(np.concatenate([st.blocks for st in states]
                                          + [np.zeros(0, dtype=np.int64)]))
     points = sorted_unique(np.concatenate(keys.corner_runs(cells, 1)))
-    F = field_values(field_, states, points, smooth, background)
+    F = field_values(field_, states, points, smooth, background, union)
     stats.update(completion_network_evals=stats["n_network_evals"] - evals0,
                  seconds_completion=time.perf_counter() - t0)
     t0 = time.perf_counter()
     evals0 = stats["n_network_evals"]
     cells, points, F, rounds = close_surface(field_, states, cells, points, F, smooth,
-                                             background)
+                                             background, union)
     stats.update(repair_rounds=rounds, repair_network_evals=stats["n_network_evals"] - evals0,
                  seconds_repair=time.perf_counter() - t0)
     corner_vals = F[positions(points, keys.corner_runs(cells, 1))]
@@ -413,9 +403,10 @@ def complete_and_mesh(field_: SparseField, states: list[GCState], keys: Keys, gr
 
 
 def field_values(field_: SparseField, states: list[GCState], points: np.ndarray, smooth: float,
-                 background: float) -> np.ndarray:
+                 background: float, union: tuple[float, float] = (0.0, 0.0)) -> np.ndarray:
     """F at sorted unique point keys: every GC whose box holds a point, folded in GC order;
-    the background where no GC holds it."""
+    the background where no GC holds it. union: (blend width, blend softness), (0, 0) for
+    the min / smooth min."""
     grid, keys = field_.grid, field_.keys
     lo = np.zeros((len(states), 3), dtype=np.int64)
     hi = np.full((len(states), 3), -1, dtype=np.int64)             # empty box: holds nothing
@@ -426,15 +417,19 @@ def field_values(field_: SparseField, states: list[GCState], points: np.ndarray,
     want = np.empty((len(states), len(points)), dtype=bool)
     _in_boxes(np.ascontiguousarray(points, dtype=np.int64), keys.Q, lo, hi, want)
     got = field_.ensure(states, [points[sel] for sel in want])
-    vals, ins = [], []
+    vals, ins, ms = [], [], []
     for sel, (f, m) in zip(want, got):
         v = np.full(len(points), np.inf, dtype=np.float32)
         v[sel] = f
         i = np.zeros(len(points), dtype=bool)
         i[sel] = m <= 1.0
+        mm = np.full(len(points), np.inf, dtype=np.float32)
+        mm[sel] = m
         vals.append(v)
         ins.append(i)
-    F = fold(vals, ins, smooth) if states else np.full(len(points), np.inf, np.float32)
+        ms.append(mm)
+    F = (fold(vals, ins, smooth, union[0], ms, union[1]) if states
+         else np.full(len(points), np.inf, np.float32))
     return np.where(np.isfinite(F), F, np.float32(background)).astype(np.float32)
 
 
@@ -454,7 +449,8 @@ FACES = [(a, side, np.flatnonzero(CORNERS[:, a] == side)) for a in range(3) for 
 
 
 def close_surface(field_: SparseField, states: list[GCState], cells: np.ndarray,
-                  points: np.ndarray, F: np.ndarray, smooth: float, background: float):
+                  points: np.ndarray, F: np.ndarray, smooth: float, background: float,
+                  union: tuple[float, float] = (0.0, 0.0)):
     """Grow the active cells until the surface is closed: a crossing cell whose face has
     corners of both signs shares that face's crossing edges with the cell across it, which
     therefore holds surface too. A learned SDF is not exactly Lipschitz, so refinement can drop
@@ -487,7 +483,7 @@ def close_surface(field_: SparseField, states: list[GCState], cells: np.ndarray,
         pos = np.minimum(np.searchsorted(points, corner_pts), len(points) - 1)
         fresh = corner_pts[points[pos] != corner_pts]
         if len(fresh):
-            Fn = field_values(field_, states, fresh, smooth, background)
+            Fn = field_values(field_, states, fresh, smooth, background, union)
             order = np.argsort(np.concatenate([points, fresh]), kind="stable")
             points = np.concatenate([points, fresh])[order]
             F = np.concatenate([F, Fn])[order]

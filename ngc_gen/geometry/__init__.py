@@ -7,7 +7,8 @@ from .curves import bernstein_basis
 from .cylinder import GeneralizedCylinder, Key
 from .errors import GeometryError
 from .smooth import smooth_min, smooth_min_all
+from .union import fade_weight
 
 __all__ = ["BezierCurve", "Curve", "GeneralizedCylinder", "GeometryError", "GeometryShapeError",
-           "Key", "SplineCurve", "bernstein_basis", "curve_from_dict", "smooth_min",
-           "smooth_min_all"]
+           "Key", "SplineCurve", "bernstein_basis", "curve_from_dict", "fade_weight",
+           "smooth_min", "smooth_min_all"]

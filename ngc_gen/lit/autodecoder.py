@@ -1,9 +1,16 @@
 """Auto-decoder training (DeepSDF style) for NGC (one code per GC) and DeepSDF (one per shape).
 
 loss = mean |F(z_id, x) - sdf| (optionally both clamped to +-clamp) + code_reg * mean ||z||^2
-(paper: 1e-4). Phase two (paper): from `codes_only_from` x max_steps the decoder's learning
-rate is zero and only the codes move (an lr switch rather than requires_grad, so it is
-resume- and DDP-safe). An optional `scheduler` (ngc_gen.lit.schedules, `_partial_: true`)
+(paper: 1e-4). With the blended union and `loss_shares` a batch also carries each row's share
+of its sample, w_j / sum_k w_k over the GCs k holding the sample (`ngc_gen.geometry.union`), and
+the L1 term is their weighted mean: sum_j w_j |f_j - sdf| / sum_j w_j bounds the blend's own
+error |sum_j w_j f_j / sum_j w_j - sdf| from above (a GC fading out is not held to samples
+where the next GC speaks). Off by default: on the ant it left the blend's junctions worse than
+the plain loss (docs/fitting.md "Seams"), which trains every GC on every sample it holds, the
+estimates the blend averages. Phase two (paper): from `codes_only_from` x max_steps the
+decoder's learning rate is zero and only the codes move (an lr switch rather than
+requires_grad, so it is resume- and DDP-safe). An optional `scheduler` (ngc_gen.lit.schedules,
+`_partial_: true`)
 scales both learning rates per step (DeepSDF: halved at fixed intervals).
 """
 from __future__ import annotations
@@ -16,13 +23,38 @@ from .fitted import CHECKPOINT_KIND  # noqa: F401  (defined there: loading needs
 from .parts import decoder_and_kind, optimizer_factory
 
 
+UNIONS = ("min", "blend")
+
+
+def check_union(union) -> dict | None:
+    """A `model.union` setting as a plain dict ({kind: min} or {kind: blend, width}), checked."""
+    if union is None:
+        return None
+    union = dict(union)
+    kind = union.get("kind")
+    if kind not in UNIONS:
+        raise ValueError(f"model.union.kind must be one of {UNIONS}, got {kind!r}")
+    if kind == "blend":
+        from ngc_gen.geometry.union import check_width
+
+        union["width"] = check_width(union.get("width", 0.0))
+        union["k"] = float(union.get("k") or 0.0)
+        union["loss_shares"] = bool(union.get("loss_shares", False))
+        if union["k"] < 0:
+            raise ValueError(f"model.union.k must be >= 0 (0: the weighted mean), got "
+                             f"{union['k']}")
+    return union
+
+
 class AutoDecoder(L.LightningModule):
     """`decoder`: an NGCDecoder or DeepSDFDecoder (built from conf/model's `_target_`), or its
     sizes with `kind` (a checkpoint's record: hparams keep kind and sizes); `optimizer`: a
     partial optimiser (Adam if None) given [decoder group, codes group]; `scheduler`: a partial
     LR scheduler given (optimizer, total_steps=trainer.max_steps), or None (constant learning
     rates); `pe_anneal` > 0: the NGC decoder's encoding bands open one after the other over that
-    fraction of the steps (coarse-to-fine), all open afterwards. Defaults are those of
+    fraction of the steps (coarse-to-fine), all open afterwards; `union`: how the GCs' fields
+    combine, {kind: min} or {kind: blend, width, k, loss_shares} (recorded: shapes of the fit
+    use it; None, as in checkpoints from before it was recorded, is the min). Defaults are those of
     conf/model/small.yaml, the default `model` (tests/app/test_config.py keeps them equal);
     `lr` has none: the presets differ (small 1e-2, paper 1e-4, DeepSDF 1e-3 / 5e-4)."""
 
@@ -30,10 +62,11 @@ class AutoDecoder(L.LightningModule):
                  kind: str | None = None, code_lr: float = 1e-3, code_reg: float = 1e-4,
                  clamp: float | None = None, codes_only_from: float = 0.8,
                  code_init_std: float = 0.01, pe_anneal: float = 0.0, optimizer=None,
-                 scheduler=None,
+                 scheduler=None, union: dict | None = None,
                  meta: dict | None = None, checkpoint_kind: str = CHECKPOINT_KIND):
         super().__init__()
         self.save_hyperparameters(ignore=["decoder", "optimizer", "scheduler"])
+        self.hparams.union = check_union(union)
         self.decoder, kind = decoder_and_kind(decoder, kind)
         self.hparams.update(kind=kind, decoder=dict(self.decoder.config))
         self.make_optimizer = optimizer_factory(optimizer)
@@ -71,7 +104,8 @@ class AutoDecoder(L.LightningModule):
             pe.alpha = alpha
 
     def training_step(self, batch, batch_idx):
-        ids, coords, target = batch
+        ids, coords, target = batch[:3]
+        share = batch[3] if len(batch) > 3 else None
         if self.hparams.pe_anneal > 0 and self._trainer is not None:  # coarse-to-fine bands
             done = self.global_step / (self.hparams.pe_anneal * max(1, self.trainer.max_steps))
             self._set_bands(None if done >= 1 else done * len(self.decoder.pe.scales))
@@ -80,7 +114,8 @@ class AutoDecoder(L.LightningModule):
         c = self.hparams.clamp
         if c:
             pred, target = pred.clamp(-c, c), target.clamp(-c, c)
-        l1 = (pred - target).abs().mean()
+        err = (pred - target).abs()
+        l1 = err.mean() if share is None else (share * err).sum() / share.sum().clamp(min=1e-12)
         loss = l1 + self.hparams.code_reg * (z * z).sum(1).mean()
         self.log_dict({"train/l1": l1, "train/loss": loss}, prog_bar=True, on_step=True,
                       on_epoch=False)

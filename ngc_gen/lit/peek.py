@@ -50,6 +50,13 @@ class NotACheckpoint(ValueError):
 def checkpoint_kind(path) -> str | None:
     """`hyper_parameters.checkpoint_kind` of the checkpoint at `path` (None if it records none).
     NotACheckpoint if the file is not a readable torch zip checkpoint."""
+    hp = checkpoint_hyper(path)
+    return hp.get("checkpoint_kind") if isinstance(hp, dict) else None
+
+
+def checkpoint_hyper(path) -> dict | None:
+    """The `hyper_parameters` dict of the checkpoint at `path` (its tensors not read; None if
+    it has none). NotACheckpoint if the file is not a readable torch zip checkpoint."""
     path = Path(path)
     try:
         with zipfile.ZipFile(path) as z:
@@ -66,7 +73,7 @@ def checkpoint_kind(path) -> str | None:
     if not isinstance(obj, dict):
         return None
     hp = obj.get("hyper_parameters")
-    return hp.get("checkpoint_kind") if isinstance(hp, dict) else None
+    return hp if isinstance(hp, dict) else None
 
 
 def resolve_checkpoint(path, fix: str, what: str) -> Path:

@@ -16,6 +16,16 @@ def recorded_gcs(shape_meta: dict) -> list[GeneralizedCylinder]:
     return [GeneralizedCylinder.from_dict(g) for g in d["gcs"]]
 
 
+def recorded_union(hparams) -> dict:
+    """Shape keyword arguments of a fit's recorded union (`model.union`: {kind: blend, width,
+    k}): {blend, blend_k}, both 0 for the min and for checkpoints fitted before the union was
+    recorded (they used the min)."""
+    union = hparams.get("union") if hasattr(hparams, "get") else None
+    if not union or union.get("kind", "min") == "min":
+        return {"blend": 0.0, "blend_k": 0.0}
+    return {"blend": float(union["width"]), "blend_k": float(union.get("k") or 0.0)}
+
+
 def shapes_from_autodecoder(module) -> dict[str, Shape]:
     """{name: Shape} of every shape of a trained NGC AutoDecoder (codes detached)."""
     if module.hparams.kind != "ngc":
@@ -25,6 +35,7 @@ def shapes_from_autodecoder(module) -> dict[str, Shape]:
         codes = module.codes.weight[m["code_offset"]:m["code_offset"] + m["n_codes"]].detach()
         d = yaml.safe_load(m["annotation_yaml"])
         out[m["name"]] = Shape(recorded_gcs(m), codes.clone(), module.decoder, name=m["name"],
+                               **recorded_union(module.hparams),
                                info={"mesh": d.get("mesh"), "frame": d.get("frame")})
     return out
 
@@ -56,5 +67,5 @@ def autodecoder_mesh(module, index: int, resolution: int = 256, bound: float = 1
             return extract_world_mesh(lambda x: module.decoder(code.expand(len(x), -1), x),
                                       resolution, bound, chunk=chunk, **kwargs)
     shape = Shape(gcs if gcs is not None else recorded_gcs(meta), codes.detach().clone(),
-                  module.decoder, name=meta["name"])
+                  module.decoder, name=meta["name"], **recorded_union(module.hparams))
     return shape.mesh(resolution, bound, chunk=chunk, **kwargs)

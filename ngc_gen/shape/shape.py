@@ -1,9 +1,11 @@
 """`Shape`: GCs + per-GC codes + decoder, and the one NGC sdf function.
 
-The field of a shape at a world point q is, over the GCs j that contain q, the minimum (or the
-smooth minimum of width `smooth`) of decoder(code_j, rel_j(q)); a point no GC contains is outside
-(positive background). Shapes are values: edits return new shapes (`replaced`, `with_part`,
-`edited`), so a before/after pair shares the decoder and differs only where it was edited.
+The field of a shape at a world point q is, over the GCs j that contain q, the blend of
+decoder(code_j, rel_j(q)) weighted by where q lies in each GC (`blend`: the width of the fade,
+`ngc_gen.geometry.union`), or their minimum (blend 0; the smooth minimum of width `smooth`); a
+point no GC contains is outside (positive background). Shapes are values: edits return new
+shapes (`replaced`, `with_part`, `edited`), so a before/after pair shares the decoder and
+differs only where it was edited.
 """
 from __future__ import annotations
 
@@ -15,6 +17,7 @@ import torch
 
 from ngc_gen.extract import FieldCache, extract_mesh
 from ngc_gen.geometry import GeneralizedCylinder, smooth_min
+from ngc_gen.geometry.union import BlendAccumulator
 
 from .features import PartFeatures, blend_features
 
@@ -24,11 +27,14 @@ OUTSIDE = 1.0
 
 class Shape:
     """gcs: K GeneralizedCylinders; codes: (K, code_dim); decoder: an NGCDecoder (features,
-    sdf_from_features); mixes: {gc index: PartFeatures}; smooth: smooth-union width (0: min)."""
+    sdf_from_features); mixes: {gc index: PartFeatures}; smooth: smooth-union width (0: min);
+    blend, blend_k: blended-union width (0: the min / smooth min) and softness (the fit's
+    recorded union, `ngc_gen.geometry.union`)."""
 
     def __init__(self, gcs: Iterable[GeneralizedCylinder], codes: torch.Tensor, decoder, *,
                  name: str = "shape", mixes: dict[int, PartFeatures] | None = None,
-                 smooth: float = 0.0, info: dict | None = None,
+                 smooth: float = 0.0, blend: float = 0.0, blend_k: float = 0.0,
+                 info: dict | None = None,
                  cache: FieldCache | None = None):
         self.gcs = list(gcs)
         self.codes = torch.as_tensor(codes).detach().float()
@@ -36,6 +42,7 @@ class Shape:
         self.name = str(name)
         self.mixes = dict(mixes or {})
         self.smooth = float(smooth)
+        self.blend, self.blend_k = float(blend), float(blend_k)
         self.info = dict(info or {})
         # per-GC field values of this shape and every shape edited from it (`replaced` passes
         # it on): after an edit only GCs with a new `key` are evaluated again
@@ -45,6 +52,9 @@ class Shape:
                              f"shape {tuple(self.codes.shape)}")
         if not self.smooth >= 0.0:
             raise ValueError(f"smooth-union width must be >= 0, got {smooth}")
+        if self.blend and self.smooth:
+            raise ValueError(f"a shape has one union: a smooth min (smooth={smooth}) or a blend "
+                             f"(blend={blend}), not both")
         for j, m in self.mixes.items():
             if not 0 <= j < len(self.gcs):
                 raise ValueError(f"a part mix targets GC index {j}; the shape has "
@@ -112,19 +122,25 @@ class Shape:
             return out
 
     def sdf(self, points) -> torch.Tensor:
-        """World points (N, 3) -> (N,) float32: min (or smooth min) over the GCs containing each
-        point; `OUTSIDE` where none does."""
+        """World points (N, 3) -> (N,) float32: the blend (or min, smooth min) over the GCs
+        containing each point; `OUTSIDE` where none does."""
         q = torch.as_tensor(np.asarray(points) if not isinstance(points, torch.Tensor) else points,
                             dtype=torch.float64)
         out = torch.full((len(q),), float("inf"), dtype=torch.float32)
+        mixed = BlendAccumulator(len(q), self.blend, self.blend_k) if self.blend else None
         for j, gc in enumerate(self.gcs):  # a loop over the K GCs, never over points
             rel, measure = gc.relative_inside(q)  # one closest-point solve per point and GC
             idx = torch.from_numpy(np.flatnonzero(measure <= 1.0))
             if len(idx) == 0:
                 continue
             v = self.gc_sdf(j, rel[idx].float()).float()
+            if mixed is not None:
+                mixed.add(idx.numpy(), v.numpy(), measure[idx.numpy()])
+                continue
             cur = out[idx]
             out[idx] = torch.where(torch.isinf(cur), v, smooth_min(cur, v, self.smooth))
+        if mixed is not None:
+            out = torch.from_numpy(mixed.result())
         return out.masked_fill_(torch.isinf(out), OUTSIDE)
 
     # ---- meshes ---------------------------------------------------------------------------------
@@ -141,20 +157,23 @@ class Shape:
     def mesh(self, resolution: int = 256, bound: float = 1.0, method: str = "sparse",
              incremental: bool = True, **kwargs):
         """ExtractionResult (mesh, stats) of the shape's zero level set on a resolution^3 grid
-        over [-bound, bound]^3 (`ngc_gen.extract.extract_mesh`, min or smooth min of width
-        `smooth` over the GCs). method "sparse" (default) keeps per-GC values in `self.cache`
-        unless incremental=False; "prefiltered" / "dense" are the exact references; kwargs go
+        over [-bound, bound]^3 (`ngc_gen.extract.extract_mesh`, the shape's union: blend of
+        width `blend`, or min / smooth min of width `smooth` over the GCs). method "sparse"
+        (default) keeps per-GC values in `self.cache` unless incremental=False; "prefiltered" /
+        "dense" are the exact references; kwargs go
         to extract_mesh (chunk, fixed_batch, keep_values, progress, ...)."""
         if method == "sparse" and incremental:
             kwargs.update(cache=self.cache, gc_keys=[self.key(j) for j in range(len(self.gcs))])
         return extract_mesh(self.gcs, self.rows, int(resolution), float(bound), method=method,
-                            smooth=self.smooth, **kwargs)
+                            smooth=self.smooth, blend=self.blend, blend_k=self.blend_k,
+                            **kwargs)
 
     # ---- edits (new shapes) ---------------------------------------------------------------------
     def replaced(self, **changes) -> "Shape":
-        """A copy with some of gcs, codes, decoder, name, mixes, smooth, info replaced."""
+        """A copy with some of gcs, codes, decoder, name, mixes, smooth, blend, info replaced."""
         kw = dict(gcs=self.gcs, codes=self.codes, decoder=self.decoder, name=self.name,
-                  mixes=self.mixes, smooth=self.smooth, info=self.info, cache=self.cache)
+                  mixes=self.mixes, smooth=self.smooth, blend=self.blend,
+                  blend_k=self.blend_k, info=self.info, cache=self.cache)
         kw.update(changes)
         return Shape(kw.pop("gcs"), kw.pop("codes"), kw.pop("decoder"), **kw)
 

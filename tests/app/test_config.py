@@ -245,7 +245,8 @@ def test_each_entry_point_composes_its_own_groups():
     assert not {"data", "model", "trainer", "diffusion", "edit"} & set(sample)
     assert Path(train.paths.root_dir) == ROOT and edit.edit.name == "bent_tail"
     modes = {m: compose_config("sample", [f"mode={m}", "out_dir=x"]) for m in options("mode")}
-    assert set(modes) == {"generate", "interpolate", "mix", "condition"}
+    assert set(modes) == {"generate", "interpolate", "mix", "condition", "export"}
+    assert modes["export"].export.joints_per_gc == 4 and "n" not in modes["export"]
     assert modes["generate"].n == 16 and "a" not in modes["generate"]
     assert modes["interpolate"].steps == 8 and "part" not in modes["interpolate"]
     assert modes["mix"].part == "head" and "n" not in modes["mix"]

@@ -105,3 +105,13 @@ def test_the_first_of_two_identical_fits_finishes_as_if_alone(tmp_path):
     assert shared["mean"]["cd"] == single["mean"]["cd"] > 0
     assert shared["mean"]["fscore"] == single["mean"]["fscore"]
     assert not workspace.lock(run).exists()
+
+
+def test_a_folder_the_lock_made_goes_when_nothing_was_written(tmp_path):
+    empty = RunLock(tmp_path / "a" / "b").acquire()
+    empty.release()
+    assert list(tmp_path.iterdir()) == []
+    used = RunLock(tmp_path / "c" / "d").acquire()
+    (tmp_path / "c" / "d" / "metrics.json").write_text("{}")
+    used.release()
+    assert sorted(p.name for p in (tmp_path / "c" / "d").iterdir()) == ["metrics.json"]

@@ -44,3 +44,27 @@ def test_junction_weight_draws_shared_rows_more_often(sphere_file, write_yaml, g
     drawn = np.mean([tuple(r) in rel_shared for r in coords.numpy().tolist()])
     s = shared.double().mean().item()
     assert abs(drawn - 4 * s / (1 + 3 * s)) < 0.03
+
+
+def test_blend_shares_split_each_sample_over_its_gcs(sphere_file, write_yaml, gc_dict, tmp_path):
+    """With the blended union a batch carries each row's share of its sample: the shares of a
+    sample's rows sum to 1, a sample one GC holds has share 1, and a row near its GC's boundary
+    inside the other GC has less than the other GC's row."""
+    from ngc_gen.data.datamodule import blend_shares
+    from ngc_gen.geometry import GeneralizedCylinder
+
+    shape = _two_gc_shape(sphere_file, write_yaml, gc_dict, tmp_path)
+    shares = blend_shares([shape], 0.3).numpy().astype(np.float64)
+    total = np.bincount(shape.pair_point, weights=shares, minlength=len(shape.points))
+    paired = np.bincount(shape.pair_point, minlength=len(shape.points))
+    np.testing.assert_allclose(total[paired > 0], 1.0, rtol=1e-5)
+    single = paired[shape.pair_point] == 1
+    np.testing.assert_allclose(shares[single], 1.0, rtol=1e-6)
+    rho = np.sqrt(GeneralizedCylinder.relative_measure(shape.pair_rel.astype(np.float64)))
+    deepest = np.full(len(shape.points), np.inf)
+    np.minimum.at(deepest, shape.pair_point, rho)
+    edge = ~single & (rho > 0.97) & (deepest[shape.pair_point] < 0.7)
+    assert edge.any() and shares[edge].max() < 0.05
+    dm = PreparedDataModule([shape], batch_size=64, blend=0.3)
+    assert len(dm.train_set[0]) == 4
+    assert len(PreparedDataModule([shape], batch_size=64).train_set[0]) == 3

@@ -66,11 +66,16 @@ class RunLock:
     def __init__(self, run_dir: Path):
         self.path = workspace.lock(run_dir)
         self.fd: int | None = None
+        self.made: list[Path] = []  # the folders acquire() created, deepest first
 
     def acquire(self) -> "RunLock":
         """Take the lock, or RunDirInUse naming its holder."""
         import fcntl
 
+        folder = self.path.parent
+        while not folder.exists() and folder.parent != folder:
+            self.made.append(folder)
+            folder = folder.parent
         self.path.parent.mkdir(parents=True, exist_ok=True)
         while True:
             fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o666)
@@ -98,7 +103,8 @@ class RunLock:
 
     def release(self) -> None:
         """Remove the lock file and drop the lock (the file goes first, so a command that
-        opens it meanwhile sees it was removed and retries)."""
+        opens it meanwhile sees it was removed and retries), then the folders acquire() made
+        if nothing was written into them (a command that failed leaves no empty run behind)."""
         if self.fd is None:
             return
         try:
@@ -107,11 +113,17 @@ class RunLock:
             pass
         os.close(self.fd)
         self.fd = None
+        for folder in self.made:
+            try:
+                folder.rmdir()
+            except OSError:  # something was written into it: a run
+                break
 
 
 def lock_run_dir(cfg) -> RunLock | None:
     """The lock on the command's run directory (`owned_dir`), taken now; None when the command
-    has no shared directory, is a rank other than 0, or the platform cannot lock."""
+    has no shared directory, is a rank other than 0, the platform cannot lock, or the folder
+    cannot be written (the command's own check reports that, naming its setting)."""
     run_dir = owned_dir(cfg)
     if run_dir is None or not _rank_zero():
         return None
@@ -119,4 +131,9 @@ def lock_run_dir(cfg) -> RunLock | None:
         import fcntl  # noqa: F401
     except ImportError:
         return None
-    return RunLock(run_dir).acquire()
+    try:
+        return RunLock(run_dir).acquire()
+    except RunDirInUse:
+        raise
+    except OSError:  # a folder that cannot be made or written: the command's own check says so
+        return None

@@ -14,6 +14,7 @@ from pathlib import Path
 
 from omegaconf import DictConfig
 
+from ngc_gen import workspace
 from ngc_gen.data.errors import DataError
 
 # a generator learns from several shapes; the small-collection recipe is measured on 5-30
@@ -73,7 +74,7 @@ def interpolation_pair(shape_latent_dir: Path) -> tuple[str, str]:
     whose latent lies farthest from it (the most different pair through the first)."""
     import torch
 
-    d = torch.load(Path(shape_latent_dir) / "latents.pt", weights_only=True)
+    d = torch.load(workspace.latents(shape_latent_dir), weights_only=True)
     names, z = d["names"], d["latents"].float()
     far = int(torch.linalg.vector_norm(z - z[0], dim=1).argmax())
     return str(names[0]), str(names[far if far != 0 else min(1, len(names) - 1)])

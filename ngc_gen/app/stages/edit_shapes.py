@@ -109,7 +109,7 @@ def _apply(cfg, parts: dict, out_dir: Path, renderer, t_start: float) -> dict:
     kw = dict(resolution=int(ex.resolution), bound=float(ex.bound), chunk=int(ex.chunk),
               settings=sparse_settings(ex.sparse))
     t0 = time.perf_counter()
-    before = original.replaced(smooth=program.smooth_union).mesh(**kw)
+    before = original.replaced(smooth=edited.smooth).mesh(**kw)
     t_before = time.perf_counter() - t0
     t0 = time.perf_counter()
     after = edited.mesh(**kw)

@@ -46,6 +46,14 @@ def build_module(cfg: DictConfig, n_codes: int, meta: dict):
     return instantiate_group(cfg.model, n_codes=n_codes, meta=meta)
 
 
+def union_blend(cfg: DictConfig) -> float:
+    """The blend width the loss's row shares use: the run's `model.union` width with kind blend
+    and loss_shares (0: rows unweighted, as for the min or a model without GCs)."""
+    union = cfg.model.get("union")
+    shares = union and union.get("kind") == "blend" and union.get("loss_shares", False)
+    return float(union.width) if shares else 0.0
+
+
 def run_fit(cfg: DictConfig) -> dict:
     import lightning as L
 
@@ -57,7 +65,7 @@ def run_fit(cfg: DictConfig) -> dict:
     kind = model_kind(cfg)
     dm = PreparedDataModule(prepared, mode=kind, batch_size=cfg.batch_size, seed=cfg.seed,
                             code_balance=cfg.code_balance,
-                            junction_weight=cfg.junction_weight)
+                            junction_weight=cfg.junction_weight, blend=union_blend(cfg))
     module = build_module(cfg, dm.n_codes, shapes_meta(prepared, kind))
     trainer, train_s, start_step = train(cfg, run_dir, module, datamodule=dm)
     if trainer.global_rank != 0:

@@ -227,7 +227,7 @@ def render_overview(run_dir: Path, done: list[str], per_row: int = 4, up="auto")
         return [trimesh.load(p, process=False) for p in paths[:per_row] if p.is_file()]
 
     def recorded_frame(step):
-        f = run_dir / step / "summary.json"
+        f = workspace.summary(run_dir / step)
         return json.loads(f.read_text()).get("frame") if f.is_file() else None
 
     rows, labels, views, ups = [], [], [], []
@@ -274,7 +274,7 @@ def edited_frame(run_dir: Path) -> dict | None:
     from ngc_gen.data.errors import DataError
 
     try:
-        return load_annotation(run_dir / "edit" / "edited.yaml").frame
+        return load_annotation(workspace.edited(run_dir / "edit")).frame
     except (DataError, OSError):
         return None
 

@@ -15,6 +15,7 @@ from ngc_gen.lit import kinds
 from ..runtime import checks
 from ..runtime.errors import ConfigError
 from .collection import check_collection
+from .export_shape import check_export
 
 
 @dataclass(frozen=True)
@@ -59,6 +60,8 @@ STAGES = {
 COMMANDS = {
     "edit": Stage("ngc_gen.app.stages.edit_shapes:run_edit", check=checks.check_edit),
     "sample": Stage("ngc_gen.app.stages.sample:run_sample", check=checks.check_sample),
+    # sample.py mode=export: a shape of any run that holds shapes as a rigged GLB
+    "export": Stage("ngc_gen.app.stages.export_shape:run_export", check=check_export),
 }
 
 

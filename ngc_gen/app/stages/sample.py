@@ -149,6 +149,9 @@ def run_sample(cfg) -> dict:
 
     from ngc_gen.generate.model import load_generator
 
+    if cfg.get("mode") == "export":  # a shape of any run as a rigged GLB (checks its input)
+        from .export_shape import run_export
+        return run_export(cfg)
     check_sample(cfg)  # again for callers other than sample.py (the pipeline, tests); cheap
     c = OmegaConf.to_container(cfg, resolve=True)
     mode = c["mode"]

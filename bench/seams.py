@@ -1,0 +1,279 @@
+"""Seams benchmark: the min union (`before`) and the blended union (`after`, the default
+`model.union`) on the same fits in the same run, each scored where GCs meet against its ceiling.
+
+    python -m bench.seams [--only ant creature_0000] [--steps 1500] [--resolution 256]
+                          [--fit-workers 2] [--no-picture]
+
+Shapes (`SHAPES`): pyvista's ant and airplane with their hand-annotated GCs, two procedural
+creatures with their parts, and the rest poses of four animals (deer, horse, fox, wolf) with
+their rig's GCs; each fitted on its own as a user fits one asset (train.py stage=fit, the
+default recipe with the min union, one thread, `--steps`, meshed at `--resolution`); `after`
+meshes the same checkpoint with the blend: the default loss does not depend on the union
+(`model.union.loss_shares` is off), so a fit with the blend would train the same network, and
+its training time per step is the before's by construction. The meshes are
+staged by bench/_seams.py; fits go through the bench's fit cache (`FitCache("seams")`: rerun to
+fill in what is missing, a stopped run keeps what it fitted).
+
+Per shape and recipe, bench/results/seams.json `shapes` holds {name, recipe,
+junction_ratio_dist, junction_ratio_normal, ceiling_ratio_dist, ceiling_ratio_normal,
+excess_dist, excess_normal, extra_pieces, nc, fscore, ceiling_nc, ceiling_fscore,
+step_s, train_s, steps} (ngc_gen.eval.junctions; docs/metrics.md): the fit's error where GCs
+meet over its error elsewhere, the same figures of the mesh's exact SDF meshed at the same grid
+(the ceiling: what the grid allows), the fit's excess = its ratio over the ceiling's, loose
+pieces, NC and F@0.01, and training seconds per step. `edits`: the shipped edit programs on the
+ant and a creature (`EDITS`), each fit's junction ratios after the edit against the truth moved
+by the same edit (`edited_truth`), and their change from the unedited ratios. `minutes`: this
+run's wall time. bench/results/seams.png: per shape, its worst junction close up (truth, before,
+after). The JSON is written after each shape (`complete`: false until every shape is in).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import threading
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+from bench._harness import Bench, FitCache, config_recipe, file_identity, train_subprocess
+
+ROOT = Path(__file__).resolve().parents[1]
+#: (name, GCs) of every bench shape: the GCs the shape ships with (bench/_seams.py stages them)
+SHAPES = (("ant", "annotated"), ("airplane", "annotated"), ("creature_0000", "annotated"),
+          ("creature_0001", "annotated"), ("deer", "rig"), ("horse", "rig"), ("fox", "rig"),
+          ("wolf", "rig"))
+#: the fit (today's recipe with the min union, which the loss does not see); `after` meshes the
+#: same checkpoint with the default `model.union` (the blend; its loss is the same per-row loss)
+RECIPES = ("before", "after")
+FIT = ["model.union.kind=min"]
+#: shipped edit programs measured on the fitted shapes (ngc_gen/conf/edit)
+EDITS = {"ant": "posed_ant_leg", "creature_0000": "bent_tail"}
+CLOSEUP = 0.08   # radius of a close-up around the worst junction (normalised units)
+
+
+def staged(only: list[str] | None) -> list[tuple[str, str, Path]]:
+    """(name, gcs, folder) of the bench shapes (in `--only`, if given), staged once."""
+    from bench import _seams
+
+    want = {(n, g) for n, g in SHAPES if not only or n in only}
+    return [(n, g, f) for n, g, f in _seams.staged() if (n, g) in want]
+
+
+def overrides(folder: Path, steps: int, resolution: int) -> list[str]:
+    return ["stage=fit", "data=folder", f"data.path={folder}", f"trainer.max_steps={steps}",
+            f"extract.resolution={resolution}", "trainer.enable_progress_bar=false",
+            "logger=csv", *FIT,
+            f"prepare.cache_dir={ROOT}/.cache/prepared/seams/{folder.name}"]
+
+
+def prepare(folder: Path, steps: int, resolution: int) -> None:
+    """The shape's training samples, once for both recipes (they share the prepared cache)."""
+    from ngc_gen.app.runtime.config import compose_config
+    from ngc_gen.app.stages.prepare_data import prepare_dataset
+
+    prepare_dataset(compose_config(overrides=overrides(folder, steps, resolution)),
+                    verbose=False)
+
+
+def fit_one(cache: FitCache, name: str, folder: Path, steps: int, resolution: int,
+            refit: bool = False):
+    """One shape: a cached train.py run in its own process (one thread), scored with the min."""
+    from ngc_gen.app.runtime.config import compose_config
+
+    over = overrides(folder, steps, resolution)
+
+    def fit(run_dir: Path) -> dict:
+        wall = train_subprocess(over, run_dir, f"the fit of {name}")
+        return {"wall_s": wall, "label": f"{name}/before"}
+
+    f = cache.get({"stage": "seams_fit", "config": config_recipe(compose_config(overrides=over)),
+                   "data": file_identity([folder])}, fit, refit=refit)
+    print(f"{name} {'cached' if f.reused else 'fitted'}: {f.run_dir}", flush=True)
+    return f
+
+
+def unions() -> dict:
+    """recipe -> the Shape keyword arguments of its union: the min, and the default
+    `model.union` (conf/model)."""
+    from ngc_gen.app.runtime.config import compose_config
+    from ngc_gen.lit.autodecoder import check_union
+    from ngc_gen.shape.load import recorded_union
+
+    union = check_union(compose_config(overrides=["stage=fit"]).model.union)
+    return {"before": recorded_union({}), "after": recorded_union({"union": union})}
+
+
+def blended(run_dir: Path, name: str, resolution: int) -> dict:
+    """The fit's shape meshed with the default union (conf/model: the blend) and scored as the
+    fit stage scores (the same metrics and seeds), cached beside the run as after.json; its
+    mesh goes to meshes/<name>_after.ply."""
+    path = run_dir / "after.json"
+    if path.exists():
+        return json.loads(path.read_text())
+    import torch
+
+    from bench._seams import truth_and_gcs
+    from ngc_gen.data.atomic import atomic_write
+    from ngc_gen.eval import junction_metrics, reconstruction_metrics
+    from ngc_gen.shape import load_shapes
+
+    union = unions()["after"]
+    truth, gcs = truth_and_gcs(run_dir, name)
+    shape = load_shapes(run_dir / "checkpoints" / "last.ckpt")[name].replaced(**union)
+    with torch.no_grad():
+        res = shape.mesh(resolution)
+    atomic_write(run_dir / "meshes" / f"{name}_after.ply",
+                 lambda f: f.write(res.mesh.export(file_type="ply")))
+    m = {**reconstruction_metrics(res.mesh, truth), **junction_metrics(res.mesh, truth, gcs)}
+    out = {"union": union, "extract_s": res.stats["seconds"],
+           **{k: m[k] for k in ("junction_ratio_dist", "junction_ratio_normal", "extra_pieces",
+                                "sliver_breaks", "normal_consistency", "fscore")}}
+    path.write_text(json.dumps(out))
+    return out
+
+
+def row(name: str, recipe: str, run_dir: Path, ceil: dict, resolution: int) -> dict:
+    """seams.json `shapes` entry of one fit run (its metrics.json: before; `blended`: after)
+    beside its ceiling."""
+    m = json.loads((run_dir / "metrics.json").read_text())
+    s = m["shapes"][name] if recipe == "before" else blended(run_dir, name, resolution)
+    out = {"name": name, "recipe": recipe,
+           "junction_ratio_dist": s["junction_ratio_dist"],
+           "junction_ratio_normal": s["junction_ratio_normal"],
+           "ceiling_ratio_dist": ceil["junction_ratio_dist"],
+           "ceiling_ratio_normal": ceil["junction_ratio_normal"],
+           "extra_pieces": s["extra_pieces"], "nc": s["normal_consistency"],
+           "fscore": s["fscore"], "ceiling_nc": ceil["nc"], "ceiling_fscore": ceil["fscore"],
+           "train_s": m["train_s"], "steps": m["steps"],
+           "step_s": m["train_s"] / max(1, m["steps"] - m.get("start_step", 0))}
+    for k in ("dist", "normal"):
+        fit, top = out[f"junction_ratio_{k}"], out[f"ceiling_ratio_{k}"]
+        out[f"excess_{k}"] = fit / top if fit is not None and top else None
+    return out
+
+
+def meets_targets(r: dict) -> bool:
+    """The issue's bar for one fit: excess <= 1.15 on both ratios, no extra piece, NC and F at
+    least min(0.95, the ceiling's own - 0.01)."""
+    ok = all(r[f"excess_{k}"] is not None and r[f"excess_{k}"] <= 1.15
+             for k in ("dist", "normal"))
+    return (ok and r["extra_pieces"] == 0
+            and r["nc"] >= min(0.95, r["ceiling_nc"] - 0.01)
+            and r["fscore"] >= min(0.95, r["ceiling_fscore"] - 0.01))
+
+
+def table(res: dict) -> str:
+    """bench/README.md's block: one row per shape and union, then the edited shapes."""
+    lines = rows_table(res["shapes"]) + ([""] if res.get("edits") else [])
+    for e in res.get("edits", []):
+        lines.append(f"- edit `{e['program']}` on {e['name']} ({e['recipe']}): junction "
+                     f"{e['junction_ratio_dist']:.2f} / {e['junction_ratio_normal']:.2f}, "
+                     f"change {e['change_dist']:+.1%} / {e['change_normal']:+.1%}")
+    done = "" if res.get("complete", True) else " (partial: not every shape is in)"
+    return "\n".join(lines) + f"\n\n{res['steps']} steps, {res['resolution']}^3, " \
+        f"{res['minutes']:.1f} min{done}"
+
+
+def headline(res: dict) -> str:
+    after = [r for r in res["shapes"] if r["recipe"] == "after"]
+    met = sum(meets_targets(r) for r in after)
+    worst = max((max(r["excess_dist"] or 0, r["excess_normal"] or 0) for r in after), default=0)
+    return (f"blended union: {met}/{len(after)} shapes meet the seam targets; worst excess over "
+            f"the ceiling {worst:.2f}")
+
+
+def rows_table(rows: list[dict]) -> list[str]:
+    def f(x, p=2):
+        return "-" if x is None else f"{x:.{p}f}"
+
+    out = ["| shape | recipe | junction d / n | ceiling d / n | excess d / n | extra | NC | F "
+           "| ms/step | met |", "|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        out.append(f"| {r['name']} | {r['recipe']} | {f(r['junction_ratio_dist'])} / "
+                   f"{f(r['junction_ratio_normal'])} | {f(r['ceiling_ratio_dist'])} / "
+                   f"{f(r['ceiling_ratio_normal'])} | {f(r['excess_dist'])} / "
+                   f"{f(r['excess_normal'])} | {r['extra_pieces']} | {f(r['nc'], 3)} | "
+                   f"{f(r['fscore'], 3)} | {1e3 * r['step_s']:.1f} | "
+                   f"{'yes' if meets_targets(r) else 'no'} |")
+    return out
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--only", nargs="*", default=None, help="only these shapes (names)")
+    ap.add_argument("--steps", type=int, default=1500)
+    ap.add_argument("--resolution", type=int, default=256)
+    ap.add_argument("--fit-workers", type=int, default=2, help="fits side by side")
+    ap.add_argument("--no-picture", action="store_true")
+    ap.add_argument("--refit", action="store_true",
+                    help="fit again (the cache keys the config, not the code)")
+    args = ap.parse_args()
+    names = [n for n, _ in SHAPES]
+    bad = [n for n in args.only or [] if n not in names]
+    if bad:
+        raise SystemExit(f"--only: {bad} not among the bench shapes {names}")
+    bench = Bench("seams")
+    t0 = time.perf_counter()
+    from bench import _seams_close as close
+
+    shapes = staged(args.only)
+    for _, _, folder in shapes:
+        prepare(folder, args.steps, args.resolution)
+    cache = FitCache("seams")
+    rows, edits, runs, lock = kept(bench.path, {n for n, _, _ in shapes}), [], {}, \
+        threading.Lock()
+    edits = [e for e in _old(bench.path).get("edits", []) if e["name"] in runs_of(rows)]
+
+    def one(shape) -> None:   # fit, then score at once: a stopped run keeps whole shapes
+        name, _, folder = shape
+        run_dir = fit_one(cache, name, folder, args.steps, args.resolution, args.refit).run_dir
+        ceil = _ceiling(run_dir, name, args.resolution)
+        mine = [row(name, r, run_dir, ceil, args.resolution) for r in RECIPES]
+        done = {(name, r): run_dir for r in RECIPES}
+        edited = close.edit_rows({name: EDITS[name]} if name in EDITS else {}, done, mine,
+                                 args.resolution, unions())
+        with lock:
+            runs.update(done)
+            rows.extend(mine)
+            edits.extend(edited)
+            write(complete=False)
+
+    def write(complete: bool) -> dict:
+        order = {n: i for i, (n, _) in enumerate(SHAPES)}
+        rows.sort(key=lambda r: (order[r["name"]], RECIPES.index(r["recipe"])))
+        res = {"shapes": rows, "edits": edits, "steps": args.steps,
+               "resolution": args.resolution,
+               "complete": complete and {n for n, _ in SHAPES} <= runs_of(rows),
+               "minutes": (time.perf_counter() - t0) / 60.0}
+        bench.write(res)
+        return res
+
+    with ThreadPoolExecutor(max(1, args.fit_workers)) as pool:
+        list(pool.map(one, shapes))
+    res = write(complete=True)
+    if not args.no_picture:
+        close.picture(rows, runs, bench.path.parent / "seams.png", CLOSEUP)
+    print(table(res))
+
+
+def _old(path: Path) -> dict:
+    return json.loads(path.read_text()) if path.exists() else {}
+
+
+def kept(path: Path, names: set) -> list[dict]:
+    """The rows of an earlier result for the shapes this run does not fit (`--only`)."""
+    return [r for r in _old(path).get("shapes", []) if r["name"] not in names]
+
+
+def runs_of(rows: list[dict]) -> set:
+    return {r["name"] for r in rows}
+
+
+def _ceiling(run_dir: Path, name: str, resolution: int) -> dict:
+    from bench import _seams
+
+    return _seams.ceiling(run_dir, name, resolution)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,102 @@
+"""A shape as a rigged asset: mesh, skeleton, skin, optional clip and corrective shapes, in
+one `GLBContent` (`ngc_gen.export.glb_writer` writes it). Settings are conf/export/default.yaml's."""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from .clips import Clip
+from .correctives import corrective_offsets, guide_field
+from .glb_writer import GLBContent
+from .joint_chains import Skeleton, build_skeleton, joint_matrices
+from .weights import skin_weights
+
+
+@dataclass(frozen=True)
+class ExportSettings:
+    """joints_per_gc: joints along each GC; resolution: the mesh grid; blend, falloff: the skin
+    weights' widths (`weights.skin_weights`); correctives: store the morph targets; newton_steps,
+    fd_step, max_step: their projection (`correctives.project`); colors: COLOR_0 by GC. No
+    defaults here: conf/mode/export.yaml's `export:` block is their one source."""
+
+    joints_per_gc: int
+    resolution: int
+    blend: float
+    falloff: float
+    correctives: bool
+    newton_steps: int
+    fd_step: float
+    max_step: float
+    colors: bool
+
+    @classmethod
+    def from_config(cls, d) -> "ExportSettings":
+        names = set(cls.__dataclass_fields__)
+        return cls(**{k: v for k, v in dict(d or {}).items() if k in names})
+
+
+@dataclass
+class Rigged:
+    """A meshed shape with its skeleton and skin, before any clip."""
+
+    shape: object
+    vertices: np.ndarray
+    faces: np.ndarray
+    normals: np.ndarray
+    skeleton: Skeleton
+    rest: np.ndarray
+    joints: np.ndarray
+    weights: np.ndarray
+
+
+def _palette(n: int) -> np.ndarray:
+    import colorsys
+
+    return np.array([(*colorsys.hsv_to_rgb((0.61803 * i) % 1.0, 0.55, 0.9), 1.0)
+                     for i in range(n)])
+
+
+def rig_shape(shape, settings: ExportSettings, parents: dict | None = None,
+              mesh=None) -> Rigged:
+    """Mesh `shape` (or take `mesh`, a trimesh of it), build its skeleton and skin weights."""
+    if mesh is None:
+        mesh = shape.mesh(settings.resolution).mesh
+    V = np.asarray(mesh.vertices, np.float64)
+    F = np.asarray(mesh.faces, np.int64)
+    if len(F) == 0:
+        raise ValueError(f"shape {shape.name!r} meshes to nothing at resolution "
+                         f"{settings.resolution}: its field has no zero level set")
+    skeleton = build_skeleton(shape.gcs, settings.joints_per_gc, parents)
+    rest = joint_matrices(skeleton, shape.gcs)
+    diag = float(np.linalg.norm(V.max(0) - V.min(0)))
+    J, W = skin_weights(shape, skeleton, V, settings.blend * diag, settings.falloff)
+    return Rigged(shape, V, F, np.asarray(mesh.vertex_normals, np.float64), skeleton, rest, J, W)
+
+
+def content(r: Rigged, clip: Clip | None, settings: ExportSettings) -> tuple[GLBContent, dict]:
+    """The file's content and what it took (seconds of the correctives, their mean shift)."""
+    c = GLBContent(r.vertices, r.faces, r.normals, r.skeleton.names, r.skeleton.parent, r.rest,
+                   r.joints, r.weights, name=r.shape.name)
+    if settings.colors:
+        dominant = r.joints[np.arange(len(r.joints)), r.weights.argmax(1)]
+        c.colors = _palette(len(r.skeleton.gc_names))[r.skeleton.gc[dominant]]
+    stats = {"corrective_s": 0.0}
+    if clip is None:
+        return c, stats
+    c.clip_name, c.times, c.world = clip.name, clip.times, clip.world
+    if settings.correctives:
+        t0 = time.perf_counter()
+        inv = np.linalg.inv(r.rest)
+        offsets = []
+        for k, posed in enumerate(clip.shapes):  # keyframes
+            d, _ = corrective_offsets(r.vertices, r.joints, r.weights, clip.world[k] @ inv,
+                                      lambda p, s=posed: guide_field(s, p),
+                                      settings.newton_steps, settings.fd_step, settings.max_step)
+            offsets.append(d)
+        c.morph = np.stack(offsets)
+        c.morph_weights = np.eye(len(offsets))
+        c.morph_names = [f"{clip.name}_{k:03d}" for k in range(len(offsets))]
+        stats["corrective_s"] = time.perf_counter() - t0
+    return c, stats
