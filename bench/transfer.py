@@ -45,28 +45,6 @@ METRICS = ("mmd_cd", "cov_cd", "nna_cd")
 AXES = {"up": "+y", "front": "+z"}  # the animals' axes, as the user of this collection knows them
 
 
-def _truth_scores(truth_gcs, gcs, points):
-    """(purity (G,), endpoint errors (2G,)) of transferred GCs against true GCs, same order."""
-    import numpy as np
-
-    from ngc_gen.data.autogc.coverage import rho_matrix
-    from ngc_gen.data.mesh.sampling import gc_membership
-
-    part = rho_matrix(truth_gcs, points)[0].argmin(0)
-    pp, pg, _ = gc_membership(points, gcs)
-    inside = np.zeros((len(points), len(gcs)), bool)
-    inside[pp, pg] = True
-    purity = np.array([inside[part == g, g].mean() if (part == g).any() else np.nan
-                       for g in range(len(truth_gcs))])
-    line = np.stack([np.linspace(-1, 1, 65), np.zeros(65), np.zeros(65)], 1)
-    errs = []
-    for t, g in zip(truth_gcs, gcs):
-        ct, cg = np.asarray(t.to_world(line)), np.asarray(g.to_world(line))
-        length = np.linalg.norm(np.diff(ct, axis=0), axis=1).sum()
-        errs += [np.linalg.norm(ct[0] - cg[0]) / length, np.linalg.norm(ct[-1] - cg[-1]) / length]
-    return purity, np.array(errs)
-
-
 def _annotated_copy(folder: Path, name: str, ply: Path, gcs) -> None:
     """folder/<name>.ply (a link to the mesh) and folder/<name>.yaml (these GCs): what
     data=folder reads as an annotated mesh."""
@@ -95,6 +73,8 @@ def one(task):
     from ngc_gen.data.errors import DataError
     from ngc_gen.data.mesh.sampling import sample_surface
 
+    from bench._scores import truth_scores
+
     name, ply, truth_yaml, template_path, axes, write = (*task, None)[:6]
     mesh = trimesh.load(ply, process=False)
     template = load_template(template_path)
@@ -115,7 +95,7 @@ def one(task):
         # the true GCs of the template's parts, by name (the rig template has GCs the transfer
         # template has not: the antlers carved out of the head count as the head's here)
         by_name = {g.name: g for g in truth.gcs}
-        purity, errs = _truth_scores([by_name[g.name] for g in tr.gcs], tr.gcs, pts)
+        purity, errs = truth_scores([by_name[g.name] for g in tr.gcs], tr.gcs, pts)
         out.update(purity=[float(p) for p in purity], endpoint_err=[float(e) for e in errs])
     return out
 
@@ -338,9 +318,9 @@ def parse_args():
 
 
 def _collections(records: list[dict], args) -> dict:
-    """The collections' figures (bench/transfer_collections.py); their per-mesh rows beside the
+    """The collections' figures (bench/_transfer_collections.py); their per-mesh rows beside the
     results, in bench/results/transfer_collections.json."""
-    from bench.transfer_collections import collections
+    from bench._transfer_collections import collections
 
     out = collections([r for r in records if r["split"] != "rest"], args.workers, args.zeroad_deb,
                       args.collections_limit)

@@ -72,7 +72,7 @@ def one(task):
     import trimesh
     from scipy.spatial.transform import Rotation
 
-    from bench.transfer import _truth_scores
+    from bench._scores import truth_scores
     from ngc_gen.data.annotations import load_annotation
     from ngc_gen.data.autogc.frame import angle_deg, moved_gcs, rotated_mesh, to_template
     from ngc_gen.data.autogc.orient import Orientation
@@ -94,7 +94,7 @@ def one(task):
     truth_all = moved_gcs(load_annotation(truth_yaml).gcs, Q, np.zeros(3), 1.0)
     by_name = {g.name: g for g in truth_all}
     pts, _ = sample_surface(mesh.vertices, mesh.faces, 20000, np.random.default_rng(1))
-    purity, _ = _truth_scores([by_name[g.name] for g in tr.gcs], tr.gcs, pts)
+    purity, _ = truth_scores([by_name[g.name] for g in tr.gcs], tr.gcs, pts)
     # the truth: the template's frame = R_true @ (this mesh's), R_true = to_template(own) @ Q^T
     own = Orientation(np.asarray(frame["up"]), np.asarray(frame["front"]))
     R_true = to_template(own, Orientation(template.up, template.front)) @ Q.T
