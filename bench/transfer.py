@@ -318,14 +318,13 @@ def parse_args():
 
 
 def _collections(records: list[dict], args) -> dict:
-    """The collections' figures (bench/_transfer_collections.py); their per-mesh rows beside the
-    results, in bench/results/transfer_collections.json."""
+    """{collections: the collections' figures (bench/_transfer_collections.py),
+    collections_per_mesh: their per-mesh rows}: two keys of bench/results/transfer.json."""
     from bench._transfer_collections import collections
 
     out = collections([r for r in records if r["split"] != "rest"], args.workers, args.zeroad_deb,
                       args.collections_limit)
-    Bench("transfer_collections").write({"per_mesh": out.pop("per_mesh")})
-    return out
+    return {"collections_per_mesh": out.pop("per_mesh"), "collections": out}
 
 
 def _collections_only(bench, records: list[dict], args) -> None:
@@ -333,7 +332,7 @@ def _collections_only(bench, records: list[dict], args) -> None:
     path = ROOT / "bench/results/transfer.json"
     old = json.loads(path.read_text()) if path.is_file() else {}
     old.pop("machine", None)
-    old["collections"] = _collections(records, args)
+    old.update(_collections(records, args))
     print(bench.write(old))
     print(json.dumps(old["collections"], indent=1))
 
@@ -390,7 +389,7 @@ def main() -> None:
         "generator": generator,
         "reconstruct_heldout": reconstructed,
         "refused": refused,
-        "collections": _collections(records, args),
+        **_collections(records, args),
         "details": {"animals": {k: animals[k] for k in ("purity_per_gc", "missing_counts",
                                                          "s_per_mesh_mean")},
                     "creatures": {k: creatures[k] for k in ("matched", "purity_worst", "purity_per_gc",

@@ -123,8 +123,7 @@ class Animals:
         self.settings = RigGCSettings.from_config(gcs)
         self.download, self.workers, self.progress = download, workers, progress
         # the rigs' body frame, recorded in every shape's annotation (not part of the build)
-        self.frame = read_frame(None if frame is None else {**dict(frame), "source": "dataset"},
-                                "data.frame")
+        self.frame = read_frame(None if frame is None else dict(frame), "data.frame")
 
     @property
     def gcs(self) -> dict:
@@ -213,7 +212,7 @@ class Animals:
     def shapes(self) -> list[Annotation]:
         out = [load_annotation(r["annotation"]) for r in self.build()]
         for a in out:
-            a.frame = a.frame or self.frame
+            a.frame = a.frame or (self.frame and {**self.frame, "source": "dataset"})
         return out
 
     def gc_names(self) -> list[str]:
