@@ -87,7 +87,7 @@ def one(task):
     template = load_template(TRANSFER_TEMPLATE)
     t0 = time.perf_counter()
     try:
-        tr = transfer_template(mesh, template, TransferSettings(**axes), name)
+        tr = transfer_template(mesh, template, TransferSettings.from_yaml(**axes), name)
     except DataError as e:
         return {"mesh": name, "error": str(e.what), "seconds": time.perf_counter() - t0}
     seconds = time.perf_counter() - t0

@@ -245,7 +245,7 @@ def samples(gen, conds, data_dir: Path, args, strength: float, project: int) -> 
     out = {k: [] for k in ("cond_meshes", "plain_meshes", "refit_meshes", "errs", "errs_u",
                            "floors", "mesh_secs", "picture")}
     out["t_cond"] = out["t_plain"] = 0.0
-    settings = PrepareSettings(n_samples=args.samples)
+    settings = PrepareSettings.from_yaml(n_samples=args.samples)
     cache = ROOT / f".cache/prepared/creatures_gen{args.samples // 1000}k_heldout"
     for k, (name, cond) in enumerate(conds):
         seed = args.seed * 1000 + k

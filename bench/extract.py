@@ -261,7 +261,7 @@ def main():
         "settings": {"bound": 1.0, "checkpoint": os.path.relpath(checkpoint, ROOT),
                      "fit_steps": fit.info["steps"],
                      "omp_wait_policy": os.environ.get("OMP_WAIT_POLICY"),
-                     "sparse": dataclasses.asdict(SparseSettings()),
+                     "sparse": dataclasses.asdict(SparseSettings.from_yaml()),
                      "dense_max_evals": args.dense_max_evals, "repeats": args.repeats,
                      "chamfer": "DeepSDF convention (30k samples each way, squared, means "
                                 "summed) against the other mesh's surface (mesh_chamfer); "

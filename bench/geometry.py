@@ -124,16 +124,16 @@ def bench_prepare():
 
     shapes = [load_annotation(ROOT / "datasets/ant/ant.yaml"),
               load_annotation(ROOT / "datasets/airplane/airplane.yaml"),
-              auto_annotation("pyvista:ant.ply", settings=AutoGCSettings(method="axis"))]
+              auto_annotation("pyvista:ant.ply", settings=AutoGCSettings.from_yaml(method="axis"))]
     try:
         from ngc_gen.data.procedural.creatures import make_creature  # noqa: F401
         from ngc_gen.data.procedural.creatures import build_creatures
         with tempfile.TemporaryDirectory() as d:
             build_creatures(Path(d), 2, seed=0)
             shapes += [load_annotation(p) for p in sorted(Path(d).glob("*.yaml"))]
-            return _time_prepare(shapes, PrepareSettings(n_samples=100_000), prepare_shape)
+            return _time_prepare(shapes, PrepareSettings.from_yaml(n_samples=100_000), prepare_shape)
     except ImportError:
-        return _time_prepare(shapes, PrepareSettings(n_samples=100_000), prepare_shape)
+        return _time_prepare(shapes, PrepareSettings.from_yaml(n_samples=100_000), prepare_shape)
 
 
 def _time_prepare(shapes, settings, prepare_shape):

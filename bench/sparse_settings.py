@@ -107,7 +107,7 @@ def main():
             fits[f"autogc/{f.info['label']}"] = f.run_dir / "checkpoints/last.ckpt"
     fits = dict(sorted(fits.items(), key=lambda kv: (kv[0] != "deform", kv[0])))
     specs = dict(parse_variant(v) for v in args.variants)
-    settings = {label: SparseSettings(**kw) for label, kw in specs.items()}
+    settings = {label: SparseSettings.from_yaml(**kw) for label, kw in specs.items()}
     cases, timing_input = [], None
     for fit_name, ckpt in fits.items():
         module = load_autodecoder(ckpt)

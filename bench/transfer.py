@@ -78,7 +78,7 @@ def one(task):
     name, ply, truth_yaml, template_path, axes, write = (*task, None)[:6]
     mesh = trimesh.load(ply, process=False)
     template = load_template(template_path)
-    settings = TransferSettings(**axes)
+    settings = TransferSettings.from_yaml(**axes)
     t0 = time.perf_counter()
     try:
         tr = transfer_template(mesh, template, settings, name)
@@ -212,7 +212,7 @@ def picture(records: list[dict], path: Path) -> None:
             continue
         mesh = trimesh.load(r["mesh"], process=False)
         try:
-            tr = transfer_template(mesh, template, TransferSettings(**AXES), r["name"])
+            tr = transfer_template(mesh, template, TransferSettings.from_yaml(**AXES), r["name"])
         except DataError:
             continue
         seen.add(r["species"])
@@ -264,7 +264,7 @@ def creature_transfer(args) -> dict:
         shapes.append((ann.gcs, pts, z_up))
         annotated.append((stem, m, ann.gcs))
     ctemplate = calibrate_ends(export_template(shapes, "creature"), annotated,
-                               TransferSettings(up="+z", front="+x"))
+                               TransferSettings.from_yaml(up="+z", front="+x"))
     cpath = ROOT / "bench/results/transfer_creature_template.yaml"
     atomic_write_text(cpath, ctemplate.to_yaml())
     ctasks = [(stem, str(cdir / f"{stem}.ply"), str(cdir / f"{stem}.yaml"), str(cpath),

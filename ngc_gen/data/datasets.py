@@ -33,7 +33,7 @@ class SingleGC:
         self.name, self.base = name, base
 
     def shapes(self) -> list[Annotation]:
-        axis = AutoGCSettings(method="axis")
+        axis = AutoGCSettings.from_yaml(method="axis")
         return [auto_annotation(a.mesh, name=a.name, bound=a.bound, settings=axis)
                 for a in self.base.shapes()]
 
@@ -65,7 +65,7 @@ class MeshFolder:
         self.path = Path(path)
         self.bound = bound
         self.annotate = annotate
-        self.settings = AutoGCSettings.from_config(annotate) if annotate is not None else AutoGCSettings()
+        self.settings = AutoGCSettings.from_config(annotate)
 
     def mesh_files(self) -> list[Path]:
         """The folder's mesh files, sorted by name."""

@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from ngc_gen.conf.defaults import yaml_settings
 from ngc_gen.data.annotations import Annotation, annotation_from_dict, load_annotation
 from ngc_gen.data.atomic import atomic_write
 from ngc_gen.data.errors import DataError
@@ -53,14 +54,20 @@ class PrepareSettings:
     (docs/fitting.md, "Seams").
     """
 
-    n_samples: int = 100_000
-    surface_fraction: float = 0.7
-    offset_std: float | tuple[float, ...] = 0.01
-    coverage_samples: int = 100_000
-    min_coverage: float = 0.999
-    seed: int = 0
-    volume_region: str = "gcs"
-    pair_margin: float = 0.0
+    n_samples: int
+    surface_fraction: float
+    offset_std: float | tuple[float, ...]
+    coverage_samples: int
+    min_coverage: float
+    seed: int
+    volume_region: str
+    pair_margin: float
+
+    @classmethod
+    def from_yaml(cls, **overrides) -> "PrepareSettings":
+        """The values of conf/prepare/default.yaml (the one place they live), some replaced by
+        `overrides`."""
+        return yaml_settings(cls, "prepare/default.yaml", **overrides)
 
     def __post_init__(self):
         if isinstance(self.offset_std, (list, tuple)):
@@ -296,7 +303,7 @@ def prepare_shape(annotation: Annotation | str | os.PathLike, settings: PrepareS
     settings.min_coverage) no cache file is written. Logs one line with coverage and counts.
     """
     ann = annotation if isinstance(annotation, Annotation) else load_annotation(annotation)
-    settings = settings or PrepareSettings()
+    settings = settings or PrepareSettings.from_yaml()
     try:
         mesh_file = ann.mesh_path
         if not mesh_file.is_file():

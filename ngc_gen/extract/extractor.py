@@ -113,7 +113,7 @@ def extract_mesh(gcs: Sequence[GeneralizedCylinder], rows_fn: RowsFn, resolution
             stores, hits = [s for s, _ in got], sum(h for _, h in got)
         stats.update(cache_hits=hits, cache_misses=len(gcs) - hits)
         mesh, values = extract_sparse(gcs, grid, stores, queue_args, stats, smooth, background,
-                                      settings or SparseSettings(), keep_values, blend, blend_k)
+                                      settings or SparseSettings.from_yaml(), keep_values, blend, blend_k)
     else:
         flat = evaluate_grid(gcs, grid, queue_args, stats, smooth, method == "prefiltered",
                              slab_points, progress, blend, blend_k)

@@ -49,6 +49,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit, prange
 
+from ngc_gen.conf.defaults import yaml_settings
 from ngc_gen.geometry import GeneralizedCylinder
 
 from . import settle
@@ -67,10 +68,16 @@ class SparseSettings:
     track_near x c x the grid spacing of it, and grows the surface from them (False: every
     block the margin keeps; module docstring)."""
 
-    coarse_cells: int = 32
-    lipschitz: float = 1.5
-    track: bool = True
-    track_near: float = 0.5
+    coarse_cells: int
+    lipschitz: float
+    track: bool
+    track_near: float
+
+    @classmethod
+    def from_yaml(cls, **overrides) -> "SparseSettings":
+        """The values of conf/extract/default.yaml's `sparse` (the one place they live), some
+        replaced by `overrides`."""
+        return yaml_settings(cls, "extract/default.yaml", "sparse", **overrides)
 
     def __post_init__(self):
         if int(self.coarse_cells) != self.coarse_cells or self.coarse_cells < 1:

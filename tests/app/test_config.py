@@ -289,19 +289,24 @@ def test_edit_programs_ship_inside_the_package(monkeypatch, tmp_path):
 
 def test_the_sparse_extraction_settings_come_from_the_extract_group():
     """`extract.sparse` (conf/extract/default.yaml) is where the sparse refinement's defaults
-    live: it builds the library's `SparseSettings()`, an override reaches the object every
-    stage extracts with, and a bad value is a ConfigError that names the key."""
+    live: it builds the library's `SparseSettings.from_yaml()`, an override reaches the object
+    every stage extracts with, and a bad value or an unknown key is a ConfigError that names
+    the key."""
     from ngc_gen.app.runtime.config import sparse_settings
     from ngc_gen.app.runtime.errors import ConfigError
     from ngc_gen.extract import SparseSettings
 
     for config in ("train", "edit", "sample"):
         cfg = compose_config(config_name=config)
-        assert sparse_settings(cfg.extract.sparse) == SparseSettings()
+        assert sparse_settings(cfg.extract.sparse) == SparseSettings.from_yaml()
     cfg = compose_config(config_name="edit", overrides=["extract.sparse.track=false",
                                                         "extract.sparse.lipschitz=2.0"])
-    assert sparse_settings(cfg.extract.sparse) == SparseSettings(track=False, lipschitz=2.0)
+    assert sparse_settings(cfg.extract.sparse) == SparseSettings.from_yaml(track=False,
+                                                                            lipschitz=2.0)
     assert sparse_settings(cfg.editor.sparse) == sparse_settings(cfg.extract.sparse)
     cfg = compose_config(config_name="sample", overrides=["extract.sparse.lipschitz=0.5"])
     with pytest.raises(ConfigError, match=r"extract.sparse.*lipschitz margin must be >= 1"):
+        sparse_settings(cfg.extract.sparse)
+    cfg = compose_config(config_name="sample", overrides=["+extract.sparse.lipshitz=2.0"])
+    with pytest.raises(ConfigError, match=r"extract.sparse.*lipshitz"):
         sparse_settings(cfg.extract.sparse)

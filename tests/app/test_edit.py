@@ -139,7 +139,7 @@ def test_edited_yaml_prepares_again_in_its_own_frame(tmp_path, ckpt):
     assert "normalize: false" in (out / "edited.yaml").read_text()
     ann = load_annotation(out / "edited.yaml")
     assert ann.bound is None and ann.to_dict()["normalize"] is False
-    prepared = prepare_shape(ann, PrepareSettings(n_samples=2000, coverage_samples=4000,
+    prepared = prepare_shape(ann, PrepareSettings.from_yaml(n_samples=2000, coverage_samples=4000,
                                                   min_coverage=0.9))
     deformed = trimesh.load(out / "deformed.ply", process=False)
     np.testing.assert_allclose(prepared.mesh_vertices, deformed.vertices, atol=1e-6)

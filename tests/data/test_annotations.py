@@ -45,7 +45,7 @@ def test_normalize_false_keeps_the_mesh_frame(tmp_path, sphere_annotation, gc_di
     ann = load_annotation(path)
     assert ann.bound is None and ann.to_dict()["normalize"] is False
     assert load_annotation(save_annotation(ann, tmp_path / "copy.yaml")).bound is None
-    prepared = prepare_shape(ann, PrepareSettings(n_samples=1000, coverage_samples=2000))
+    prepared = prepare_shape(ann, PrepareSettings.from_yaml(n_samples=1000, coverage_samples=2000))
     r = (prepared.mesh_vertices ** 2).sum(1) ** 0.5
     assert abs(r.max() - 1.0) < 1e-6  # the unit sphere as it is (normalised: radius 0.8)
 

@@ -7,7 +7,7 @@ import torch
 from ngc_gen.data.datamodule import PreparedDataModule, row_weights, shared_rows, training_rows
 from ngc_gen.data.prepare import PrepareSettings, prepare_shape
 
-SMALL = PrepareSettings(n_samples=4_000, coverage_samples=4_000)
+SMALL = PrepareSettings.from_yaml(n_samples=4_000, coverage_samples=4_000)
 
 
 def _two_gc_shape(sphere_file, write_yaml, gc_dict, tmp_path):

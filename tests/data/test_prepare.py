@@ -19,7 +19,7 @@ from ngc_gen.geometry import GeneralizedCylinder
 
 from ..helpers import PLY_TRIANGLE_HEADER
 
-SMALL = PrepareSettings(n_samples=5_000, coverage_samples=5_000)
+SMALL = PrepareSettings.from_yaml(n_samples=5_000, coverage_samples=5_000)
 
 
 @pytest.fixture
@@ -204,7 +204,7 @@ def test_coverage_error_names_annotation_and_nearest_gc(sphere_file, write_yaml,
 
 def test_auto_annotation_of_real_meshes_prepares(tmp_path):
     for spec in ["pyvista:ant.ply", "pyvista:airplane.ply"]:
-        shape = prepare_shape(auto_annotation(spec, settings=AutoGCSettings(method="axis")), SMALL, tmp_path)
+        shape = prepare_shape(auto_annotation(spec, settings=AutoGCSettings.from_yaml(method="axis")), SMALL, tmp_path)
         assert shape.coverage == 1.0
         inside = shape.sdf < 0
         assert 0.01 < inside[shape.n_surface:].mean() < 0.9  # thin parts: some volume samples inside
@@ -212,7 +212,7 @@ def test_auto_annotation_of_real_meshes_prepares(tmp_path):
 
 def test_invalid_settings():
     with pytest.raises(DataError, match="surface_fraction"):
-        PrepareSettings(surface_fraction=1.5)
+        PrepareSettings.from_yaml(surface_fraction=1.5)
 
 
 @pytest.mark.parametrize("fraction", [0.0, 1.0])
@@ -272,4 +272,4 @@ def test_pair_margin_trains_a_gc_past_its_boundary(sphere_file, write_yaml, gc_d
         near = np.sqrt(GeneralizedCylinder.relative_measure(rel)) <= 1.2
         np.testing.assert_array_equal(np.sort(wide.pair_point[sel]), np.flatnonzero(near))
     with pytest.raises(DataError, match="pair_margin"):
-        PrepareSettings(pair_margin=-0.1)
+        PrepareSettings.from_yaml(pair_margin=-0.1)

@@ -266,7 +266,7 @@ def test_tracking_grows_the_surface_along_a_rod_no_even_lattice_point_sees():
     fn = through_gcs([gc], [lambda x: torch.minimum(ball(x), rod(x))])
     ref = extract_mesh([gc], fn, R, method="prefiltered", progress=False)
     assert ref.mesh.vertices[:, 0].max() > 0.8 and ref.mesh.body_count == 1
-    band = extract_mesh([gc], fn, R, settings=SparseSettings(track=False), progress=False)
+    band = extract_mesh([gc], fn, R, settings=SparseSettings.from_yaml(track=False), progress=False)
     fast = extract_mesh([gc], fn, R, progress=False)
     for res in (band, fast):
         assert np.array_equal(res.mesh.vertices, ref.mesh.vertices)
@@ -280,7 +280,7 @@ def test_tracking_grows_the_surface_along_a_rod_no_even_lattice_point_sees():
                                                                           0.5 * h)(x))])
     ref = extract_mesh([gc], apart, R, method="prefiltered", progress=False)
     assert ref.mesh.body_count == 2
-    band = extract_mesh([gc], apart, R, settings=SparseSettings(track=False), progress=False)
+    band = extract_mesh([gc], apart, R, settings=SparseSettings.from_yaml(track=False), progress=False)
     assert np.array_equal(band.mesh.faces, ref.mesh.faces)
 
 

@@ -38,7 +38,7 @@ def prepared(tmp_path_factory):
         mesh.export(d / ann["mesh"])
         (d / f"c{seed}.yaml").write_text(yaml.safe_dump(ann, sort_keys=False))
         out.append(prepare_shape(d / f"c{seed}.yaml",
-                                 PrepareSettings(n_samples=4000, coverage_samples=4000,
+                                 PrepareSettings.from_yaml(n_samples=4000, coverage_samples=4000,
                                                  min_coverage=0.99)))
     return out
 

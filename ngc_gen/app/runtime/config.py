@@ -9,7 +9,7 @@ from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
 
-CONF_DIR = Path(__file__).resolve().parents[3] / "conf"  # beside train.py, edit.py, sample.py
+from ngc_gen.conf.defaults import CONF_DIR  # the checkout's conf/, beside train.py, edit.py, sample.py
 
 
 def repo_root() -> Path:

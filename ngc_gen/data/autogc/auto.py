@@ -19,8 +19,10 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
+from ngc_gen.conf.defaults import yaml_settings
 from ngc_gen.data.annotations import Annotation
 from ngc_gen.data.errors import DataError
+from ngc_gen.data.group_settings import from_group
 from ngc_gen.data.mesh.io import is_resource, load_mesh, normalize
 from ngc_gen.data.autogc.radii import ellipse_radii, principal_axes
 from ngc_gen.data.autogc.orient import parse_axis
@@ -108,22 +110,23 @@ METHODS = ("skeleton", "axis")
 
 @dataclass(frozen=True)
 class AutoGCSettings:
-    """How automatic GCs are made; the defaults are conf/annotate/default.yaml's (a test
-    checks they agree). See that file for what each field means."""
+    """How automatic GCs are made: keys of the `annotate` group, whose values live in
+    conf/annotate/default.yaml (`from_yaml`, `from_config`). See that file for what each field
+    means."""
 
-    method: str = "skeleton"
-    max_gcs: int = 24
-    min_branch_length: float = 1.0
-    margin: float = 0.05
-    resolution: int = 96
-    skeleton: str = "auto"
-    n_keys: int = 5
-    samples: int = 20000
-    seed: int = 0
-    protrusions: bool = True
-    bulb_ratio: float = 1.8
-    up: str = "auto"
-    front: str = "auto"
+    method: str
+    max_gcs: int
+    min_branch_length: float
+    margin: float
+    resolution: int
+    skeleton: str
+    n_keys: int
+    samples: int
+    seed: int
+    protrusions: bool
+    bulb_ratio: float
+    up: str
+    front: str
 
     def __post_init__(self):
         checks = {"method": self.method in METHODS, "max_gcs": self.max_gcs >= 1,
@@ -139,15 +142,21 @@ class AutoGCSettings:
             parse_axis(getattr(self, name), f"annotate.{name}")
 
     @classmethod
+    def from_yaml(cls, **overrides) -> "AutoGCSettings":
+        """conf/annotate/default.yaml's values, some replaced by `overrides`."""
+        return yaml_settings(cls, "annotate/default.yaml", **overrides)
+
+    @classmethod
     def from_config(cls, d) -> "AutoGCSettings":
-        """From the `annotate` config group (keys that only the runner reads are ignored)."""
-        names = {f.name for f in dataclasses.fields(cls)}
-        return cls(**{k: v for k, v in dict(d).items() if k in names})
+        """From the `annotate` group (or some of its keys; the rest: its YAML's); its keys that
+        are not these settings' are the runner's or `TransferSettings`'; an unknown key is a
+        DataError."""
+        return from_group(cls, d, "annotate/default.yaml", field="annotate")
 
 
 def auto_gcs(mesh: trimesh.Trimesh, settings: AutoGCSettings | None = None) -> list[GeneralizedCylinder]:
     """GCs for a normalised mesh by ``settings.method``."""
-    settings = settings or AutoGCSettings()
+    settings = settings or AutoGCSettings.from_yaml()
     if settings.method == "axis":
         return [auto_gc(mesh, margin=settings.margin)]
 

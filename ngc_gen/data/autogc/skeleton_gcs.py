@@ -105,15 +105,14 @@ def _split_owner(pieces: list[Branch], piece_of: list[np.ndarray], owner: np.nda
     return out
 
 
-def skeleton_gcs(mesh: trimesh.Trimesh, max_gcs: int = 24, min_branch_length: float = 1.0,
-                 margin: float = 0.05, resolution: int = 96, skeleton: str = "auto",
-                 n_keys: int = 5, samples: int = 20000, seed: int = 0, protrusions: bool = True,
-                 bulb_ratio: float = 1.8, up="auto", front="auto"
+def skeleton_gcs(mesh: trimesh.Trimesh, *, max_gcs: int, min_branch_length: float,
+                 margin: float, resolution: int, skeleton: str, n_keys: int, samples: int,
+                 seed: int, protrusions: bool, bulb_ratio: float, up, front
                  ) -> tuple[list[GeneralizedCylinder], dict]:
     """GCs for a (normalised) mesh and what was found on the way: {backend, n_branches,
     n_components, n_protrusions, orientation}; names by the given or detected up and front
-    (``orient``). Arguments as in conf/annotate/default.yaml (its values are the defaults here,
-    as in `AutoGCSettings`; a test checks they agree)."""
+    (``orient``). Arguments: the fields of `AutoGCSettings` but `method` (`auto_gcs` passes
+    them; their values live in conf/annotate/default.yaml)."""
     if skeleton not in BACKENDS:
         raise DataError(f"unknown skeleton backend {skeleton!r}", field="annotate.skeleton",
                         fix=f"use one of {', '.join(BACKENDS)}")

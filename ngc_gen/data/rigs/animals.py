@@ -65,7 +65,7 @@ def _build(args):
     clip_real = clip_name(rig, clip)
     t = 0.0 if clip_real is None else \
         rig.clips[clip_real].start + (frame + 0.5) / frames * rig.clips[clip_real].duration
-    ps = pose_shape(rig, load_template(template), clip_real, t, RigGCSettings(**settings), name)
+    ps = pose_shape(rig, load_template(template), clip_real, t, RigGCSettings.from_yaml(**settings), name)
     ann = {"name": name, "mesh": f"{name}.ply", "normalize": {"bound": settings["bound"]},
            "gcs": ps.gcs}
     stats = {"clip": clip, "time": round(float(t), 6), "coverage": ps.coverage,

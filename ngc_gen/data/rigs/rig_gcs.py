@@ -29,11 +29,13 @@ import numpy as np
 import trimesh
 from scipy.spatial import cKDTree
 
+from ngc_gen.conf.defaults import yaml_settings
 from ngc_gen.data.annotations import rounded_gc_dict
 from ngc_gen.data.autogc.coverage import grow_to_cover, rho_matrix
 from ngc_gen.data.autogc.radii import ellipse_radii
 from ngc_gen.data.autogc.template import Template, TemplateGC
 from ngc_gen.data.errors import DataError
+from ngc_gen.data.group_settings import from_group
 from ngc_gen.data.mesh.io import normalize
 from ngc_gen.data.mesh.proxy import closed_proxy
 from ngc_gen.data.mesh.sampling import gc_membership, sample_surface
@@ -58,19 +60,19 @@ CORE_TRIM = (0.3, 1.3)
 
 @dataclass(frozen=True)
 class RigGCSettings:
-    """How posed rigs become GCs; the defaults are conf/data/animals.yaml's `gcs` (a test
-    checks they agree). resolution: proxy voxels along the longest side; samples: surface
+    """How posed rigs become GCs; the values live in conf/data/animals.yaml's `gcs`
+    (`from_yaml`, `from_config`). resolution: proxy voxels along the longest side; samples: surface
     samples the GCs are fitted to and grown to cover; check_samples: fresh samples coverage
     and purity are measured on; margin: radii and caps grown by this share; bound: the
     normalisation; min_coverage: below it the shape is refused."""
 
-    resolution: int = 128
-    samples: int = 40000
-    check_samples: int = 100000
-    margin: float = 0.05
-    bound: float = 0.8
-    min_coverage: float = 0.999
-    seed: int = 0
+    resolution: int
+    samples: int
+    check_samples: int
+    margin: float
+    bound: float
+    min_coverage: float
+    seed: int
 
     def __post_init__(self):
         checks = {"resolution": self.resolution >= 32, "samples": self.samples >= 1000,
@@ -83,9 +85,15 @@ class RigGCSettings:
                                     "bound > 0; min_coverage in [0, 1]")
 
     @classmethod
+    def from_yaml(cls, **overrides) -> "RigGCSettings":
+        """conf/data/animals.yaml's `gcs`, some values replaced by `overrides`."""
+        return yaml_settings(cls, "data/animals.yaml", "gcs", **overrides)
+
+    @classmethod
     def from_config(cls, d) -> "RigGCSettings":
-        names = {f.name for f in dataclasses.fields(cls)}
-        return cls(**{k: v for k, v in dict(d or {}).items() if k in names})
+        """From `data.gcs` (or some of its keys, None: none; the rest: the YAML's); an unknown
+        key is a DataError."""
+        return from_group(cls, d, "data/animals.yaml", "gcs", field="data.gcs")
 
 
 @dataclass
@@ -439,7 +447,7 @@ def pose_shape(rig: Rig, template: Template, clip: str | None = None, time: floa
     frame the template's vectors are turned into) or else by the template's joint names.
     DataError (naming the rig, the shape and the numbers) when the GCs cover less than
     `settings.min_coverage` of its surface."""
-    st = settings or RigGCSettings()
+    st = settings or RigGCSettings.from_yaml()
     where = f"{rig.source}" + (f" [{name}]" if name else "")
     template = template_in_frame(template, joint_map)
     owner_j, resolved = gc_of_joint(template, rig, joint_map)

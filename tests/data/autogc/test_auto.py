@@ -46,7 +46,7 @@ def test_flat_mesh_gets_positive_radii():
 
 
 def test_auto_annotation_is_deterministic_and_named():
-    axis = AutoGCSettings(method="axis")
+    axis = AutoGCSettings.from_yaml(method="axis")
     a, b = (auto_annotation("pyvista:ant.ply", settings=axis) for _ in range(2))
     assert a.name == "ant" and a.mesh == "pyvista:ant.ply" and a.bound == 0.8
     assert a.to_dict() == b.to_dict()

@@ -23,7 +23,7 @@ from .shapes import quadruped
 
 pytestmark = pytest.mark.usefixtures("single_thread")
 TEMPLATE = ROOT / "datasets/animals/quadruped_transfer.yaml"
-FAST = TransferSettings(resolution=64, samples=5000)
+FAST = TransferSettings.from_yaml(resolution=64, samples=5000)
 
 
 @pytest.fixture(scope="module")

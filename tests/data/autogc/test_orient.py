@@ -2,6 +2,8 @@
 them (a y-up creature facing +z gets its front-left leg named front left)."""
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 import trimesh
@@ -31,11 +33,18 @@ def creature():
     return mesh, true, points
 
 
+def _args(**kw) -> dict:
+    """skeleton_gcs's arguments: conf/annotate/default.yaml's, `kw` replacing some."""
+    d = dataclasses.asdict(AutoGCSettings.from_yaml(**kw))
+    d.pop("method")
+    return d
+
+
 def _leg_names(creature, rotation, **kw) -> dict[str, str]:
     """true leg -> the name of the automatic GC holding most of its samples."""
     mesh, true, points = creature
     turned = trimesh.Trimesh(mesh.vertices @ rotation.T, mesh.faces, process=False)
-    gcs, info = skeleton_gcs(turned, resolution=64, samples=8000, **kw)
+    gcs, info = skeleton_gcs(turned, **_args(resolution=64, samples=8000, **kw))
     part = rho_matrix(true, points)[0].argmin(axis=0)
     pp, pg, _ = gc_membership(points @ rotation.T, gcs)
     inside = np.zeros((len(points), len(gcs)), dtype=bool)
@@ -81,4 +90,4 @@ def test_given_axes_are_read_and_bad_ones_refused():
     assert np.allclose(parse_axis([0, 2, 0], "annotate.up"), [0, 1, 0])
     assert parse_axis("auto", "annotate.up") is None
     with pytest.raises(DataError, match="annotate.front"):
-        AutoGCSettings(front="sideways")
+        AutoGCSettings.from_yaml(front="sideways")

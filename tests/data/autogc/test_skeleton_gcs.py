@@ -2,6 +2,8 @@
 determinism, the voxel fallback, branch-graph rules, local growth and bad input."""
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 import trimesh
@@ -16,12 +18,19 @@ from ngc_gen.data.errors import DataError
 from ngc_gen.data.autogc.names import gc_names
 from ngc_gen.data.mesh.io import normalize
 from ngc_gen.data.mesh.sampling import sample_surface
-from ngc_gen.data.autogc.skeleton_gcs import skeleton_gcs
+from ngc_gen.data.autogc.skeleton_gcs import skeleton_gcs as _skeleton_gcs
 from ngc_gen.geometry import GeneralizedCylinder
 
 from ...helpers import ROOT
 
 pytestmark = pytest.mark.usefixtures("single_thread")
+def skeleton_gcs(mesh, **kw):
+    """`skeleton_gcs` with conf/annotate/default.yaml's values, `kw` replacing some."""
+    d = dataclasses.asdict(AutoGCSettings.from_yaml(**kw))
+    d.pop("method")
+    return _skeleton_gcs(mesh, **d)
+
+
 FAST = dict(resolution=64, samples=8000)  # coarser than the defaults: keeps each mesh ~1-2 s
 
 
@@ -207,9 +216,9 @@ def test_a_head_on_a_thin_neck_gets_its_own_gc():
         share = _part_shares(true, gcs, points)[names.index(name)]
         return int(share.argmax()), float(share.max())
 
-    without = auto_gcs(mesh, AutoGCSettings(bulb_ratio=0))
+    without = auto_gcs(mesh, AutoGCSettings.from_yaml(bulb_ratio=0))
     assert best(without, "neck")[0] == best(without, "head")[0]  # the premise: one GC for both
-    gcs = auto_gcs(mesh, AutoGCSettings())
+    gcs = auto_gcs(mesh, AutoGCSettings.from_yaml())
     (neck, neck_share), (head, head_share) = best(gcs, "neck"), best(gcs, "head")
     assert neck != head and neck_share >= 0.8 and head_share >= 0.8
     assert len(gcs) == len(without) + 1 and abs(len(gcs) - 10) <= 2
@@ -347,18 +356,20 @@ def test_growth_is_local_and_covers():
     assert grown.caps[0] > 0.19 and grown.caps[1] > 0.1
 
 
-def test_settings_defaults_are_the_config_defaults():
-    conf = yaml.safe_load((ROOT / "conf/annotate/default.yaml").read_text())
-    conf.pop("write_beside")
-    assert AutoGCSettings.from_config(conf) == AutoGCSettings()
-    # skeleton_gcs's own keyword defaults (a bare call) are the same values
-    import dataclasses
-    import inspect
+def test_settings_come_from_the_annotate_group_and_refuse_an_unknown_key():
+    """The composed `annotate` group builds the settings (its runner's and the transfer's keys
+    left to them), a partial mapping takes the rest from conf/annotate/default.yaml, and a key
+    the group does not have is refused with its name and the file, not dropped."""
+    from ngc_gen.app.runtime.config import compose_config
+    from omegaconf import OmegaConf
 
-    params = inspect.signature(skeleton_gcs).parameters
-    for f in dataclasses.fields(AutoGCSettings):
-        if f.name in params:
-            assert params[f.name].default == getattr(AutoGCSettings(), f.name), f.name
+    cfg = compose_config("train", ["annotate.n_keys=7"])
+    conf = OmegaConf.to_container(cfg.annotate, resolve=True)
+    assert AutoGCSettings.from_config(conf) == AutoGCSettings.from_yaml(n_keys=7)
+    assert AutoGCSettings.from_config({"method": "axis"}).max_gcs == \
+        yaml.safe_load((ROOT / "conf/annotate/default.yaml").read_text())["max_gcs"]
+    with pytest.raises(DataError, match=r"conf/annotate/default.yaml.*annotate.n_key\b"):
+        AutoGCSettings.from_config({**conf, "n_key": 7})
 
 
 def test_bad_input_is_refused(tmp_path):
@@ -367,9 +378,9 @@ def test_bad_input_is_refused(tmp_path):
     with pytest.raises(DataError, match="empty.ply"):
         auto_annotation(empty)
     with pytest.raises(DataError, match="method"):
-        AutoGCSettings(method="magic")
+        AutoGCSettings.from_yaml(method="magic")
     with pytest.raises(DataError, match="max_gcs"):
-        AutoGCSettings(max_gcs=0)
+        AutoGCSettings.from_yaml(max_gcs=0)
     flat = trimesh.Trimesh([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]])
     with pytest.raises(DataError, match="backend"):
         skeleton_gcs(flat, skeleton="magic")
@@ -378,6 +389,6 @@ def test_bad_input_is_refused(tmp_path):
 def test_a_single_triangle_still_gets_covered():
     tri = trimesh.Trimesh([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]])
     mesh, _, _ = normalize(tri)
-    gcs = auto_gcs(mesh, AutoGCSettings(resolution=32, samples=2000))
+    gcs = auto_gcs(mesh, AutoGCSettings.from_yaml(resolution=32, samples=2000))
     points, _ = sample_surface(mesh.vertices, mesh.faces, 5000, np.random.default_rng(0))
     assert coverage_stats(gcs, points)["coverage"] >= 0.999

@@ -28,7 +28,7 @@ from .shapes import chair, quadruped, sphere, torus
 
 pytestmark = pytest.mark.usefixtures("single_thread")
 TEMPLATE = ROOT / "datasets/animals/quadruped_transfer.yaml"
-FAST = TransferSettings(resolution=64, samples=5000)
+FAST = TransferSettings.from_yaml(resolution=64, samples=5000)
 Z_UP = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])  # y-up/+z front -> z-up/+x front
 
 
@@ -257,10 +257,16 @@ def test_a_template_without_places_says_how_to_get_one(template):
         transfer_template(quadruped()[0], bare, FAST)
 
 
-def test_settings_defaults_are_the_config_defaults():
+def test_settings_come_from_the_annotate_group_and_refuse_an_unknown_key():
+    """The whole `annotate` group (the runner's and the automatic GCs' keys are theirs) builds
+    the settings with conf/annotate/default.yaml's values; a key the group does not have is
+    refused with its name and the file, not dropped."""
     conf = yaml.safe_load((ROOT / "conf/annotate/default.yaml").read_text())
-    for f in dataclasses.fields(TransferSettings):
-        assert conf[f.name] == getattr(TransferSettings(), f.name), f.name
+    st = TransferSettings.from_config({**conf, "min_matched": 0.5})
+    assert st == TransferSettings.from_yaml(min_matched=0.5)
+    assert st.missing_cost == conf["missing_cost"] and st.refine_steps == conf["refine_steps"]
+    with pytest.raises(DataError, match=r"conf/annotate/default.yaml.*annotate.refine_step\b"):
+        TransferSettings.from_config({**conf, "refine_step": 10})
 
 
 def test_a_mesh_lying_on_its_side_keeps_the_folders_layout(template, transfers):

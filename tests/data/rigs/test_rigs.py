@@ -195,7 +195,7 @@ def test_template_gcs_on_a_rig_follow_its_chains(tmp_path):
         {"name": "lower", "joints": ["Elbow", "Hand"], "degree": 2, "keys": [0.0, 0.5, 1.0],
          "up": [0, 0, 1], "extend": [False, True], "skinned": ["Elbow", "Hand"],
          "parent": "upper"}]})
-    ps = pose_shape(rig, tpl, settings=RigGCSettings(resolution=48, samples=5000,
+    ps = pose_shape(rig, tpl, settings=RigGCSettings.from_yaml(resolution=48, samples=5000,
                                                      check_samples=20000))
     assert [g["name"] for g in ps.gcs] == ["upper", "lower"]
     assert ps.coverage >= 0.999 and ps.purity.min() >= 0.8

@@ -236,7 +236,7 @@ def test_rig_gcs_of_a_zeroad_mesh_follow_its_structure_in_its_own_frame(rig):
 
     template = load_template(Path(__file__).parents[3] / "datasets/animals/quadruped_transfer.yaml")
     mesh = ZeroADMesh("tiny", "tiny", "Tiny", rig, structure_map(rig, None, UP))
-    ps = mesh.pose(template, settings=RigGCSettings(resolution=48, samples=2000,
+    ps = mesh.pose(template, settings=RigGCSettings.from_yaml(resolution=48, samples=2000,
                                                     check_samples=4000))
     assert ps.coverage >= 0.999 and [g["name"] for g in ps.gcs] == template.names
     ends = {g["name"]: np.asarray(g["curve"]["points"])[[0, -1]] for g in ps.gcs}

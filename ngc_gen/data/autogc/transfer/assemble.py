@@ -252,7 +252,7 @@ def transfer_template(mesh: trimesh.Trimesh, template: Template,
     `rotation` turns them into the template's frame (``frame.written``). override: the user's
     frame for this mesh (frame.read_override). DataError naming `where` when the mesh does not
     match the template in any orientation."""
-    st = settings or TransferSettings()
+    st = settings or TransferSettings.from_yaml()
     _check_placed(template)
     V, F = np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces, dtype=np.int64)
     pts, _ = sample_surface(V, F, st.samples, np.random.default_rng(st.seed))

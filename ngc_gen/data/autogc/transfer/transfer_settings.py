@@ -1,37 +1,39 @@
 """How a template is put on a mesh (TransferSettings) and what comes out (Transfer)."""
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
 
+from ngc_gen.conf.defaults import yaml_settings
 from ngc_gen.data.autogc.orient import Orientation, parse_axis
 from ngc_gen.data.autogc.skeleton import BACKENDS
 from ngc_gen.data.errors import DataError
+from ngc_gen.data.group_settings import from_group
 from ngc_gen.geometry import GeneralizedCylinder
 
 
 @dataclass(frozen=True)
 class TransferSettings:
-    """How a template is put on a mesh; the defaults are conf/annotate/default.yaml's (a test
-    checks they agree). See that file for what each field means."""
+    """How a template is put on a mesh: keys of the `annotate` group, whose values live in
+    conf/annotate/default.yaml (`from_yaml`, `from_config`). See that file for what each field
+    means."""
 
-    resolution: int = 96
-    samples: int = 20000
-    skeleton: str = "auto"
-    margin: float = 0.05
-    min_branch_length: float = 1.0
-    max_gcs: int = 24
-    seed: int = 0
-    up: str = "auto"
-    front: str = "auto"
-    missing_cost: float = 6.0
-    max_match_cost: float = 4.0
-    min_matched: float = 0.6
-    refine_steps: int = 60
-    min_tube: float = 0.22
-    min_confidence: float = 0.05
+    resolution: int
+    samples: int
+    skeleton: str
+    margin: float
+    min_branch_length: float
+    max_gcs: int
+    seed: int
+    up: str
+    front: str
+    missing_cost: float
+    max_match_cost: float
+    min_matched: float
+    refine_steps: int
+    min_tube: float
+    min_confidence: float
 
     def __post_init__(self):
         checks = {"resolution": self.resolution >= 16, "samples": self.samples >= 100,
@@ -50,9 +52,16 @@ class TransferSettings:
             parse_axis(getattr(self, name), f"annotate.{name}")
 
     @classmethod
+    def from_yaml(cls, **overrides) -> "TransferSettings":
+        """conf/annotate/default.yaml's values, some replaced by `overrides`."""
+        return yaml_settings(cls, "annotate/default.yaml", **overrides)
+
+    @classmethod
     def from_config(cls, d) -> "TransferSettings":
-        names = {f.name for f in dataclasses.fields(cls)}
-        return cls(**{k: v for k, v in dict(d).items() if k in names})
+        """From the `annotate` group (or some of its keys; the rest: its YAML's); its keys that
+        are not these settings' are the runner's or `AutoGCSettings`'; an unknown key is a
+        DataError."""
+        return from_group(cls, d, "annotate/default.yaml", field="annotate")
 
 
 @dataclass
