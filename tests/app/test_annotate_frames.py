@@ -45,7 +45,7 @@ def test_a_turned_folder_trains_with_the_readme_commands(tmp_path):
     (d / "cow.yaml").write_text(mine)  # a user's file beside a mesh is never touched
     r = run_entry("train.py", *nxt[0].split()[3:], "model=small", "trainer.max_steps=3",
                   "shape_latent.latent_dim=8", "shape_latent.preview=0", "batch_size=512",
-                  "prepare.n_samples=4000", "+prepare.coverage_samples=4000", "threads=1",
+                  "prepare.n_samples=4000", "prepare.coverage_samples=4000", "threads=1",
                   f"prepare.cache_dir={tmp_path}/prepared", f"hydra.run.dir={tmp_path}/sl")
     assert r.returncode == 0, r.stderr[-3000:]
     assert (d / "cow.yaml").read_text() == mine

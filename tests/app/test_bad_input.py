@@ -104,7 +104,7 @@ def prepare(source: Path, root: Path, *extra: str):
             ["data=ant", "data.name=bad", f"data.annotations=[{source}]"])
     return in_process(run_stage, "train", [
         "stage=prepare", *data, f"prepare.cache_dir={root}/cache", "prepare.n_samples=2000",
-        "+prepare.coverage_samples=2000", *extra])
+        "prepare.coverage_samples=2000", *extra])
 
 
 def program(root: Path, inputs, ops=None, text=None, *extra: str):

@@ -105,7 +105,7 @@ def folder_of_shapes(root, n=3):
 
 
 COMMON = ["stage=prepare", "data=folder", "prepare.n_samples=3000",
-          "+prepare.coverage_samples=3000"]
+          "prepare.coverage_samples=3000"]
 
 
 def prepare_in(folder, cache, *extra):

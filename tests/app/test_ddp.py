@@ -45,7 +45,7 @@ def test_two_cpu_processes_hold_identical_weights_after_n_steps(tmp_path):
     run, dump = tmp_path / "run", tmp_path / "dump"
     r = run_entry("train.py", "stage=fit", "trainer=ddp", "data=folder", f"data.path={folder}",
                   f"paths.cache_dir={tmp_path}/cache", "prepare.n_samples=6000",
-                  "+prepare.coverage_samples=2000", "batch_size=512", "trainer.max_steps=6",
+                  "prepare.coverage_samples=2000", "batch_size=512", "trainer.max_steps=6",
                   "extract.resolution=16", "threads=1", DUMP, f"+callbacks.dump.out_dir={dump}",
                   f"hydra.run.dir={run}", timeout=300)
     assert r.returncode == 0, r.stderr[-3000:]
@@ -60,7 +60,7 @@ def test_two_cpu_processes_hold_identical_weights_after_n_steps(tmp_path):
 def test_shape_latent_and_diffusion_train_identical_weights_on_two_processes(tmp_path):
     common = ["trainer=ddp", "threads=1", "data=creatures", "data.n=4",
               f"data.out_dir={tmp_path}/data", f"prepare.cache_dir={tmp_path}/prepared",
-              "prepare.n_samples=4000", "+prepare.coverage_samples=4000", "batch_size=512", DUMP]
+              "prepare.n_samples=4000", "prepare.coverage_samples=4000", "batch_size=512", DUMP]
     sl, diff = tmp_path / "sl", tmp_path / "diff"
     r = run_entry("train.py", "stage=shape_latent", *common, "trainer.max_steps=6",
                   "shape_latent.latent_dim=16", "shape_latent.preview=0",

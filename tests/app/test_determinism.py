@@ -24,7 +24,7 @@ def without_timings(x):
 def fit(folder, root):
     cfg = compose_config(overrides=[
         "stage=fit", "data=folder", f"data.path={folder}", f"paths.cache_dir={root}/cache",
-        "prepare.n_samples=3000", "+prepare.coverage_samples=2000", "batch_size=512",
+        "prepare.n_samples=3000", "prepare.coverage_samples=2000", "batch_size=512",
         "trainer.max_steps=8", "trainer.enable_progress_bar=false", "extract.resolution=16",
         f"run_dir={root}/run", "seed=3", "metrics_seed=5"])
     return run_fit(cfg)

@@ -77,7 +77,7 @@ def _q(*overrides):
 def tiny_run(tmp_path_factory):
     base = tmp_path_factory.mktemp("pipeline")
     data = [f"data.out_dir={base}/data", f"prepare.cache_dir={base}/prep",
-            "prepare.n_samples=4000", "+prepare.coverage_samples=4000", "batch_size=1024",
+            "prepare.n_samples=4000", "prepare.coverage_samples=4000", "batch_size=1024",
             "trainer.max_steps=30", "trainer.enable_progress_bar=false"]
     mp = pytest.MonkeyPatch()
     mp.setenv("OMP_NUM_THREADS", "1")  # tiny tensors on a shared 2-core machine

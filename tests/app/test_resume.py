@@ -154,7 +154,7 @@ def test_prepare_keeps_the_cache_entries_it_finished(tmp_path):
 def test_shape_latent_and_diffusion_resume_from_last_ckpt(tmp_path):
     common = ["data=creatures", "data.n=4", f"data.out_dir={tmp_path}/data",
               f"prepare.cache_dir={tmp_path}/prepared", "prepare.n_samples=4000",
-              "+prepare.coverage_samples=4000", "batch_size=1024"]
+              "prepare.coverage_samples=4000", "batch_size=1024"]
     sl, steps = tmp_path / "sl", 600
     args = train_args(sl, "stage=shape_latent", *common, f"trainer.max_steps={steps}",
                       "shape_latent.latent_dim=16", "shape_latent.preview=0")

@@ -30,7 +30,7 @@ def runs(tmp_path_factory, single_thread):
     mp.setenv("OMP_NUM_THREADS", "1")
     common = ["data=creatures", "data.n=4", f"data.out_dir={base}/data",
               f"prepare.cache_dir={base}/prepared", "prepare.n_samples=4000",
-              "+prepare.coverage_samples=4000", "batch_size=1024",
+              "prepare.coverage_samples=4000", "batch_size=1024",
               "trainer.enable_progress_bar=false", "trainer.log_every_n_steps=10"]
     out = {k: base / k for k in ("sl", "diff", "gen")}
     try:
@@ -220,7 +220,7 @@ def test_reconstruct_a_held_out_creature_and_interpolate_to_a_generated_one(runs
     out = tmp_path / "rec"
     common = ["data=creatures", "data.n=4", f"data.out_dir={base}/data",
               f"prepare.cache_dir={base}/prepared", "prepare.n_samples=4000",
-              "+prepare.coverage_samples=4000", "batch_size=1024",
+              "prepare.coverage_samples=4000", "batch_size=1024",
               "trainer.enable_progress_bar=false"]
     metrics = run_stage(compose_config(overrides=[
         "stage=reconstruct", f"run={runs['sl']}", *common, "data.split=test",

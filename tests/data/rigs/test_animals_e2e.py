@@ -31,7 +31,7 @@ def runs(tmp_path_factory):
               "data.heldout_clips=[]", "data.heldout_clips_by_species=null", "data.frames=1", "data.workers=1",
               "data.gcs.samples=20000", "data.gcs.check_samples=50000",
               f"prepare.cache_dir={base}/prepared", "prepare.n_samples=4000",
-              "+prepare.coverage_samples=20000", "batch_size=1024", "logger=csv",
+              "prepare.coverage_samples=20000", "batch_size=1024", "logger=csv",
               "trainer.enable_progress_bar=false", "trainer.log_every_n_steps=10"]
     out = {k: base / k for k in ("sl", "diff", "gen")}
     r = run_entry("train.py", "stage=shape_latent", *common, "shape_latent.max_steps=40",
