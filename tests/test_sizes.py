@@ -18,10 +18,7 @@ MAX_FUNCTION, MAX_MODULE = 80, 500
 # data/autogc/ and data/rigs/ belong to the template-transfer work, which moves its settings'
 # defaults into their YAML.
 LONG_MODULES: set[str] = set()
-LONG_FUNCTIONS = {
-    "ngc_gen/data/autogc/template.py:template_from_dict",
-    "ngc_gen/data/rigs/gltf.py:load_gltf_rig",
-}
+LONG_FUNCTIONS: set[str] = set()
 # settings whose group has a YAML but which still carry defaults: the template-transfer work's
 # (TransferSettings reads conf/annotate without _target_, RigGCSettings and AutoGCSettings are
 # built from it), and the two library settings that callers outside a config build bare
