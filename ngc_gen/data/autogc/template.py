@@ -276,55 +276,63 @@ def template_from_dict(d, source: str | os.PathLike | None = None) -> Template:
     gcs = d.get("gcs")
     if not isinstance(gcs, list) or not gcs:
         _fail("gcs must be a non-empty list", path, fld="gcs", fix="list the GCs of the template")
-    out = []
-    for i, g in enumerate(gcs):
-        if not isinstance(g, dict):
-            _fail(f"each GC must be a mapping, got {type(g).__name__}", path, fld=f"gcs[{i}]")
-        gname = g.get("name")
-        if not isinstance(gname, str) or not gname.strip():
-            _fail(f"missing GC name (got {gname!r})", path, fld=f"gcs[{i}].name",
-                  fix="give every GC a unique name")
-        bad = set(g) - GC_KEYS
-        if bad:
-            _fail(f"unknown keys {sorted(bad)}", path, gname, fix=f"use only {sorted(GC_KEYS)}")
-        carve = _carve(g.get("carve"), path, gname)
-        if carve is not None and any(k in g for k in ("joints", "skinned", "extend")):
-            _fail("a carved GC takes its surface from another GC; it has no joints, skinned or "
-                  "extend", path, gname, "carve", "remove joints, skinned and extend, or carve")
-        joints = _names(g.get("joints"), path, gname, "joints", "place" in g or carve is not None)
-        place = _place(g.get("place"), path, gname)
-        skinned = _names(g.get("skinned"), path, gname, "skinned", True)
-        degree = g.get("degree", 3)
-        if not isinstance(degree, int) or isinstance(degree, bool) or not 1 <= degree <= 7:
-            _fail(f"degree must be an integer 1..7, got {degree!r}", path, gname, "degree",
-                  "use 3 (a cubic) unless the part is straight (1) or gently bent (2)")
-        keys = g.get("keys", [0.0, 0.25, 0.5, 0.75, 1.0])
-        if not isinstance(keys, list) or not keys or not all(
-                isinstance(t, (int, float)) and not isinstance(t, bool) and 0.0 <= t <= 1.0
-                for t in keys) or list(keys) != sorted(keys) or len(set(keys)) != len(keys):
-            _fail(f"keys must be increasing numbers in [0, 1], got {keys!r}", path, gname, "keys",
-                  "e.g. keys: [0.0, 0.25, 0.5, 0.75, 1.0]")
-        up = g.get("up", [0.0, 0.0, 1.0])
-        if not (isinstance(up, list) and len(up) == 3 and all(
-                isinstance(x, (int, float)) and not isinstance(x, bool) for x in up)) \
-                or not np.linalg.norm(up) > 0:
-            _fail(f"up must be a non-zero [x, y, z], got {up!r}", path, gname, "up",
-                  "give a direction normal to the part's usual direction")
-        extend = g.get("extend", [False, True])
-        if not (isinstance(extend, list) and len(extend) == 2 and all(isinstance(e, bool) for e in extend)):
-            _fail(f"extend must be [bool, bool], got {extend!r}", path, gname, "extend",
-                  "e.g. [false, true]: the start attaches, the end is free")
-        attach = g.get("attach")
-        if attach is not None and not (isinstance(attach, (int, float)) and 0.0 <= attach <= 1.0):
-            _fail(f"attach must be a t in [0, 1] or null, got {attach!r}", path, gname, "attach")
-        for fld in ("parent", "symmetric"):
-            v = g.get(fld)
-            if v is not None and not isinstance(v, str):
-                _fail(f"{fld} must be a GC name or null, got {v!r}", path, gname, fld)
-        out.append(TemplateGC(gname, joints, skinned, int(degree), tuple(float(t) for t in keys),
-                              tuple(float(x) for x in up), tuple(extend), g.get("parent"),
-                              None if attach is None else float(attach), g.get("symmetric"), place,
-                              carve))
+    out = [_template_gc(g, i, path) for i, g in enumerate(gcs)]
+    _check_links(out, path)
+    return Template(name, tuple(out), int(version), path, _frame(d.get("frame"), path))
+
+
+def _template_gc(g, i: int, path: str | None) -> TemplateGC:
+    """Template GC i checked (DataError naming the file, the GC and the field)."""
+    if not isinstance(g, dict):
+        _fail(f"each GC must be a mapping, got {type(g).__name__}", path, fld=f"gcs[{i}]")
+    gname = g.get("name")
+    if not isinstance(gname, str) or not gname.strip():
+        _fail(f"missing GC name (got {gname!r})", path, fld=f"gcs[{i}].name",
+              fix="give every GC a unique name")
+    bad = set(g) - GC_KEYS
+    if bad:
+        _fail(f"unknown keys {sorted(bad)}", path, gname, fix=f"use only {sorted(GC_KEYS)}")
+    carve = _carve(g.get("carve"), path, gname)
+    if carve is not None and any(k in g for k in ("joints", "skinned", "extend")):
+        _fail("a carved GC takes its surface from another GC; it has no joints, skinned or "
+              "extend", path, gname, "carve", "remove joints, skinned and extend, or carve")
+    joints = _names(g.get("joints"), path, gname, "joints", "place" in g or carve is not None)
+    place = _place(g.get("place"), path, gname)
+    skinned = _names(g.get("skinned"), path, gname, "skinned", True)
+    degree = g.get("degree", 3)
+    if not isinstance(degree, int) or isinstance(degree, bool) or not 1 <= degree <= 7:
+        _fail(f"degree must be an integer 1..7, got {degree!r}", path, gname, "degree",
+              "use 3 (a cubic) unless the part is straight (1) or gently bent (2)")
+    keys = g.get("keys", [0.0, 0.25, 0.5, 0.75, 1.0])
+    if not isinstance(keys, list) or not keys or not all(
+            isinstance(t, (int, float)) and not isinstance(t, bool) and 0.0 <= t <= 1.0
+            for t in keys) or list(keys) != sorted(keys) or len(set(keys)) != len(keys):
+        _fail(f"keys must be increasing numbers in [0, 1], got {keys!r}", path, gname, "keys",
+              "e.g. keys: [0.0, 0.25, 0.5, 0.75, 1.0]")
+    up = g.get("up", [0.0, 0.0, 1.0])
+    if not (isinstance(up, list) and len(up) == 3 and all(
+            isinstance(x, (int, float)) and not isinstance(x, bool) for x in up)) \
+            or not np.linalg.norm(up) > 0:
+        _fail(f"up must be a non-zero [x, y, z], got {up!r}", path, gname, "up",
+              "give a direction normal to the part's usual direction")
+    extend = g.get("extend", [False, True])
+    if not (isinstance(extend, list) and len(extend) == 2 and all(isinstance(e, bool) for e in extend)):
+        _fail(f"extend must be [bool, bool], got {extend!r}", path, gname, "extend",
+              "e.g. [false, true]: the start attaches, the end is free")
+    attach = g.get("attach")
+    if attach is not None and not (isinstance(attach, (int, float)) and 0.0 <= attach <= 1.0):
+        _fail(f"attach must be a t in [0, 1] or null, got {attach!r}", path, gname, "attach")
+    for fld in ("parent", "symmetric"):
+        v = g.get(fld)
+        if v is not None and not isinstance(v, str):
+            _fail(f"{fld} must be a GC name or null, got {v!r}", path, gname, fld)
+    return TemplateGC(gname, joints, skinned, int(degree), tuple(float(t) for t in keys),
+                      tuple(float(x) for x in up), tuple(extend), g.get("parent"),
+                      None if attach is None else float(attach), g.get("symmetric"), place, carve)
+
+
+def _check_links(out: list[TemplateGC], path: str | None) -> None:
+    """Names unique; parent, symmetric and carve.from name GCs of the template; parents a tree."""
     names = [g.name for g in out]
     dupes = sorted({n for n in names if names.count(n) > 1})
     if dupes:
@@ -354,7 +362,6 @@ def template_from_dict(d, source: str | os.PathLike | None = None) -> Template:
                       "make the parents a tree with one or more roots (parent: null)")
             seen.add(p)
             p = out[names.index(p)].parent
-    return Template(name, tuple(out), int(version), path, _frame(d.get("frame"), path))
 
 
 def load_template(path: str | os.PathLike) -> Template:

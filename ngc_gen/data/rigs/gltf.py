@@ -113,8 +113,24 @@ def load_gltf_rig(path: str | os.PathLike) -> Rig:
     r = _Reader(g, source)
     if not g.skins:
         r.fail("the file has no skin (no joints and weights)", "skins")
-    n = len(g.nodes)
     names = [nd.name or f"node_{i}" for i, nd in enumerate(g.nodes)]
+    parent = _parents(g, r, names)
+    T, R, S = _node_trs(g)
+    joints, ibm = _skin_joints(g, r)
+    V, F, J, W = _skinned_primitives(g, r, names, len(joints))
+    weights = np.concatenate(W)
+    total = weights.sum(1, keepdims=True)
+    if (total <= 0).any():
+        r.fail(f"{int((total <= 0).sum())} vertices have no skin weight", "WEIGHTS_0")
+    return Rig(names=names, parent=parent, translation=T, rotation=R, scale=S, joints=joints,
+               inverse_bind=ibm, vertices=np.concatenate(V), faces=np.concatenate(F),
+               skin_joints=np.concatenate(J), skin_weights=weights / total,
+               clips=_clips(g, r, names), source=source)
+
+
+def _parents(g, r: _Reader, names: list[str]) -> np.ndarray:
+    """(n,) each node's parent index, -1 for a root; a child listed twice or missing fails."""
+    n = len(g.nodes)
     parent = np.full(n, -1)
     for i, nd in enumerate(g.nodes):
         for c in nd.children or []:
@@ -122,6 +138,12 @@ def load_gltf_rig(path: str | os.PathLike) -> Rig:
                 r.fail(f"node {names[i]!r} lists child {c}, which is missing or has two parents",
                        f"nodes[{i}].children")
             parent[c] = i
+    return parent
+
+
+def _node_trs(g) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The nodes' local translation (n, 3), rotation quaternion xyzw (n, 4) and scale (n, 3)."""
+    n = len(g.nodes)
     T, R, S = np.zeros((n, 3)), np.tile([0.0, 0.0, 0.0, 1.0], (n, 1)), np.ones((n, 3))
     for i, nd in enumerate(g.nodes):
         if nd.matrix is not None:
@@ -133,18 +155,27 @@ def load_gltf_rig(path: str | os.PathLike) -> Rig:
             R[i] = nd.rotation
         if nd.scale is not None:
             S[i] = nd.scale
+    return T, R, S
+
+
+def _skin_joints(g, r: _Reader) -> tuple[np.ndarray, np.ndarray]:
+    """The first skin's joint nodes (J,) and inverse bind matrices (J, 4, 4), row-major."""
     skin = g.skins[0]
     joints = np.asarray(skin.joints or [], np.int64)
-    if len(joints) == 0 or joints.min() < 0 or joints.max() >= n:
+    if len(joints) == 0 or joints.min() < 0 or joints.max() >= len(g.nodes):
         r.fail("the skin's joint list is empty or names nodes that do not exist", "skins[0].joints")
     if skin.inverseBindMatrices is None:
-        ibm = np.tile(np.eye(4), (len(joints), 1, 1))
-    else:
-        m = r.accessor(skin.inverseBindMatrices, "inverse bind matrices")
-        if len(m) != len(joints):
-            r.fail(f"{len(m)} inverse bind matrices for {len(joints)} joints",
-                   "skins[0].inverseBindMatrices")
-        ibm = m.reshape(-1, 4, 4).transpose(0, 2, 1)  # glTF matrices are column-major
+        return joints, np.tile(np.eye(4), (len(joints), 1, 1))
+    m = r.accessor(skin.inverseBindMatrices, "inverse bind matrices")
+    if len(m) != len(joints):
+        r.fail(f"{len(m)} inverse bind matrices for {len(joints)} joints",
+               "skins[0].inverseBindMatrices")
+    return joints, m.reshape(-1, 4, 4).transpose(0, 2, 1)  # glTF matrices are column-major
+
+
+def _skinned_primitives(g, r: _Reader, names: list[str], n_joints: int) -> tuple[list, ...]:
+    """Lists of vertices, faces (offset into one mesh), joints and weights of every triangle
+    primitive of a node bound to the first skin."""
     V, F, J, W = [], [], [], []
     offset = 0
     for i, nd in enumerate(g.nodes):
@@ -167,16 +198,17 @@ def load_gltf_rig(path: str | os.PathLike) -> Rig:
                 r.fail("JOINTS_0 / WEIGHTS_0 do not match POSITION (4 per vertex)", where)
             if idx.size and (idx.min() < 0 or idx.max() >= len(pos)):
                 r.fail("triangle indices out of range", where + ".indices")
-            if jj.max() >= len(joints) or jj.min() < 0:
-                r.fail(f"JOINTS_0 names joint {int(jj.max())}, the skin has {len(joints)}", where)
+            if jj.max() >= n_joints or jj.min() < 0:
+                r.fail(f"JOINTS_0 names joint {int(jj.max())}, the skin has {n_joints}", where)
             V.append(pos), F.append(idx + offset), J.append(jj), W.append(ww)
             offset += len(pos)
     if not V:
         r.fail("no triangle mesh uses the skin", "nodes[*].skin")
-    weights = np.concatenate(W)
-    total = weights.sum(1, keepdims=True)
-    if (total <= 0).any():
-        r.fail(f"{int((total <= 0).sum())} vertices have no skin weight", "WEIGHTS_0")
+    return V, F, J, W
+
+
+def _clips(g, r: _Reader, names: list[str]) -> dict[str, Clip]:
+    """The file's animations as clips of joint TRS channels (morph weights are skipped)."""
     clips = {}
     for k, anim in enumerate(g.animations or []):
         name = anim.name or f"clip_{k}"
@@ -199,7 +231,4 @@ def load_gltf_rig(path: str | os.PathLike) -> Rig:
                        f"{len(values)} values for {len(times)} times", f"animations[{k}]")
             chans.append(Channel(int(c.target.node), c.target.path, times, values, interp))
         clips[name] = Clip(name, tuple(chans))
-    return Rig(names=names, parent=parent, translation=T, rotation=R, scale=S, joints=joints,
-               inverse_bind=ibm, vertices=np.concatenate(V), faces=np.concatenate(F),
-               skin_joints=np.concatenate(J), skin_weights=weights / total, clips=clips,
-               source=source)
+    return clips
