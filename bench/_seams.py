@@ -256,10 +256,19 @@ def crop(mesh, centre: np.ndarray, radius: float):
     return trimesh.Trimesh(v[used], inverse.reshape(-1, 3), process=False)
 
 
+def facing(truth, centre: np.ndarray) -> np.ndarray:
+    """(3,) the normal of the truth's face nearest `centre`: the close-up's view direction."""
+    import igl  # libigl: trimesh's nearest face would need rtree
+
+    _, tri, _ = igl.point_mesh_squared_distance(
+        centre[None], np.asarray(truth.vertices, dtype=np.float64),
+        np.asarray(truth.faces, dtype=np.int64))
+    return np.asarray(truth.face_normals[int(tri[0])])
+
+
 def picture(rows: list[dict], runs: dict, path: Path, n: int = 4) -> Path | None:
     """The `n` worst junctions of the `before` recipe, close up: truth, before, after, DeepSDF
     cropped around the same point, seen along the truth's normal there."""
-    import igl
     import trimesh
 
     from ngc_gen.eval.junctions import worst_junction
@@ -286,10 +295,7 @@ def picture(rows: list[dict], runs: dict, path: Path, n: int = 4) -> Path | None
                              centre, CLOSEUP) if d is not None else None)
         cells.append(row_)
         labels.append(f"{r['name']} ({r['gcs']})")
-        _, tri, _ = igl.point_mesh_squared_distance(   # libigl: trimesh's would need rtree
-            centre[None], np.asarray(truth.vertices, dtype=np.float64),
-            np.asarray(truth.faces, dtype=np.int64))
-        views.append(np.asarray(truth.face_normals[int(tri[0])]))
+        views.append(facing(truth, centre))
     if not cells:
         return None
     return render_grid(cells, path, labels=labels, frame="row", cell=(260, 220), view=views,

@@ -83,10 +83,9 @@ def edit_rows(programs: dict, runs: dict, rows: list[dict], resolution: int,
 def picture(rows: list[dict], runs: dict, path: Path, radius: float) -> Path | None:
     """Per shape, its worst junction (the `before` fit's, where the seam shows) close up:
     truth, before, after cropped around the same point, seen along the truth's normal there."""
-    import igl
     import trimesh
 
-    from bench._seams import crop, truth_and_gcs
+    from bench._seams import crop, facing, truth_and_gcs
     from ngc_gen.eval.junctions import worst_junction
     from ngc_gen.viz import render_grid
 
@@ -104,10 +103,7 @@ def picture(rows: list[dict], runs: dict, path: Path, radius: float) -> Path | N
         centre, _ = found
         cells.append([crop(m, centre, radius) for m in (truth, *meshes)])
         labels.append(name)
-        _, tri, _ = igl.point_mesh_squared_distance(
-            centre[None], np.asarray(truth.vertices, dtype=np.float64),
-            np.asarray(truth.faces, dtype=np.int64))
-        views.append(np.asarray(truth.face_normals[int(tri[0])]))
+        views.append(facing(truth, centre))
     if not cells:
         return None
     return render_grid(cells, path, labels=labels, frame="row", cell=(260, 220), view=views,
