@@ -1,6 +1,6 @@
 """Shapes as rigged, animated glTF 2.0 assets: GC chains as a skeleton, skin weights from the
 NGC field, clips (edit programs, rigged collections' clips carried by GC names), and corrective
-morph targets that put skinning on NGC's exact posed surface (DESIGN.md section 13)."""
+morph targets that put skinning on NGC's exact posed surface (docs/export.md)."""
 from .asset import ExportSettings, Rigged, content, rig_shape
 from .clips import Clip, ClipError, program_clip, rig_clip
 from .glb_writer import GLBContent, write_glb
