@@ -7,8 +7,6 @@ from __future__ import annotations
 from dataclasses import replace
 from pathlib import Path
 
-import numpy as np
-
 ROOT = Path(__file__).resolve().parents[1]
 TEMPLATE = "datasets/animals/quadruped_transfer.yaml"  # what `experiment=collection` is given
 FRAME = {"up": [0.0, 1.0, 0.0], "front": [0.0, 0.0, -1.0]}  # 0 A.D.'s meshes: y-up, facing -z
@@ -17,6 +15,8 @@ FRAME = {"up": [0.0, 1.0, 0.0], "front": [0.0, 0.0, -1.0]}  # 0 A.D.'s meshes: y
 def training_folder(species: list[str], deb: str | None = None) -> Path:
     """<cache>/<species...>/: <mesh>.ply + <mesh>.yaml for the first kept mesh (by name) of
     each species; refuses a species the collection does not hold, naming those it does."""
+    import numpy as np
+
     from ngc_gen.data.annotations import Annotation
     from ngc_gen.data.atomic import atomic_write_text
     from ngc_gen.data.autogc.template import load_template
