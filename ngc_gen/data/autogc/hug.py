@@ -23,6 +23,10 @@ A point's cost in a GC is the volume the growth adds there (cross-section area x
 its keys answer for, plus the cap's half-ellipsoid), so a thin tail takes its own hair and a
 head covers an ear with a bump of one radius. Rounds repeat until every point is inside; a
 last resort after ``max_rounds`` scales whole GCs (as ``grow_to_cover``).
+
+``tighten`` then shrinks each key's radii, one GC after another, as far as the samples only
+that GC holds allow: growth point by point overshoots (the largest factor any point asks
+for), and where another GC holds a sample this one need not.
 """
 from __future__ import annotations
 
@@ -40,7 +44,7 @@ OWN_SHARE = 0.25  # an uncovered sample's cost in the GC it belongs to counts th
                   # holds its own surface (a mane stays the neck's) unless another GC holds it
                   # for a quarter of the volume
 MIN_SLICE = 10    # a key whose slice has fewer own samples keeps its radii
-THICK = 1.6       # a slice's sample farther from the curve than this x the slice's median is not
+THICK = 1.4       # a slice's sample farther from the curve than this x the slice's median is not
                   # the part's body (a horn, an ear): left to coverage
 
 
@@ -205,4 +209,59 @@ def hug_to_cover(gcs: list[GeneralizedCylinder], points: np.ndarray, slack: floa
         for g in np.unique(given):
             mine = given == g
             gcs[g] = _apply(gcs[g], Plan(plans[g].keys[mine], plans[g].caps[mine], plans[g].cost[mine]))
+    return gcs
+
+
+SHRINK = np.geomspace(0.5, 1.0, 13)  # the factors `tighten` tries a key's radius at
+
+
+def _measure(key_t, radii, caps, t, y, z, past, end) -> np.ndarray:
+    """(..., P) relative measure of samples at arc t (P,) with offsets y, z (P,) from the curve
+    in its frame and `past` (P,) beyond end `end` (0 / 1; past 0 in the tube), for radii
+    (..., K, 2) and caps (2,)."""
+    r = np.stack([np.stack([np.interp(t, key_t, rr[..., j]) for j in range(2)], -1)
+                  for rr in radii.reshape(-1, *radii.shape[-2:])]).reshape(*radii.shape[:-2], len(t), 2)
+    e = past / caps[end]
+    return e * e + (y / r[..., 0]) ** 2 + (z / r[..., 1]) ** 2
+
+
+def tighten(gcs: list[GeneralizedCylinder], points: np.ndarray, owner: np.ndarray | None = None,
+            slack: float = 1.02, fixed: set[int] = frozenset()) -> list[GeneralizedCylinder]:
+    """Each GC's key radii shrunk (to SHRINK factors, twice over its keys) while every sample
+    (N, 3) it alone holds, and every one of its own (owner (N,): the GC each sample belongs
+    to, -1: none), stays inside with `slack` (module docstring); the GCs `fixed` are kept."""
+    gcs = list(gcs)
+    pp, pg, rel = gc_membership(points, gcs)
+    count = np.bincount(pp, minlength=len(points))
+    limit = 1.0 / slack ** 2
+    for g, gc in enumerate(gcs):
+        if g in fixed:
+            continue
+        sel = pg == g
+        p, r = pp[sel], rel[sel]
+        d = gc.to_dict()
+        key_t = np.array([k["t"] for k in d["keys"]])
+        radii = np.array([k["radii"] for k in d["keys"]], dtype=np.float64)
+        caps = np.array(d["caps"], dtype=np.float64)
+        t = (np.clip(r[:, 0], -1.0, 1.0) + 1.0) / 2.0
+        y = r[:, 1] * np.interp(t, key_t, radii[:, 0])
+        z = r[:, 2] * np.interp(t, key_t, radii[:, 1])
+        end = (r[:, 0] > 1.0).astype(int)
+        past = np.clip(np.abs(r[:, 0]) - 1.0, 0.0, None) * caps[end]
+        need = np.maximum(limit, _measure(key_t, radii, caps, t, y, z, past, end))
+        free = count[p] > 1
+        if owner is not None:
+            free &= owner[p] != g
+        for _ in range(2):
+            for k in range(len(key_t)):
+                for j in range(2):
+                    trial = np.repeat(radii[None], len(SHRINK), 0)
+                    trial[:, k, j] *= SHRINK
+                    m = _measure(key_t, trial, caps, t, y, z, past, end)
+                    ok = ((m <= need) | free).all(1)
+                    radii[k, j] = trial[int(np.argmax(ok)), k, j]
+        left = _measure(key_t, radii, caps, t, y, z, past, end) > 1.0
+        np.subtract.at(count, p[left], 1)
+        d["keys"] = [{**k, "radii": [float(v) for v in rr]} for k, rr in zip(d["keys"], radii)]
+        gcs[g] = GeneralizedCylinder.from_dict(d)
     return gcs

@@ -11,7 +11,7 @@ from scipy.spatial import cKDTree
 
 from ngc_gen.data.autogc.coverage import grow_to_cover, rho_matrix
 from ngc_gen.data.autogc.frame import to_template
-from ngc_gen.data.autogc.hug import hug_radii, hug_to_cover
+from ngc_gen.data.autogc.hug import hug_radii, hug_to_cover, tighten
 from ngc_gen.data.autogc.orient import Orientation, parse_axis
 from ngc_gen.data.autogc.skeleton import local_thickness, proxy_skeleton
 from ngc_gen.data.autogc.template import AT_KEYS, Template, TemplateGC
@@ -238,8 +238,8 @@ def _grown(pl: Placing, owner: np.ndarray) -> list[GeneralizedCylinder]:
 def _hugging(pl: Placing, ordered: list[GeneralizedCylinder],
              owner: np.ndarray) -> list[GeneralizedCylinder]:
     """GCs that hug (``hug``): radii from each found part's own slices, each parent grown to
-    hold where its children start (children attached), then the rest of the surface covered
-    at least added volume."""
+    hold where its children start (children attached), the rest of the surface covered at
+    least added volume, then each found part tightened where others hold the surface."""
     names, surface = pl.template.names, pl.surface
     found = np.array([n not in pl.missing for n in names])
     ordered = [hug_radii(gc, surface[owner == g], pl.st.hug_quantile, pl.st.margin, pl.floor)
@@ -250,8 +250,9 @@ def _hugging(pl: Placing, ordered: list[GeneralizedCylinder],
             p = names.index(parent)
             start = np.asarray(ordered[g].to_world(np.array([[-1.0, 0.0, 0.0]])))
             ordered[p] = hug_to_cover([ordered[p]], start)[0]
-    mine = (owner >= 0) & found[np.clip(owner, 0, None)]
-    return hug_to_cover(ordered, surface, owner=np.where(mine, owner, -1))
+    own = np.where((owner >= 0) & found[np.clip(owner, 0, None)], owner, -1)
+    return tighten(hug_to_cover(ordered, surface, owner=own), surface, own,
+                   fixed={g for g in range(len(names)) if not found[g]})
 
 
 def _covering(pl: Placing, owner: np.ndarray) -> list[GeneralizedCylinder]:
