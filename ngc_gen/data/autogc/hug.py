@@ -21,7 +21,8 @@ and that GC grows only where and how the point needs:
 
 A point's cost in a GC is the volume the growth adds there (cross-section area x the length
 its keys answer for, plus the cap's half-ellipsoid), so a thin tail takes its own hair and a
-head covers an ear with a bump of one radius. Rounds repeat until every point is inside; a
+head covers an ear with a bump of one radius; in the GC the point belongs to (``owner``) it
+counts OWN_SHARE of that. Rounds repeat until every point is inside; a
 last resort after ``max_rounds`` scales whole GCs (as ``grow_to_cover``).
 
 ``tighten`` then shrinks each key's radii, one GC after another, as far as the samples only
