@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from ngc_gen.data.autogc.coverage import grow_to_cover
-from ngc_gen.data.autogc.hug import hug_radii, hug_to_cover, min_area_factors, plan
+from ngc_gen.data.autogc.hug import hug_radii, hug_to_cover, min_area_factors, plan, tighten
 from ngc_gen.data.autogc.radii import ellipse_radii
 from ngc_gen.data.mesh.sampling import gc_membership, sample_surface
 from ngc_gen.geometry import GeneralizedCylinder
@@ -87,3 +87,25 @@ def test_a_sample_goes_to_the_gc_that_holds_it_for_less_volume_not_the_relativel
     assert bool(out[0].contains(q)[0])
     costs = [plan(g, np.asarray(g.to_relative(q)), 1.02).cost[0] for g in (tail, leg)]
     assert 0 < costs[0] < 0.2 * costs[1]
+
+
+def test_tighten_shrinks_a_gc_where_another_holds_the_surface_but_keeps_its_own(horned):
+    """A head grown 3x and a horn GC that holds the horn: tightening brings the head back to
+    its own samples (the head's), every sample stays covered."""
+    horn = GeneralizedCylinder.from_dict({
+        "name": "horn", "curve": {"type": "bezier", "points": [[0.2, 0, 0.0], [0.2, 0, 0.45]]},
+        "up": [1, 0, 0], "caps": [0.03, 0.03],
+        "keys": [{"t": t, "radii": [0.03, 0.03]} for t in (0.0, 1.0)]})
+    on_horn = (horned[:, 2] > R_HEAD * 1.2)
+    owner = np.where(on_horn, 1, 0)
+    head = hug_to_cover([_gc(3 * R_HEAD)], horned[~on_horn])[0]
+    horn = hug_to_cover([horn], horned[on_horn])[0]
+    out = tighten([head, horn], horned, owner)
+    pp, _, _ = gc_membership(horned, out)
+    assert len(np.unique(pp)) == len(horned)
+    keys = out[0].to_dict()["keys"]
+    assert max(max(k["radii"]) for k in keys[:3]) < 1.2 * R_HEAD  # from 3x
+    assert max(max(k["radii"]) for k in keys) < 1.6 * R_HEAD      # the horn's base is the head's
+    # without the horn GC the head must keep holding the horn
+    alone = tighten([_gc(4.5 * R_HEAD)], horned, np.zeros(len(horned), int))[0]
+    assert len(np.unique(gc_membership(horned, [alone])[0])) == len(horned)
