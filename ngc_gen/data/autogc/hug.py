@@ -187,9 +187,10 @@ def hug_to_cover(gcs: list[GeneralizedCylinder], points: np.ndarray, slack: floa
     docstring). owner (N,): the GC each point belongs to (-1: none), whose cost counts
     `own_share` x (below 1: a part prefers to hold its own surface)."""
     gcs = list(gcs)
-    for round_ in range(max_rounds + 10):
-        pp, _, _ = gc_membership(points, gcs)
-        missed = np.flatnonzero(np.bincount(pp, minlength=len(points)) == 0)
+    missed = np.arange(len(points))
+    for round_ in range(max_rounds + 10):  # GCs only grow: a sample inside stays inside
+        pp, _, _ = gc_membership(points[missed], gcs)
+        missed = missed[np.bincount(pp, minlength=len(missed)) == 0]
         if not len(missed):
             return gcs
         q = points[missed]
