@@ -140,8 +140,19 @@ def table(res: dict) -> str:
     for e in res.get("edits", []):
         lines.append(edit_line(e))
     done = "" if res.get("complete", True) else " (partial: not every shape is in)"
+    ratio = step_ratio(res["shapes"])
+    steps = "" if ratio is None else f"; training time per step, blend / min: {ratio:.3f}"
     return "\n".join(lines) + f"\n\n{res['steps']} steps, {res['resolution']}^3, " \
-        f"{res['minutes']:.1f} min{done}"
+        f"{res['minutes']:.1f} min{done}{steps}"
+
+
+def step_ratio(rows: list[dict]) -> float | None:
+    """The after fits' training seconds per step over the before fits', summed over the shapes
+    both recipes fitted (target: <= 1.15)."""
+    by = {(r["name"], r["recipe"]): r["step_s"] for r in rows}
+    names = [n for n, rec in by if rec == "after" and (n, "before") in by]
+    den = sum(by[n, "before"] for n in names)
+    return sum(by[n, "after"] for n in names) / den if den else None
 
 
 def edit_line(e: dict) -> str:

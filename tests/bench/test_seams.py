@@ -71,3 +71,13 @@ def test_the_bar_needs_every_target():
     assert not seams.meets_targets({**row, "excess_normal": 1.16})
     assert not seams.meets_targets({**row, "nc": 0.949})
     assert not seams.meets_targets({**row, "excess_dist": None})
+
+
+def test_the_step_time_ratio_pairs_each_shapes_two_fits():
+    rows = [{"name": "a", "recipe": "before", "step_s": 0.2},
+            {"name": "a", "recipe": "after", "step_s": 0.25},
+            {"name": "b", "recipe": "before", "step_s": 0.3},
+            {"name": "b", "recipe": "after", "step_s": 0.3},
+            {"name": "c", "recipe": "before", "step_s": 9.0}]      # no after: left out
+    assert seams.step_ratio(rows) == pytest.approx(0.55 / 0.5)
+    assert seams.step_ratio(rows[-1:]) is None
