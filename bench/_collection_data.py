@@ -4,6 +4,7 @@ collection template (the names `train.py stage=annotate` writes), in a `data=fol
 that records the collection's body frame. Built once under .cache/bench/collection/."""
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -14,6 +15,8 @@ FRAME = {"up": [0.0, 1.0, 0.0], "front": [0.0, 0.0, -1.0]}  # 0 A.D.'s meshes: y
 def training_folder(species: list[str], deb: str | None = None) -> Path:
     """<cache>/<species...>/: <mesh>.ply + <mesh>.yaml for the first kept mesh (by name) of
     each species; refuses a species the collection does not hold, naming those it does."""
+    import numpy as np
+
     from ngc_gen.data.annotations import Annotation
     from ngc_gen.data.atomic import atomic_write_text
     from ngc_gen.data.autogc.template import load_template
@@ -36,7 +39,10 @@ def training_folder(species: list[str], deb: str | None = None) -> Path:
         if yml.is_file():
             continue
         template = template or load_template(ROOT / TEMPLATE)
-        ps = m.pose(template)
+        # the collection's frame exactly (the rig's own, found by structure, is a little off
+        # axis: 3e-4 on the giraffe), so that every shape's GCs carry the template's up vectors
+        jm = replace(m.joint_map, up=np.array(FRAME["up"]), front=np.array(FRAME["front"]))
+        ps = replace(m, joint_map=jm).pose(template)
         ps.mesh.export(ply)
         gcs = [GeneralizedCylinder.from_dict(d) for d in ps.gcs]
         ann = Annotation(m.name, str(ply), gcs, frame=dict(FRAME))
