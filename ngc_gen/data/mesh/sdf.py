@@ -12,8 +12,8 @@ measured with libigl 2.6. We take the exact unsigned distance and only the sign 
 A watertight mesh made of intersecting closed pieces (the ant, the procedural creatures) also
 has faces inside other pieces: no surface of the solid it bounds, but the nearest triangle to
 points around them. Their distance is a valley inside the solid that falls to zero on those
-faces, which no smooth fit follows without letting it cross zero: the fitted surface then
-cracks along the buried faces (measured: the ant's eye came off its head at 256^3).
+faces, which a smooth fit rounds off, and a blend of GCs can lift across zero: the fitted
+surface may then crack along the buried faces. No signed distance of the solid has them.
 `solid_surface` is the boundary of the solid alone, and `signed_distance(...,
 distance_mesh=solid_surface(V, F))` measures the distance to it (the sign still from the whole
 mesh): the solid's own signed distance, which a fit's samples and a bench's ceiling use.
