@@ -94,7 +94,7 @@ def _try(ctx, o: Orientation, refine: bool) -> Trial:
     """The orientation matched and checked; refined: turned to its match's implied frame
     REFINE_ROUNDS times, the best of the rounds kept (passing first, then the lower score: a
     round may turn a frame that matched into one that does not)."""
-    template, tree, surface, st, where, T, leaves = ctx
+    template, tree, surface, st, where, T, leaves, share = ctx
     best = None
     for step in range(1 + REFINE_ROUNDS if refine else 1):
         body = BodyFrame.of(surface, o)
@@ -103,7 +103,8 @@ def _try(ctx, o: Orientation, refine: bool) -> Trial:
         except DataError as e:
             trial = Trial(o, body, e, str(e.what), float("inf"))
         else:
-            verdict = verify(template, found[0], body.to_body(tree.nodes), tree.radius)
+            held = np.bincount(found[1], weights=share, minlength=len(template.gcs))
+            verdict = verify(template, found[0], body.to_body(tree.nodes), held)
             trial = Trial(o, body, found, verdict.failed, _score(found, T, st.missing_cost))
         if best is None or (trial.failed is None, -trial.score) > (best.failed is None, -best.score):
             best = trial
@@ -120,11 +121,12 @@ def _ends(trial: Trial) -> dict:
         else {}
 
 
-def choose(template: Template, tree, surface: np.ndarray, st, where, curves, volumes,
-           up, front, override: Orientation | None) -> Choice:
-    """The orientation for this mesh (module docstring)."""
+def choose(template: Template, tree, surface: np.ndarray, share: np.ndarray, st, where, curves,
+           volumes, up, front, override: Orientation | None) -> Choice:
+    """The orientation for this mesh (module docstring); share (N,): the surface nearest each
+    tree node (``tree.surface_share``)."""
     tips = _tips(template)[0]
-    ctx = (template, tree, surface, st, where, len(tips), set(tips))
+    ctx = (template, tree, surface, st, where, len(tips), set(tips), share)
     if override is not None:
         trial = _try(ctx, override, refine=False)
         if trial.failed:
