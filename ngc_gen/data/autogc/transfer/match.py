@@ -19,6 +19,7 @@ SIGMA_ATTACH = 0.3  # error (body units, front to back) of where a limb's branch
 W_ATTACH = 1.0     # weight of that attachment term
 MAX_ATTACH = 3.0   # at most this much: a galloping animal's skeleton may join its legs mid-body
 W_THICKNESS = 0.5  # weight of log(thickness ratio)^2
+BEYOND = 1e3       # the cost of a free end the wrong way from where a limb attaches (second pass)
 
 
 def _children(template: Template) -> dict[str, list[str]]:
@@ -102,7 +103,11 @@ def match_cost(template: Template, tree: Tree, body: BodyFrame, leaf_gcs: list[s
             at = np.linalg.norm(tip - np.asarray(template.gc(top).place["start"]), axis=1)
             side = ((tip[:, 1] - end[1]) / SIGMA_TIP) ** 2 if template.gc(name).symmetric \
                 else 0.0
-            pos = ((at - length) / SIGMA_TIP) ** 2 + side
+            # and the limb's way, within 90 degrees of its template direction (a leg's reach
+            # also holds an ear above the shoulder)
+            way = (tip - np.asarray(template.gc(top).place["start"])) @ (end - np.asarray(
+                template.gc(top).place["start"]))
+            pos = ((at - length) / SIGMA_TIP) ** 2 + side + np.where(way > 0, 0.0, BEYOND)
         else:
             pos = (((tip - end) / sigma) ** 2).sum(1)
         C[i] = (pos + W_ATTACH * att + W_DIRECTION * (1.0 - d_mesh @ d_t)

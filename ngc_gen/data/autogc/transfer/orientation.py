@@ -14,6 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from ngc_gen.data.autogc.frame import angle_deg, distinct, orientation_of, pca_candidates, wahba
 from ngc_gen.data.autogc.orient import Orientation, axis_name, detect_orientation
@@ -30,6 +31,9 @@ DISTINCT_DEG = 30.0  # the runner-up for the confidence: a frame at least this f
                      # puts some name on another part
 REFINE_ROUNDS = 2  # a detected candidate is turned to its match's implied frame this many times
 LEAF_WEIGHT = 0.5   # a swinging limb's direction counts this much in the implied frame
+TILT_DEG = 25.0     # each candidate also tilted this much about its left and its up axis: a long
+                    # neck or tail turns the principal axes off the body's (a donkey's by 21
+                    # degrees), too far for the match to start from
 
 
 @dataclass
@@ -68,6 +72,18 @@ def _snap(o: Orientation) -> Orientation:
         return o
     s = Orientation(up, front, o.source)
     return s if angle_deg(s.matrix @ o.matrix.T) <= SNAP_DEG else o
+
+
+def tilted(orientations: list[Orientation]) -> list[Orientation]:
+    """Each orientation, then the same turned by +-TILT_DEG about its left axis (head up or
+    down) and about its up axis (head left or right)."""
+    out = list(orientations)
+    for o in orientations:
+        for axis in (o.left, o.up):
+            for sign in (1.0, -1.0):
+                R = Rotation.from_rotvec(np.radians(sign * TILT_DEG) * axis).as_matrix()
+                out.append(Orientation(R @ o.up, R @ o.front, o.source))
+    return out
 
 
 def _score(found, T: int, missing_cost: float) -> float:
@@ -137,8 +153,8 @@ def choose(template: Template, tree, surface: np.ndarray, share: np.ndarray, st,
     prior = None
     if up is not None or front is not None:
         prior = _try(ctx, detect_orientation(curves, volumes, None, up, front, surface), False)
-    cands = distinct([detect_orientation(curves, volumes, None, None, None, surface),
-                      *pca_candidates(surface)])
+    cands = distinct(tilted([detect_orientation(curves, volumes, None, None, None, surface),
+                             *pca_candidates(surface)]))
     trials = [_try(ctx, o, refine=True) for o in cands]
     passing = sorted((t for t in trials if t.failed is None), key=lambda t: t.score)
     best = passing[0] if passing else None
