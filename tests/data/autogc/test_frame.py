@@ -88,7 +88,7 @@ def test_the_checks_refuse_a_head_behind_the_torso(template):
     crossed[paths["leg_fl"], 1] *= -1.0
     crossed[paths["leg_fr"], 1] *= -1.0
     assert verify(template, paths, crossed, surface).failed.startswith("sides: leg_fl")
-    heavy_tail = np.array([{**held, "tail": 0.25}[n] for n in template.names])
+    heavy_tail = np.array([{**held, "tail": 0.3}[n] for n in template.names])
     assert verify(template, paths, nodes, heavy_tail).failed.startswith("weight: neck and head")
 
 

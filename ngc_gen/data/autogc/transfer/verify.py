@@ -9,9 +9,10 @@ with where the template's `place` puts them:
 - sides: of a symmetric pair, the part the template puts on the left lies left of its partner;
 - mirror: a symmetric pair's paths are alike in length (within MIRROR_RATIO);
 - weight: of the two ends, the one whose parts the template makes HEAVY_RATIO x larger (neck and
-  head against the tail: their surface, radius x length) holds more of the mesh's surface (the
-  samples nearest the tree nodes each GC labels, horns and ears with their head): a frame turned
-  back to front is consistent in itself, and only this tells it (the head's chain on the tail).
+  head against the tail: their surface, radius x length) does not hold clearly less (LIGHTER x)
+  of the mesh's surface than the other (the samples nearest the tree nodes each GC labels, horns
+  and ears with their head): a frame turned back to front is consistent in itself, and only this
+  tells it (the head's chain on the tail).
   The surface, not the thickness along a path: a head's path may end on a horn, thinner than a
   tail, and a stubby tail's path runs inside the rump.
 The first failing check names the mesh's refusal when no orientation passes.
@@ -29,7 +30,8 @@ LEG_DOWN = 0.5     # a part whose place ends this much lower than it starts reac
 SIDE = 0.2         # a symmetric part this far left or right tells left from right
 MIRROR_RATIO = 2.5  # a symmetric pair's path lengths differ by at most this factor
 HEAVY_RATIO = 2.0  # an end whose parts are this much larger in the template (neck and head: about
-                   # 4x the tail) must hold more of the mesh's surface than the other end
+                   # 4x the tail) must not hold clearly less of the mesh's surface than the other
+LIGHTER = 0.8      # end: less than this share of it (a thick tail as long as the neck: alike)
 
 
 @dataclass(frozen=True)
@@ -102,7 +104,7 @@ def _weight(template: Template, paths: dict, surface: np.ndarray, root: str,
     held = {s: sum(float(surface[template.names.index(g.name)]) for g in e)
             for s, e in ends.items()}
     for heavy, light in ((1, -1), (-1, 1)):
-        if size[heavy] >= HEAVY_RATIO * size[light] and held[heavy] <= held[light]:
+        if size[heavy] >= HEAVY_RATIO * size[light] and held[heavy] < LIGHTER * held[light]:
             who = {s: " and ".join(g.name for g in e if g.name in paths) for s, e in ends.items()}
             return (f"weight: {who[heavy]} hold {held[heavy]:.1%} of the surface, {who[light]} "
                     f"{held[light]:.1%} (the template's are {size[heavy] / size[light]:.1f}x "
