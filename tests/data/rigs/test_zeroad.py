@@ -164,7 +164,7 @@ def test_a_joint_map_file_is_the_users_fallback(tmp_path, rig):
 
 def _package(tmp_path: Path) -> Path:
     """A tiny 0ad-data .deb: public.zip holding the quadruped, a fish-like mesh without legs,
-    a skeleton, a clip and a fauna actor naming the clip."""
+    a truncated mesh, a skeleton, a clip and a fauna actor naming the clip."""
     zpath = tmp_path / "public.zip"
     finned = POS.copy()
     finned[[7, 10, 12, 14], 1] = 1.5  # no chain reaches the ground
@@ -172,6 +172,7 @@ def _package(tmp_path: Path) -> Path:
     with zipfile.ZipFile(zpath, "w", zipfile.ZIP_STORED) as z:
         z.writestr("art/meshes/skeletal/tiny_horse.dae.cached.pmd", pmd_bytes())
         z.writestr("art/meshes/skeletal/tiny_fish.dae.cached.pmd", pmd_bytes(finned))
+        z.writestr("art/meshes/skeletal/tiny_cut.dae.cached.pmd", pmd_bytes()[:-20])
         z.writestr("art/skeletons/tiny.xml", skeleton_xml())
         z.writestr("art/animation/quadraped/tiny_walk.dae.cached.psa",
                    psa_bytes(np.stack([POS] * 3), q, "walk"))
@@ -207,6 +208,7 @@ def test_builder_streams_the_package_keeps_quadrupeds_and_never_deletes_a_users_
     out = tmp_path / "cache/zeroad-0.0.26"
     manifest = json.loads((out / "manifest.json").read_text())
     assert "chains reach the ground" in manifest["refused"]["tiny_fish"]
+    assert "truncated" in manifest["refused"]["tiny_cut"]  # refused alone, the rest kept
     kept = sorted(str(p.relative_to(out)) for p in out.rglob("*") if p.is_file())
     assert kept == ["art/animation/quadraped/tiny_walk.dae.cached.psa",
                     "art/meshes/skeletal/tiny_horse.dae.cached.pmd", "art/skeletons/tiny.xml",

@@ -25,7 +25,8 @@ from .match import correspond
 from .orientation import choose
 from .refine import refine
 from .transfer_settings import Transfer, TransferSettings
-from .tree import BodyFrame, Tree, _curve_points, skeleton_tree, template_rotation
+from .verify import verify
+from .tree import BodyFrame, Tree, _curve_points, skeleton_tree, surface_share, template_rotation
 
 MISSING_REACH = 1.5  # a missing part reaches the surface nearest its place's end within this x
 MISSING_SIGMA = np.array([1.0, 1.0, 2.0])  # how far from its place's end (front, left, up) a
@@ -137,15 +138,18 @@ def _parts(tree: Tree) -> tuple[list[np.ndarray], list[float]]:
     return curves, volumes
 
 
-def _finer(pl: Placing, sk, thick: np.ndarray) -> None:
+def _finer(pl: Placing, sk, thick: np.ndarray, samples: np.ndarray) -> None:
     """A mesh with parts missing (a short tail pruned with the spurs) matched once more on a
-    finer tree; kept when fewer parts are missing."""
+    finer tree; kept when fewer parts are missing and it passes the template's checks."""
     fine = skeleton_tree(sk, thick, FINER * pl.st.min_branch_length, pl.st.max_gcs)
     try:
         again = correspond(pl.template, fine, pl.body, pl.st, pl.where)
     except DataError:
         return
-    if len(again[2]) < len(pl.missing):
+    held = np.bincount(again[1], weights=surface_share(fine, samples),
+                       minlength=len(pl.template.gcs))
+    if len(again[2]) < len(pl.missing) and \
+            verify(pl.template, again[0], pl.body.to_body(fine.nodes), held).ok:
         pl.tree, (pl.paths, pl.labels, pl.missing, pl.cost) = fine, again
 
 
@@ -299,7 +303,8 @@ def transfer_template(mesh: trimesh.Trimesh, template: Template,
     thick = np.maximum(local_thickness(sk.nodes, surface), proxy.h)  # (also for the retry)
     tree = skeleton_tree(sk, thick, st.min_branch_length, st.max_gcs)
     up, front = parse_axis(st.up, "annotate.up"), parse_axis(st.front, "annotate.front")
-    choice = choose(template, tree, surface, st, where, *_parts(tree), up, front, override)
+    choice = choose(template, tree, surface, surface_share(tree, pts), st, where, *_parts(tree), up,
+                    front, override)
     orientation = choice.trial.orientation
     # the template's up vectors turned into this mesh's frame: written in the template's frame
     # (`rotation`) every mesh's are the template's own (one shape-latent layout)
@@ -307,7 +312,7 @@ def transfer_template(mesh: trimesh.Trimesh, template: Template,
                  template_rotation(template, orientation), *choice.trial.found,
                  floor=1e-3 * float(np.ptp(surface, axis=0).max()))
     if pl.missing:
-        _finer(pl, sk, thick)
+        _finer(pl, sk, thick, pts)
     owner = pl.owner
     _path_gcs(pl, owner)
     matched = _refined_gcs(pl, owner, orientation.left)

@@ -19,6 +19,8 @@ SIGMA_ATTACH = 0.3  # error (body units, front to back) of where a limb's branch
 W_ATTACH = 1.0     # weight of that attachment term
 MAX_ATTACH = 3.0   # at most this much: a galloping animal's skeleton may join its legs mid-body
 W_THICKNESS = 0.5  # weight of log(thickness ratio)^2
+BEYOND = 1e3       # the cost of a free end above where a leg attaches (second pass)
+LEG_DOWN = 0.5     # a limb whose place ends this much lower than it starts is a leg
 
 
 def _children(template: Template) -> dict[str, list[str]]:
@@ -102,7 +104,11 @@ def match_cost(template: Template, tree: Tree, body: BodyFrame, leaf_gcs: list[s
             at = np.linalg.norm(tip - np.asarray(template.gc(top).place["start"]), axis=1)
             side = ((tip[:, 1] - end[1]) / SIGMA_TIP) ** 2 if template.gc(name).symmetric \
                 else 0.0
-            pos = ((at - length) / SIGMA_TIP) ** 2 + side
+            # and a limb that reaches down (a leg) ends below where it attaches: its reach also
+            # holds an ear above the shoulder (a grazing head may point anywhere)
+            start_z = template.gc(top).place["start"][2]
+            up = tip[:, 2] >= start_z if start_z - end[2] >= LEG_DOWN else np.zeros(len(tip), bool)
+            pos = ((at - length) / SIGMA_TIP) ** 2 + side + np.where(up, BEYOND, 0.0)
         else:
             pos = (((tip - end) / sigma) ** 2).sum(1)
         C[i] = (pos + W_ATTACH * att + W_DIRECTION * (1.0 - d_mesh @ d_t)

@@ -14,6 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from ngc_gen.data.autogc.frame import angle_deg, distinct, orientation_of, pca_candidates, wahba
 from ngc_gen.data.autogc.orient import Orientation, axis_name, detect_orientation
@@ -30,6 +31,9 @@ DISTINCT_DEG = 30.0  # the runner-up for the confidence: a frame at least this f
                      # puts some name on another part
 REFINE_ROUNDS = 2  # a detected candidate is turned to its match's implied frame this many times
 LEAF_WEIGHT = 0.5   # a swinging limb's direction counts this much in the implied frame
+TILT_DEG = 25.0     # each candidate also tilted this much about its left and its up axis: a long
+                    # neck or tail turns the principal axes off the body's (a donkey's by 21
+                    # degrees), too far for the match to start from
 
 
 @dataclass
@@ -70,6 +74,18 @@ def _snap(o: Orientation) -> Orientation:
     return s if angle_deg(s.matrix @ o.matrix.T) <= SNAP_DEG else o
 
 
+def tilted(orientations: list[Orientation]) -> list[Orientation]:
+    """Each orientation, then the same turned by +-TILT_DEG about its left axis (head up or
+    down) and about its up axis (head left or right)."""
+    out = list(orientations)
+    for o in orientations:
+        for axis in (o.left, o.up):
+            for sign in (1.0, -1.0):
+                R = Rotation.from_rotvec(np.radians(sign * TILT_DEG) * axis).as_matrix()
+                out.append(Orientation(R @ o.up, R @ o.front, o.source))
+    return out
+
+
 def _score(found, T: int, missing_cost: float) -> float:
     _, _, missing, cost = found
     return (cost * (T - len(missing)) + missing_cost * len(missing)) / max(T, 1)
@@ -94,7 +110,7 @@ def _try(ctx, o: Orientation, refine: bool) -> Trial:
     """The orientation matched and checked; refined: turned to its match's implied frame
     REFINE_ROUNDS times, the best of the rounds kept (passing first, then the lower score: a
     round may turn a frame that matched into one that does not)."""
-    template, tree, surface, st, where, T, leaves = ctx
+    template, tree, surface, st, where, T, leaves, share = ctx
     best = None
     for step in range(1 + REFINE_ROUNDS if refine else 1):
         body = BodyFrame.of(surface, o)
@@ -103,7 +119,8 @@ def _try(ctx, o: Orientation, refine: bool) -> Trial:
         except DataError as e:
             trial = Trial(o, body, e, str(e.what), float("inf"))
         else:
-            verdict = verify(template, found[0], body.to_body(tree.nodes), tree.radius)
+            held = np.bincount(found[1], weights=share, minlength=len(template.gcs))
+            verdict = verify(template, found[0], body.to_body(tree.nodes), held)
             trial = Trial(o, body, found, verdict.failed, _score(found, T, st.missing_cost))
         if best is None or (trial.failed is None, -trial.score) > (best.failed is None, -best.score):
             best = trial
@@ -120,11 +137,12 @@ def _ends(trial: Trial) -> dict:
         else {}
 
 
-def choose(template: Template, tree, surface: np.ndarray, st, where, curves, volumes,
-           up, front, override: Orientation | None) -> Choice:
-    """The orientation for this mesh (module docstring)."""
+def choose(template: Template, tree, surface: np.ndarray, share: np.ndarray, st, where, curves,
+           volumes, up, front, override: Orientation | None) -> Choice:
+    """The orientation for this mesh (module docstring); share (N,): the surface nearest each
+    tree node (``tree.surface_share``)."""
     tips = _tips(template)[0]
-    ctx = (template, tree, surface, st, where, len(tips), set(tips))
+    ctx = (template, tree, surface, st, where, len(tips), set(tips), share)
     if override is not None:
         trial = _try(ctx, override, refine=False)
         if trial.failed:
@@ -135,8 +153,8 @@ def choose(template: Template, tree, surface: np.ndarray, st, where, curves, vol
     prior = None
     if up is not None or front is not None:
         prior = _try(ctx, detect_orientation(curves, volumes, None, up, front, surface), False)
-    cands = distinct([detect_orientation(curves, volumes, None, None, None, surface),
-                      *pca_candidates(surface)])
+    cands = distinct(tilted([detect_orientation(curves, volumes, None, None, None, surface),
+                             *pca_candidates(surface)]))
     trials = [_try(ctx, o, refine=True) for o in cands]
     passing = sorted((t for t in trials if t.failed is None), key=lambda t: t.score)
     best = passing[0] if passing else None

@@ -112,5 +112,14 @@ def skeleton_tree(sk, radius: np.ndarray, min_length: float, max_branches: int) 
                 np.asarray(mean_r), np.asarray(roots, dtype=np.float64).reshape(-1, 3))
 
 
+def surface_share(tree: Tree, samples: np.ndarray) -> np.ndarray:
+    """(N,) the share of area-uniform surface `samples` (S, 3) nearest each tree node: weighed
+    by the labels of a match, the surface each GC holds (``verify``)."""
+    from scipy.spatial import cKDTree
+
+    near = cKDTree(tree.nodes).query(samples, k=1)[1]
+    return np.bincount(near, minlength=len(tree.nodes)) / max(len(samples), 1)
+
+
 def _curve_points(gc: GeneralizedCylinder, n: int = 64) -> np.ndarray:
     return np.asarray(gc.to_world(np.stack([np.linspace(-1, 1, n), np.zeros(n), np.zeros(n)], 1)))

@@ -8,9 +8,13 @@ with where the template's `place` puts them:
 - ground: the parts that reach down (legs) end below the torso's middle, all of them;
 - sides: of a symmetric pair, the part the template puts on the left lies left of its partner;
 - mirror: a symmetric pair's paths are alike in length (within MIRROR_RATIO);
-- thickness: of two end parts at opposite ends, the one the template makes THICK_RATIO x
-  thicker (a neck against a tail) is not clearly the thinner here: a frame turned back to front is
-  consistent in itself, and only this tells it (the head's chain on the tail).
+- weight: of the two ends, the one whose parts the template makes HEAVY_RATIO x larger (neck and
+  head against the tail: their surface, radius x length) does not hold clearly less (LIGHTER x)
+  of the mesh's surface than the other (the samples nearest the tree nodes each GC labels, horns
+  and ears with their head): a frame turned back to front is consistent in itself, and only this
+  tells it (the head's chain on the tail).
+  The surface, not the thickness along a path: a head's path may end on a horn, thinner than a
+  tail, and a stubby tail's path runs inside the rump.
 The first failing check names the mesh's refusal when no orientation passes.
 """
 from __future__ import annotations
@@ -25,9 +29,9 @@ END_FRONT = 0.3    # a part whose place's middle lies this far (body units) fron
 LEG_DOWN = 0.5     # a part whose place ends this much lower than it starts reaches the ground
 SIDE = 0.2         # a symmetric part this far left or right tells left from right
 MIRROR_RATIO = 2.5  # a symmetric pair's path lengths differ by at most this factor
-THICK_RATIO = 1.5  # end parts this much thicker in the template must not be clearly thinner
-THINNER = 0.85     # on the mesh (their outer halves' inscribed radii at most this ratio): a short
-                   # tail's path runs inside the rump, as thick as an alpaca's neck
+HEAVY_RATIO = 2.0  # an end whose parts are this much larger in the template (neck and head: about
+                   # 4x the tail) must not hold clearly less of the mesh's surface than the other
+LIGHTER = 0.8      # end: less than this share of it (a thick tail as long as the neck: alike)
 
 
 @dataclass(frozen=True)
@@ -46,10 +50,10 @@ def _mid(place: dict) -> np.ndarray:
 
 
 def verify(template: Template, paths: dict[str, np.ndarray], nodes_body: np.ndarray,
-           radius: np.ndarray) -> Verdict:
+           surface: np.ndarray) -> Verdict:
     """The checks of the module docstring on matched `paths` (template GC name -> node indices,
-    root side first) with the tree's nodes in body coordinates `nodes_body` (N, 3) and their
-    inscribed radii `radius` (N,)."""
+    root side first) with the tree's nodes in body coordinates `nodes_body` (N, 3) and the
+    share of the mesh's surface each template GC holds, `surface` (G,) in template order."""
     root = next(g.name for g in template.gcs if g.parent is None)
     if root not in paths:
         return Verdict(f"no {root} found")
@@ -67,7 +71,7 @@ def verify(template: Template, paths: dict[str, np.ndarray], nodes_body: np.ndar
                            "at opposite ends, the neck toward the head)")
         if down and p[-1][2] >= torso[2]:
             return Verdict(f"ground: {g.name} does not reach down below the {root}")
-    failed = _thickness(template, paths, radius, root, t_torso)
+    failed = _weight(template, paths, surface, root, t_torso)
     if failed:
         return Verdict(failed)
     for g in template.gcs:
@@ -84,22 +88,25 @@ def verify(template: Template, paths: dict[str, np.ndarray], nodes_body: np.ndar
     return Verdict(None)
 
 
-def _thickness(template: Template, paths: dict, radius: np.ndarray, root: str,
-               t_torso: np.ndarray) -> str | None:
-    """The thickness check (module docstring): None when it passes."""
-    ends = [g for g in template.gcs if g.name != root and g.name in paths
-            and g.place["start"][2] - g.place["end"][2] < LEG_DOWN
-            and abs(_mid(g.place)[0] - t_torso[0]) >= END_FRONT]
-    for a in ends:
-        for b in ends:
-            opposite = (_mid(a.place)[0] - t_torso[0]) * (_mid(b.place)[0] - t_torso[0]) < 0
-            if opposite and a.place["radius"] >= THICK_RATIO * b.place["radius"] and \
-                    _outer(radius, paths[a.name]) < THINNER * _outer(radius, paths[b.name]):
-                return (f"thickness: {a.name} is not thicker than {b.name} (the template's is "
-                        f"{a.place['radius'] / b.place['radius']:.1f}x: front and back swapped?)")
+def _weight(template: Template, paths: dict, surface: np.ndarray, root: str,
+            t_torso: np.ndarray) -> str | None:
+    """The weight check (module docstring): None when it passes."""
+    ends: dict[int, list] = {1: [], -1: []}
+    for g in template.gcs:
+        side = _mid(g.place)[0] - t_torso[0]
+        if g.name != root and g.place["start"][2] - g.place["end"][2] < LEG_DOWN and \
+                abs(side) >= END_FRONT:
+            ends[int(np.sign(side))].append(g)
+    if not all(any(g.name in paths for g in e) for e in ends.values()):
+        return None  # one end has nothing matched: nothing to weigh
+    size = {s: sum(g.place["radius"] * float(np.linalg.norm(np.subtract(g.place["end"],
+                   g.place["start"]))) for g in e) for s, e in ends.items()}
+    held = {s: sum(float(surface[template.names.index(g.name)]) for g in e)
+            for s, e in ends.items()}
+    for heavy, light in ((1, -1), (-1, 1)):
+        if size[heavy] >= HEAVY_RATIO * size[light] and held[heavy] < LIGHTER * held[light]:
+            who = {s: " and ".join(g.name for g in e if g.name in paths) for s, e in ends.items()}
+            return (f"weight: {who[heavy]} hold {held[heavy]:.1%} of the surface, {who[light]} "
+                    f"{held[light]:.1%} (the template's are {size[heavy] / size[light]:.1f}x "
+                    "larger: front and back swapped?)")
     return None
-
-
-def _outer(radius: np.ndarray, path: np.ndarray) -> float:
-    """The median inscribed radius over a path's outer half (its inner end lies in the body)."""
-    return float(np.median(radius[path[len(path) // 2:]]))
