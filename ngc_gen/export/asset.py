@@ -18,7 +18,8 @@ from .weights import skin_weights
 class ExportSettings:
     """joints_per_gc: joints along each GC; resolution: the mesh grid; blend, falloff: the skin
     weights' widths (`weights.skin_weights`); correctives: store the morph targets; newton_steps,
-    fd_step, max_step: their projection (`correctives.project`); colors: COLOR_0 by GC. No
+    fd_step, max_step: their projection (`correctives.project`); colors: COLOR_0 by GC;
+    max_key_degrees: in-between joint keys beyond this turn (`glb_writer.in_between_keys`). No
     defaults here: conf/mode/export.yaml's `export:` block is their one source."""
 
     joints_per_gc: int
@@ -30,6 +31,7 @@ class ExportSettings:
     fd_step: float
     max_step: float
     colors: bool
+    max_key_degrees: float
 
     @classmethod
     def from_config(cls, d) -> "ExportSettings":
@@ -78,7 +80,8 @@ def rig_shape(shape, settings: ExportSettings, parents: dict | None = None,
 def content(r: Rigged, clip: Clip | None, settings: ExportSettings) -> tuple[GLBContent, dict]:
     """The file's content and what it took (seconds of the correctives, their mean shift)."""
     c = GLBContent(r.vertices, r.faces, r.normals, r.skeleton.names, r.skeleton.parent, r.rest,
-                   r.joints, r.weights, name=r.shape.name)
+                   r.joints, r.weights, name=r.shape.name,
+                   max_key_degrees=settings.max_key_degrees)
     if settings.colors:
         dominant = r.joints[np.arange(len(r.joints)), r.weights.argmax(1)]
         c.colors = _palette(len(r.skeleton.gc_names))[r.skeleton.gc[dominant]]

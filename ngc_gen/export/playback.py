@@ -27,7 +27,10 @@ class Playback:
         self.targets = np.stack([reader.accessor(t["POSITION"], "morph target")
                                  for t in (prim.targets or [])]) if prim.targets else None
         self.weight_times = self.weight_values = None
+        self.keyframe_times = None
         for anim in g.animations or []:
+            if isinstance(anim.extras, dict) and "keyframes" in anim.extras:
+                self.keyframe_times = np.asarray(anim.extras["keyframes"], np.float64)
             for ch in anim.channels:
                 if ch.target.node == mesh_node and ch.target.path == "weights":
                     s = anim.samplers[ch.sampler]
@@ -44,6 +47,12 @@ class Playback:
         if self.clip is None:
             return np.zeros(1)
         return np.unique(np.concatenate([c.times for c in self.rig.clips[self.clip].channels]))
+
+    @property
+    def keyframes(self) -> np.ndarray:
+        """The exporter's keyframes (the poses its corrective shapes are exact at: the
+        animation's `extras.keyframes`); a file without them: its key times."""
+        return self.times if self.keyframe_times is None else self.keyframe_times
 
     def morph_weights(self, time: float) -> np.ndarray | None:
         if self.targets is None or self.weight_times is None:
