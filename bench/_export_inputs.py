@@ -38,6 +38,7 @@ def animals(cache: FitCache, resolution: int, threads: int) -> tuple[Path, str]:
     from ngc_gen.app.stages.train_shape_latent import run_shape_latent
 
     base = ["experiment=animals", "data.frames=1", f"data.species={SPECIES}",
+            "data.heldout_species=[]",
             "prepare.n_samples=20000", "prepare.cache_dir=${paths.cache_dir}/prepared/animals_f1_20k",
             "batch_size=2048", *_base(threads)]
     _say("animals: shape latents (cached after the first run)")
@@ -64,6 +65,7 @@ def animals(cache: FitCache, resolution: int, threads: int) -> tuple[Path, str]:
     g = cache.get({"stage": "generate", "diffusion": diff.key, "n": N_ANIMALS, "seed": 0,
                    "resolution": resolution}, gen)
     made = (f"animals: train.py experiment=animals data.frames=1 data.species={SPECIES} "
+            f"data.heldout_species=[] "
             f"prepare.n_samples=20000 batch_size=2048 stage=shape_latent "
             f"shape_latent.max_steps={ANIMAL_STEPS['shape_latent']}; stage=diffusion "
             f"diffusion.max_steps={ANIMAL_STEPS['diffusion']} diffusion.pose_transfer=null; "

@@ -38,6 +38,13 @@ class ExportSettings:
         names = set(cls.__dataclass_fields__)
         return cls(**{k: v for k, v in dict(d or {}).items() if k in names})
 
+    @classmethod
+    def from_yaml(cls, **overrides) -> "ExportSettings":
+        """conf/mode/export.yaml's values, some replaced (for callers without a config)."""
+        from ngc_gen.conf.defaults import yaml_settings
+
+        return yaml_settings(cls, "mode/export.yaml", "export", **overrides)
+
 
 @dataclass
 class Rigged:
@@ -75,6 +82,27 @@ def rig_shape(shape, settings: ExportSettings, parents: dict | None = None,
     diag = float(np.linalg.norm(V.max(0) - V.min(0)))
     J, W = skin_weights(shape, skeleton, V, settings.blend * diag, settings.falloff)
     return Rigged(shape, V, F, np.asarray(mesh.vertex_normals, np.float64), skeleton, rest, J, W)
+
+
+def export_shape(shape, path, settings: ExportSettings, parents: dict | None = None,
+                 make_clip=None, mesh=None) -> tuple[dict, Rigged, Clip | None]:
+    """Rig `shape` (`rig_shape`), add the clip `make_clip(rigged)` gives (None: the rest pose
+    only) and write the GLB to `path`: (summary, rigged, clip). sample.py mode=export, the
+    editor's export button and bench/export.py all export through this."""
+    from .glb_writer import write_glb
+
+    t0 = time.perf_counter()
+    rigged = rig_shape(shape, settings, parents, mesh)
+    clip = make_clip(rigged) if make_clip is not None else None
+    c, stats = content(rigged, clip, settings)
+    n_bytes = write_glb(path, c)
+    summary = {"file": str(path), "shape": shape.name, "joints": rigged.skeleton.n_joints,
+               "vertices": len(rigged.vertices),
+               "max_influences": int((rigged.weights > 0).sum(1).max()), "bytes": n_bytes,
+               "keyframes": 0 if clip is None else len(clip.times),
+               "correctives": bool(settings.correctives and clip is not None),
+               "export_s": time.perf_counter() - t0, **stats}
+    return summary, rigged, clip
 
 
 def content(r: Rigged, clip: Clip | None, settings: ExportSettings) -> tuple[GLBContent, dict]:
