@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .clips import Clip
-from .correctives import corrective_offsets, guide_field
+from .correctives import corrective_offsets
 from .glb_writer import GLBContent
 from .joint_chains import Skeleton, build_skeleton, joint_matrices
 from .weights import skin_weights
@@ -18,7 +18,7 @@ from .weights import skin_weights
 class ExportSettings:
     """joints_per_gc: joints along each GC; resolution: the mesh grid; blend, falloff: the skin
     weights' widths (`weights.skin_weights`); correctives: store the morph targets; newton_steps,
-    fd_step, max_step: their projection (`correctives.project`); colors: COLOR_0 by GC;
+    fd_step, max_step, tolerance: their projection (`correctives.corrective_offsets`); colors: COLOR_0 by GC;
     max_key_degrees: in-between joint keys beyond this turn (`glb_writer.in_between_keys`). No
     defaults here: conf/mode/export.yaml's `export:` block is their one source."""
 
@@ -30,6 +30,7 @@ class ExportSettings:
     newton_steps: int
     fd_step: float
     max_step: float
+    tolerance: float
     colors: bool
     max_key_degrees: float
 
@@ -122,9 +123,10 @@ def content(r: Rigged, clip: Clip | None, settings: ExportSettings) -> tuple[GLB
         inv = np.linalg.inv(r.rest)
         offsets = []
         for k, posed in enumerate(clip.shapes):  # keyframes
-            d, _ = corrective_offsets(r.vertices, r.joints, r.weights, clip.world[k] @ inv,
-                                      lambda p, s=posed: guide_field(s, p),
-                                      settings.newton_steps, settings.fd_step, settings.max_step)
+            d, _ = corrective_offsets(r.vertices, r.normals, r.joints, r.weights,
+                                      clip.world[k] @ inv, lambda p, s=posed: s.sdf(p).numpy(),
+                                      settings.newton_steps, settings.fd_step, settings.max_step,
+                                      settings.tolerance)
             offsets.append(d)
         c.morph = np.stack(offsets)
         c.morph_weights = np.eye(len(offsets))

@@ -89,7 +89,7 @@ def check_export(cfg) -> dict:
     for key in ("export.newton_steps",):
         config_number(cfg, key, integer=True, minimum=0)
     for key in ("export.blend", "export.falloff", "export.fd_step", "export.max_step",
-                "export.seconds_per_step"):
+                "export.tolerance", "export.seconds_per_step"):
         config_number(cfg, key, minimum=0)
     config_number(cfg, "export.max_key_degrees", minimum=0, strict_minimum=True)
     out = _out_path(cfg, name)
