@@ -92,17 +92,19 @@ def bracket(sdf, x: np.ndarray, direction: np.ndarray, reach: float, samples: in
 
 
 def along_line(sdf, x: np.ndarray, d: np.ndarray, f0: np.ndarray, steps: int,
-               max_step: float, tol: float, jump: float) -> tuple[np.ndarray, np.ndarray]:
+               max_step: float, tol: float, outside: float) -> tuple[np.ndarray, np.ndarray]:
     """x (M, 3) moved to a zero of sdf on the line x + s d (d (M, 3) unit, f0 = sdf(x)):
     secant steps (the first with slope 1, as a distance field has along its normal), each at
     most max_step, until the sign changes; then inside that bracket regula falsi (Illinois),
-    or bisection where an end is outside every GC (|f| >= jump: the field jumps there, where a
-    GC's boundary cuts the material, and the mesher's surface is the jump). Only unsettled
-    points are evaluated. -> (points (M, 3), settled (M,) bool: |f| <= tol or bracketed)."""
+    or bisection where an end is outside every GC (f == outside, the field's background: it
+    jumps there, where a GC's boundary cuts the material, and the mesher's surface is the
+    jump: there the point ends mid-bracket). Only unsettled points are evaluated.
+    -> (points (M, 3), settled (M,) bool: |f| <= tol or bracketed)."""
     n = len(x)
     sa, fa = np.zeros(n), np.asarray(f0, np.float64).copy()
     sb = np.clip(-fa, -max_step, max_step)
     lo, hi, flo, fhi = (np.full(n, np.nan) for _ in range(4))  # the bracket, once seen
+    jump = np.zeros(n, bool)  # the bracket has an end outside every GC: bisect
     best, fbest = np.zeros(n), np.abs(fa)
     active = np.flatnonzero(np.abs(fa) > tol)
     for _ in range(int(steps)):
@@ -115,6 +117,7 @@ def along_line(sdf, x: np.ndarray, d: np.ndarray, f0: np.ndarray, steps: int,
         new = np.isnan(lo[a]) & (np.sign(fb) != np.sign(fa[a]))
         i = a[new]
         lo[i], flo[i], hi[i], fhi[i] = sa[i], fa[i], sb[i], fb[new]
+        jump[a] |= ~np.isnan(lo[a]) & ((fb == outside) | (fa[a] == outside))
         old = ~np.isnan(lo[a]) & ~new
         keep_hi = old & (np.sign(fb) == np.sign(flo[a]))  # the new point replaces lo
         keep_lo = old & ~keep_hi
@@ -128,13 +131,10 @@ def along_line(sdf, x: np.ndarray, d: np.ndarray, f0: np.ndarray, steps: int,
         k = a[~np.isnan(lo[a])]
         falsi = lo[k] - flo[k] * (hi[k] - lo[k]) / np.where(fhi[k] == flo[k], 1.0,
                                                              fhi[k] - flo[k])
-        bisect = (np.abs(flo[k]) >= jump) | (np.abs(fhi[k]) >= jump)
-        sb[k] = np.where(bisect, 0.5 * (lo[k] + hi[k]), falsi)
+        sb[k] = np.where(jump[k], 0.5 * (lo[k] + hi[k]), falsi)
         active = a[(np.abs(fb) > tol) & (np.isnan(lo[a]) | (np.abs(hi[a] - lo[a]) > tol))]
     bracketed = ~np.isnan(lo) & (fbest > tol)
-    best[bracketed] = np.where(np.abs(flo) < np.abs(fhi), lo, hi)[bracketed]
-    jumped = bracketed & ((np.abs(flo) >= jump) | (np.abs(fhi) >= jump))
-    best[jumped] = 0.5 * (lo + hi)[jumped]
+    best[bracketed & jump] = 0.5 * (lo + hi)[bracketed & jump]
     return x + best[:, None] * d, (fbest <= tol) | bracketed
 
 
