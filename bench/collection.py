@@ -4,8 +4,9 @@ shapes from 8 training animals where the default recipe does not?
     python -m bench.collection [--species alpaca bull ...] [--shape-latent-steps 3000]
         [--diffusion-steps 3000] [--samples 32] [--resolution 96] [--demo-run DIR]
 
-Training set: one animal per species at rest (data=animals split=rest, the rig's GCs, 8
-species; the issue asks for 0 A.D. animals, whose builder is not in this checkout yet). One
+Training set: one 0 A.D. quadruped per species at rest, 8 species, with the GCs of the
+collection template (datasets/animals/quadruped_transfer.yaml) that each animal's own rig gives
+(bench/_collection_data.py; `data=folder`, the collection's frame recorded). One
 shape-latent run (the collection recipe's, conf/experiment/collection.yaml), then two diffusion
 runs on it, each drawing `--samples` shapes (seed 0) meshed at `--resolution`^3:
   small          the collection recipe: principal axes (pca), the dropped ones from the nearest
@@ -28,14 +29,14 @@ import json
 import time
 from pathlib import Path
 
+from bench._collection_data import FRAME, TEMPLATE, training_folder
 from bench._harness import Bench
 from bench._tables import pct, rows_table
 
 ROOT = Path(__file__).resolve().parents[1]
 
 RUNS = ROOT / "bench/runs/collection"
-SPECIES = ["alpaca", "bull", "cow", "deer", "donkey", "fox", "horse", "wolf"]
-TEMPLATE = "datasets/animals/quadruped.yaml"   # the rig template: the GCs' parents
+SPECIES = ["bear", "camel", "deer", "elephant", "giraffe", "horse", "pig", "wolf"]
 WHOLE, GC_SHARE, N_POINTS = 0.99, 0.002, 2048
 
 
@@ -54,9 +55,9 @@ def recipe_steps(step: str) -> list[str]:
 
 
 def data_overrides(args) -> list[str]:
-    return ["data=animals", "data.split=rest", f"data.species=[{','.join(args.species)}]",
-            "data.heldout_species=[]", "data.frames=2", "threads=1",
-            f"prepare.cache_dir={ROOT}/.cache/prepared/collection_bench",
+    folder = training_folder(args.species, args.zeroad_deb)
+    return ["data=folder", f"data.path={folder}", "threads=1",
+            f"prepare.cache_dir={ROOT}/.cache/prepared/collection_bench_zeroad",
             "trainer.enable_progress_bar=false", "logger=csv"]
 
 
@@ -178,7 +179,7 @@ def render(args, path: Path, per_row: int = 6) -> None:
         files = sorted((RUNS / f"samples_{recipe}").glob("sample_*.ply"))[:per_row]
         rows.append([trimesh.load(f, process=False) for f in files])
         labels.append(f"generated: {recipe}")
-    render_or_warn(render_grid, path, rows, labels=labels, frame="row", up=list(data.frame["up"]))
+    render_or_warn(render_grid, path, rows, labels=labels, frame="row", up=FRAME["up"])
 
 
 def table(r: dict) -> str:
@@ -206,6 +207,8 @@ def main():
     ap.add_argument("--diffusion-steps", type=int, default=3000)
     ap.add_argument("--samples", type=int, default=32)
     ap.add_argument("--resolution", type=int, default=96)
+    ap.add_argument("--zeroad-deb", default=None,
+                    help="the 0ad-data .deb (else ZEROAD_DEB or apt-get download, once)")
     ap.add_argument("--demo-run", type=Path, default=None,
                     help="a `make demo-collection` run directory (its summary.json's minutes)")
     ap.add_argument("--demo-only", action="store_true",
@@ -253,7 +256,7 @@ def main():
     elif bench.path.is_file():
         minutes = json.loads(bench.path.read_text()).get("minutes_demo_collection")
     result = {**res, "minutes_demo_collection": minutes,
-              "protocol": {"species": args.species, "data": "data=animals split=rest (rig GCs)",
+              "protocol": {"species": args.species, "data": "0 A.D. rest poses, rig GCs of the collection template",
                            "shape_latent_steps": args.shape_latent_steps,
                            "diffusion_steps": args.diffusion_steps,
                            "resolution": args.resolution, "points": N_POINTS,

@@ -78,6 +78,18 @@ def test_template_mismatch_names_shape_gc_and_field(template, creature_gcs, chan
         assert e.value.field == field and e.value.gc is not None
 
 
+def test_up_vectors_equal_up_to_rounding_are_one_template(template, creature_gcs):
+    """Rig GCs turned into the template's frame carry up vectors a few 1e-6 off the template's
+    (0 A.D. animals facing -z): the same up, not a refusal."""
+    gcs = copy.deepcopy(creature_gcs[1])
+    up = np.asarray(gcs[2].get("up") or (0.0, 0.0, 1.0), float)
+    gcs[2]["up"] = (up + [2e-6, -2e-6, 1e-6]).tolist()
+    assert template.vector(gcs).shape == (template.size,)
+    gcs[2]["up"] = (up + [3e-3, 0.0, 0.0]).tolist()
+    with pytest.raises(DataError, match="up"):
+        template.vector(gcs)
+
+
 @pytest.fixture(scope="module", params=[True, False], ids=["explicit", "mlp_head"])
 def decoder(template, creature_gcs, request):
     torch.manual_seed(0)

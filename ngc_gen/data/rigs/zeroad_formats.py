@@ -34,7 +34,9 @@ BONE = np.dtype([("t", "<f4", 3), ("q", "<f4", 4)])
 @dataclass(frozen=True)
 class PMD:
     """One PMD: positions, normals (V, 3); uv (V, T, 2); bones (V, 4) int (-1: unused);
-    weights (V, 4); faces (F, 3); rest translation (B, 3) and quaternion x y z w (B, 4) of
+    weights (V, 4); faces (F, 3) counter-clockwise seen from outside (the file stores them
+    clockwise, the engine's winding: read as they are, every closed piece is inside out and its
+    winding number is -1 within, and the stored normals disagree); rest translation (B, 3) and quaternion x y z w (B, 4) of
     each bone in model space; `source`: the file."""
 
     positions: np.ndarray
@@ -137,7 +139,7 @@ def read_pmd(src: str | os.PathLike | bytes, name: str | None = None) -> PMD:
     w = np.where(b >= 0, v["w"], 0.0).astype(np.float64)
     return PMD(positions=v["p"].astype(np.float64), normals=v["n"].astype(np.float64),
                uv=v["uv"].astype(np.float64), bones=b, weights=w,
-               faces=faces.astype(np.int64), bone_translation=bones["t"].astype(np.float64),
+               faces=faces[:, ::-1].astype(np.int64), bone_translation=bones["t"].astype(np.float64),
                bone_rotation=bones["q"].astype(np.float64), source=source)
 
 

@@ -76,7 +76,8 @@ def mesh_arrays(pos=POS, size: float = 0.15):
 
 def pmd_bytes(pos=POS, rot=None, version: int = 4) -> bytes:
     """A PMD of the cube mesh, each vertex wholly on its bone, bones at `pos` (B, 3) with
-    rotations `rot` (B, 4) x y z w (default identity)."""
+    rotations `rot` (B, 4) x y z w (default identity); its triangles clockwise seen from
+    outside, as the game's files store them."""
     V, F, bone = mesh_arrays(pos)
     nt = 1
     vert = np.zeros(len(V), np.dtype([("p", "<f4", 3), ("n", "<f4", 3), ("uv", "<f4", (nt, 2)),
@@ -90,7 +91,7 @@ def pmd_bytes(pos=POS, rot=None, version: int = 4) -> bytes:
     bones["t"] = pos
     bones["q"] = [0.0, 0.0, 0.0, 1.0] if rot is None else rot
     body = b"".join([np.uint32(len(V)).tobytes(), np.uint32(nt).tobytes() if version >= 4 else b"",
-                     vert.tobytes(), np.uint32(len(F)).tobytes(), F.astype("<u2").tobytes(),
+                     vert.tobytes(), np.uint32(len(F)).tobytes(), F[:, ::-1].astype("<u2").tobytes(),
                      np.uint32(len(pos)).tobytes(), bones.tobytes(), np.uint32(0).tobytes()])
     return b"PSMD" + np.uint32(version).tobytes() + np.uint32(len(body)).tobytes() + body
 

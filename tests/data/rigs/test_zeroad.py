@@ -9,6 +9,7 @@ import zipfile
 from pathlib import Path
 
 import numpy as np
+import trimesh
 import pytest
 
 from ngc_gen.data.errors import DataError
@@ -35,6 +36,9 @@ def _names(rig, jm):
 def test_pmd_and_skeleton_read_back_and_rest_pose_is_the_bind_pose(rig):
     V, F, bone = mesh_arrays()
     assert np.allclose(rig.vertices, V, atol=1e-6) and (rig.faces == F).all()
+    # the file's clockwise triangles come out facing outward: a closed piece has positive
+    # volume (the winding numbers of the proxy and of transfer count it as solid)
+    assert trimesh.Trimesh(rig.vertices, rig.faces, process=False).volume > 0
     assert (rig.skin_joints[:, 0] == bone).all() and np.allclose(rig.skin_weights.sum(1), 1)
     assert rig.names == NAMES and (rig.parent == PARENT).all()
     assert np.allclose(rig.joint_positions(), POS, atol=1e-6)
