@@ -66,7 +66,7 @@ def animals(cache: FitCache, resolution: int, threads: int) -> tuple[Path, str]:
                    "resolution": resolution}, gen)
     made = (f"animals: train.py experiment=animals data.frames=1 data.species={SPECIES} "
             f"data.heldout_species=[] "
-            f"prepare.n_samples=20000 batch_size=2048 stage=shape_latent "
+            f"prepare.n_samples=20000 batch_size=2048 threads={threads} stage=shape_latent "
             f"shape_latent.max_steps={ANIMAL_STEPS['shape_latent']}; stage=diffusion "
             f"diffusion.max_steps={ANIMAL_STEPS['diffusion']} diffusion.pose_transfer=null; "
             f"sample.py mode=generate n={N_ANIMALS} seed=0 extract.resolution={resolution}")
@@ -93,11 +93,13 @@ def demo_fit(cache: FitCache, threads: int) -> tuple[Path, str]:
 
     f = cache.get({"stage": "fit", "config": config_recipe(cfg), "data": dataset_identity(cfg)},
                   fit)
-    return f.run_dir, f"fit: train.py stage=fit data=demo model=small trainer.max_steps={FIT_STEPS}"
+    return f.run_dir, (f"fit: train.py stage=fit data=demo model=small "
+                       f"trainer.max_steps={FIT_STEPS} threads={threads}")
 
 
-def build(resolution: int, threads: int = 2) -> dict:
-    """{animals: dir, fit: dir, made_with: text}, trained now where not cached."""
+def build(resolution: int, threads: int = 1) -> dict:
+    """{animals: dir, fit: dir, made_with: text}, trained now where not cached (on `threads`
+    torch threads: the count is part of each stage's cached recipe)."""
     cache = FitCache("inputs", root=CACHE)
     fit, fit_made = demo_fit(cache, threads)
     gen, gen_made = animals(cache, resolution, threads)
@@ -106,4 +108,4 @@ def build(resolution: int, threads: int = 2) -> dict:
 
 
 if __name__ == "__main__":
-    build(96, threads=1)
+    build(96)
