@@ -7,8 +7,6 @@ from __future__ import annotations
 from dataclasses import replace
 from pathlib import Path
 
-import numpy as np
-
 ROOT = Path(__file__).resolve().parents[1]
 TEMPLATE = "datasets/animals/quadruped_transfer.yaml"  # what `experiment=collection` is given
 FRAME = {"up": [0.0, 1.0, 0.0], "front": [0.0, 0.0, -1.0]}  # 0 A.D.'s meshes: y-up, facing -z
@@ -21,7 +19,6 @@ def training_folder(species: list[str], deb: str | None = None) -> Path:
     from ngc_gen.data.atomic import atomic_write_text
     from ngc_gen.data.autogc.template import load_template
     from ngc_gen.data.rigs.zeroad import zeroad_quadrupeds
-    from ngc_gen.geometry import GeneralizedCylinder
 
     out = ROOT / ".cache/bench/collection" / "_".join(species)
     out.mkdir(parents=True, exist_ok=True)
@@ -39,13 +36,39 @@ def training_folder(species: list[str], deb: str | None = None) -> Path:
         if yml.is_file():
             continue
         template = template or load_template(ROOT / TEMPLATE)
-        # the collection's frame exactly (the rig's own, found by structure, is a little off
-        # axis: 3e-4 on the giraffe), so that every shape's GCs carry the template's up vectors
-        jm = replace(m.joint_map, up=np.array(FRAME["up"]), front=np.array(FRAME["front"]))
-        ps = replace(m, joint_map=jm).pose(template)
-        ps.mesh.export(ply)
-        gcs = [GeneralizedCylinder.from_dict(d) for d in ps.gcs]
+        mesh, gcs = _in_frame(m, template)
+        mesh.export(ply)
         ann = Annotation(m.name, str(ply), gcs, frame=dict(FRAME))
         atomic_write_text(yml, ann.to_yaml(relative_to=out))
         print(f"training animal {m.name} ({s}): {len(gcs)} GCs", flush=True)
     return out
+
+
+def _snap(v):
+    """The coordinate axis (signed unit vector) nearest v."""
+    import numpy as np
+
+    i = int(np.argmax(np.abs(v)))
+    out = np.zeros(3)
+    out[i] = np.sign(v[i])
+    return out
+
+
+def _in_frame(m, template):
+    """(mesh, GCs) of a 0 A.D. mesh at rest with its rig GCs, turned from its skeleton's own
+    frame (snapped to the axes: most face -z, the sheep +z) into FRAME, so that every shape
+    carries the template's up vectors (the rig's frame found by structure is a little off
+    axis: 3e-4 on the giraffe)."""
+    import numpy as np
+
+    from ngc_gen.data.autogc.frame import moved_gcs, rotated_mesh
+    from ngc_gen.geometry import GeneralizedCylinder
+
+    up = _snap(m.joint_map.up)
+    front = _snap(m.joint_map.front - (m.joint_map.front @ up) * up)
+    own = np.stack([front, up, np.cross(up, front)])
+    want = np.stack([FRAME["front"], FRAME["up"], np.cross(FRAME["up"], FRAME["front"])])
+    R = want.T @ own  # R @ own front = FRAME front, R @ own up = FRAME up
+    ps = replace(m, joint_map=replace(m.joint_map, up=up, front=front)).pose(template)
+    gcs = [GeneralizedCylinder.from_dict(d) for d in ps.gcs]
+    return rotated_mesh(ps.mesh, R), moved_gcs(gcs, R, np.zeros(3), 1.0)

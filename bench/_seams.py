@@ -142,11 +142,14 @@ def exact_sdf_mesh(vertices: np.ndarray, faces: np.ndarray, resolution: int):
     fine: it is 1-Lipschitz): what a grid of that size allows a fit to reach."""
     import torch
 
-    from ngc_gen.data.mesh.sdf import signed_distance
+    from ngc_gen.data.mesh.sdf import signed_distance, solid_surface
     from ngc_gen.extract.world import extract_world_mesh
 
+    solid = solid_surface(vertices, faces)   # the solid's own SDF, as fits learn it
+
     def exact(x):
-        return torch.from_numpy(signed_distance(x.double().numpy(), vertices, faces)).float()
+        return torch.from_numpy(signed_distance(x.double().numpy(), vertices, faces,
+                                                distance_mesh=solid)).float()
 
     return extract_world_mesh(exact, resolution, 1.0, coarse_step=4, lipschitz=1.0).mesh
 

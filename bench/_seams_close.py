@@ -38,11 +38,54 @@ def edited_truth(truth, gcs: list, edited: list):
     return trimesh.Trimesh(out, np.asarray(truth.faces), process=False)
 
 
-def edit_rows(programs: dict, runs: dict, rows: list[dict], resolution: int,
-              unions: dict) -> list[dict]:
-    """Per shape with a program and per recipe: the junction ratios of the edited fit (its
-    shape with that recipe's union, `unions`: recipe -> Shape keyword arguments) against the
-    edited truth, and their change from the same fit's unedited ratios (`rows`)."""
+def edited_ceiling(run_dir: Path, program: str, truth, gcs: list, edited: list,
+                   resolution: int) -> dict:
+    """The edited shape's ceiling: the truth moved by the edit (`edited_truth`), its exact SDF
+    meshed at the fit's grid and scored against itself at the edited GCs (what the grid allows
+    on the edited shape), cached beside the run as edit_<program>_ceiling.json."""
+    from bench._seams import exact_sdf_mesh
+    from ngc_gen.eval import junction_metrics
+
+    cached = run_dir / f"edit_{program}_ceiling.json"
+    if cached.exists():
+        return json.loads(cached.read_text())
+    moved = edited_truth(truth, gcs, edited)
+    mesh = exact_sdf_mesh(np.asarray(moved.vertices), np.asarray(moved.faces), resolution)
+    m = junction_metrics(mesh, moved, edited)
+    out = {k: m[k] for k in ("junction_ratio_dist", "junction_ratio_normal", "extra_pieces")}
+    cached.write_text(json.dumps(out))
+    return out
+
+
+def edit_record(name: str, recipe: str, program: str, m: dict, ceil: dict,
+                base: dict) -> dict:
+    """One `edits` entry: the edited fit's junction ratios `m`, the edited ceiling's, the
+    excess (fit / ceiling) and its change from the unedited fit's excess (`base`, a `shapes`
+    row): an edit keeps the seams when the excess stays within 5%. `ratio_change_*`: the raw
+    ratios' change, which also moves with the edited geometry's own ceiling."""
+    rec = {"name": name, "recipe": recipe, "program": program,
+           "junction_ratio_dist": m["junction_ratio_dist"],
+           "junction_ratio_normal": m["junction_ratio_normal"],
+           "ceiling_ratio_dist": ceil["junction_ratio_dist"],
+           "ceiling_ratio_normal": ceil["junction_ratio_normal"],
+           "extra_pieces": m["extra_pieces"]}
+    for k in ("dist", "normal"):
+        fit, top = rec[f"junction_ratio_{k}"], rec[f"ceiling_ratio_{k}"]
+        rec[f"excess_{k}"] = fit / top if fit is not None and top else None
+        was = base.get(f"excess_{k}")
+        rec[f"change_{k}"] = (rec[f"excess_{k}"] / was - 1
+                              if rec[f"excess_{k}"] is not None and was else None)
+        rec[f"ratio_change_{k}"] = (fit / base[f"junction_ratio_{k}"] - 1
+                                    if fit is not None and base[f"junction_ratio_{k}"] else None)
+    return rec
+
+
+def edit_rows(programs: dict, runs: dict, rows: list[dict], resolution: int) -> list[dict]:
+    """Per shape with a program and per recipe (`runs`: (name, recipe) -> run_dir): the
+    junction ratios of the edited fit (its shape keeps the fit's union) against the edited
+    truth, beside the edited truth's own ceiling (`edited_ceiling`, once per shape, beside the
+    `before` run), and the change of the excess from the same fit's unedited one (`rows`;
+    `edit_record`)."""
     import yaml
 
     from bench._seams import truth_and_gcs
@@ -63,18 +106,13 @@ def edit_rows(programs: dict, runs: dict, rows: list[dict], resolution: int,
                 out.append(json.loads(cached.read_text()))
                 continue
             truth, gcs = truth_and_gcs(run_dir, name)
-            shape = load_shapes(run_dir / "checkpoints" / "last.ckpt")[name]
-            edited = shape.replaced(**unions[recipe]).edited(prog)
+            edited = load_shapes(run_dir / "checkpoints" / "last.ckpt")[name].edited(prog)
+            ceil = edited_ceiling(runs.get((name, "before"), run_dir), program, truth, gcs,
+                                  edited.gcs, resolution)
             mesh = edited.mesh(resolution).mesh
             m = junction_metrics(mesh, edited_truth(truth, gcs, edited.gcs), edited.gcs)
             base = next(r for r in rows if r["name"] == name and r["recipe"] == recipe)
-            rec = {"name": name, "recipe": recipe, "program": program,
-                   "junction_ratio_dist": m["junction_ratio_dist"],
-                   "junction_ratio_normal": m["junction_ratio_normal"],
-                   "extra_pieces": m["extra_pieces"],
-                   "change_dist": m["junction_ratio_dist"] / base["junction_ratio_dist"] - 1,
-                   "change_normal": (m["junction_ratio_normal"]
-                                     / base["junction_ratio_normal"] - 1)}
+            rec = edit_record(name, recipe, program, m, ceil, base)
             cached.write_text(json.dumps(rec))
             out.append(rec)
     return out
@@ -95,8 +133,8 @@ def picture(rows: list[dict], runs: dict, path: Path, radius: float) -> Path | N
         if before is None or after is None:
             continue
         truth, gcs = truth_and_gcs(before, name)
-        meshes = [trimesh.load(before / "meshes" / f"{name}{tail}.ply", process=False)
-                  for tail in ("", "_after")]     # `after` meshes the same fit: seams.blended
+        meshes = [trimesh.load(d / "meshes" / f"{name}.ply", process=False)
+                  for d in (before, after)]
         found = worst_junction(meshes[0], truth, gcs, radius / 2)
         if found is None:
             continue

@@ -9,7 +9,9 @@ refused), names_right (every template GC's purity >= 0.5 and each leg on its sid
 silently_wrong (written with head/tail or front/back swapped, or a GC's purity < 0.2),
 orientation_right (the rotation written within 20 degrees of the truth), outside_volume_ratio
 (the volume of the GCs' union outside the mesh over the mesh's volume, by Monte Carlo; median
-over meshes).
+over meshes). zeroad also: outside_volume_ratio_before, the same on the same turned meshes
+transferred with the older growth (annotate.hug=false), and surface_covered /
+surface_covered_before, the worst mesh's share of fresh surface samples inside the union.
 """
 from __future__ import annotations
 
@@ -209,9 +211,10 @@ def collections(animals: list[dict], workers: int, deb: str | None, limit: int |
                   flush=True)
         print(f"{key}: {len(rows)} meshes, {time.perf_counter() - t0:.0f} s: "
               f"{ {k: v for k, v in out[key].items() if k != 'purity_per_gc'} }", flush=True)
-    if out["zeroad"].get("n"):  # GCs that hug are not built: nothing to compare against
-        out["zeroad"]["outside_volume_ratio_before"] = None
+    if out["zeroad"].get("n"):
+        out["zeroad"].update(hug_before(runs["zeroad"], per_mesh["zeroad"], workers))
         picture(per_mesh["zeroad"], {r["name"]: r["species"] for r in zero},
+                {t[0]: t[3] for t in runs["zeroad"]},
                 ROOT / "bench/results/transfer_zeroad.png")
     for rows in per_mesh.values():
         for r in rows:
@@ -219,28 +222,97 @@ def collections(animals: list[dict], workers: int, deb: str | None, limit: int |
     return _finite({**out, "per_mesh": per_mesh})
 
 
-def picture(rows: list[dict], species: dict[str, str], path: Path, n: int = 8) -> None:
-    """One matched 0 A.D. animal per species, as turned at random and written back in the
-    template's frame, each GC in its template colour (bench/results/transfer_zeroad.png)."""
+def _before(task):
+    """Worker: `one`'s mesh transferred the older way (annotate.hug=false: each GC grown over
+    its own samples within 2x its radius, the rest given to the relatively nearest GC, both
+    radii scaled): {outside_volume_ratio_before, surface_covered_before} (None: refused)."""
+    import trimesh
+    from scipy.spatial.transform import Rotation
+
+    from ngc_gen.data.autogc.frame import rotated_mesh
+    from ngc_gen.data.autogc.template import load_template
+    from ngc_gen.data.autogc.transfer import TransferSettings, transfer_template
+    from ngc_gen.data.errors import DataError
+
+    name, ply, _, seed, _, axes = task
+    Q = Rotation.random(random_state=seed).as_matrix() if seed is not None else np.eye(3)
+    mesh = rotated_mesh(trimesh.load(ply, process=False), Q)
+    try:
+        tr = transfer_template(mesh, load_template(TRANSFER_TEMPLATE),
+                               TransferSettings.from_yaml(**axes, hug=False), name)
+    except DataError:
+        return {"mesh": name, "outside_volume_ratio_before": None, "surface_covered_before": None}
+    return {"mesh": name, "outside_volume_ratio_before": outside_volume_ratio(tr.gcs, mesh),
+            "surface_covered_before": surface_covered(tr.gcs, mesh)}
+
+
+def surface_covered(gcs, mesh, n: int = 100_000, seed: int = 2) -> float:
+    """Share of `n` fresh surface samples inside the union of `gcs` (preparation refuses a
+    shape below prepare.min_coverage, 0.999, of its own such samples)."""
+    from ngc_gen.data.autogc.coverage import coverage_stats
+    from ngc_gen.data.mesh.sampling import sample_surface
+
+    pts, _ = sample_surface(np.asarray(mesh.vertices), np.asarray(mesh.faces), n,
+                            np.random.default_rng(seed))
+    return float(coverage_stats(gcs, pts)["coverage"])
+
+
+def hug_before(tasks: list, rows: list[dict], workers: int) -> dict:
+    """GCs that hug against the older growth, on the meshes `one` matched (the same turns):
+    {outside_volume_ratio_before (median), surface_covered, surface_covered_before (the worst
+    mesh's)}; each row gains its own three figures."""
     import trimesh
 
     from ngc_gen.data.autogc.frame import rotated_mesh
+    from ngc_gen.data.workers import map_shapes
+    from ngc_gen.geometry import GeneralizedCylinder
+
+    ok = {r["mesh"]: r for r in rows if "error" not in r}
+    for t in tasks:
+        if t[0] in ok:  # the written GCs and the mesh as written (the template's frame)
+            r = ok[t[0]]
+            mesh = rotated_mesh(trimesh.load(t[1], process=False), np.asarray(r["written"]["from_file"]))
+            r["surface_covered"] = surface_covered(
+                [GeneralizedCylinder.from_dict(d) for d in r["written"]["gcs"]], mesh)
+    for b in map_shapes(_before, [t for t in tasks if t[0] in ok], workers, min_items=4):
+        ok[b.pop("mesh")].update(b)
+    before = [r["outside_volume_ratio_before"] for r in ok.values()
+              if r.get("outside_volume_ratio_before") is not None]
+    cov_b = [r["surface_covered_before"] for r in ok.values() if r.get("surface_covered_before") is not None]
+    return {"outside_volume_ratio_before": float(np.median(before)) if before else None,
+            "surface_covered": min((r["surface_covered"] for r in ok.values()), default=None),
+            "surface_covered_before": min(cov_b, default=None)}
+
+
+def picture(rows: list[dict], species: dict[str, str], seeds: dict[str, int], path: Path,
+            n: int = 8) -> None:
+    """One matched 0 A.D. animal per species, two cells each: as it came (turned by its seeded
+    random rotation, all drawn from one camera) and as written (the template's frame, upright),
+    each GC in its template colour (bench/results/transfer_zeroad.png)."""
+    import trimesh
+    from scipy.spatial.transform import Rotation
+
+    from ngc_gen.data.autogc.frame import moved_gcs, rotated_mesh
     from ngc_gen.data.autogc.template import load_template
     from ngc_gen.geometry import GeneralizedCylinder
     from ngc_gen.viz.gc_colors import render_gc_collection
     from ngc_gen.viz.render import render_or_warn
 
     template = load_template(TRANSFER_TEMPLATE)
-    cells, seen = [], set()
+    cells, ups, seen = [], [], set()
     for r in rows:
         sp = species.get(r["mesh"], r["mesh"])
-        if "error" in r or sp in seen or len(cells) == n:
+        if "error" in r or sp in seen or len(seen) == n:
             continue
         seen.add(sp)
-        mesh = rotated_mesh(trimesh.load(ZEROAD_DIR / f"{r['mesh']}.ply", process=False),
-                            np.asarray(r["written"]["from_file"]))
+        raw = trimesh.load(ZEROAD_DIR / f"{r['mesh']}.ply", process=False)
+        from_file = np.asarray(r["written"]["from_file"])
         gcs = [GeneralizedCylinder.from_dict(d) for d in r["written"]["gcs"]]
-        cells.append((f"{sp} (turned {r['turn_deg']:.0f} deg)", mesh, gcs))
+        Q = Rotation.random(random_state=seeds[r["mesh"]]).as_matrix()
+        back = Q @ from_file.T          # the written frame -> the frame it came in
+        cells += [(f"{sp}: as it came, turned {r['turn_deg']:.0f} deg", rotated_mesh(raw, Q),
+                   moved_gcs(gcs, back, np.zeros(3), 1.0)),
+                  (f"{sp}: written, one frame", rotated_mesh(raw, from_file), gcs)]
+        ups += [np.array([0.0, 0.0, 1.0]), np.asarray(template.up)]
     if cells:
-        render_or_warn(render_gc_collection, path, cells, template.names,
-                       up=[np.asarray(template.up)] * len(cells))
+        render_or_warn(render_gc_collection, path, cells, template.names, up=ups)

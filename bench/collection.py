@@ -36,6 +36,11 @@ from bench._tables import pct, rows_table
 ROOT = Path(__file__).resolve().parents[1]
 
 RUNS = ROOT / "bench/runs/collection"
+
+
+def runs_dir(args) -> Path:
+    """The runs of one training set (a run is reused only for the species it was trained on)."""
+    return RUNS / "_".join(args.species)
 SPECIES = ["bear", "camel", "deer", "elephant", "giraffe", "horse", "pig", "wolf"]
 WHOLE, GC_SHARE, N_POINTS = 0.99, 0.002, 2048
 
@@ -67,8 +72,7 @@ def train(args) -> dict:
     from ngc_gen.app.runtime.config import compose_config
     from ngc_gen.app.stages.registry import run_stage
 
-    runs = {"shape_latent": RUNS / "shape_latent", "small": RUNS / "small",
-            "small_default": RUNS / "small_default"}
+    runs = {k: runs_dir(args) / k for k in ("shape_latent", "small", "small_default")}
     sl = [*recipe_steps("shape_latent"), f"shape_latent.max_steps={args.shape_latent_steps}"]
     diffs = {"small": [*recipe_steps("diffusion"), f"diffusion.augment.template={TEMPLATE}"],
              "small_default": []}
@@ -176,7 +180,7 @@ def render(args, path: Path, per_row: int = 6) -> None:
     train = [normalize(load_mesh(a.mesh_path), a.bound)[0] for a in data.shapes()][:per_row]
     rows, labels = [train], ["training animals"]
     for recipe in ("small", "small_default"):
-        files = sorted((RUNS / f"samples_{recipe}").glob("sample_*.ply"))[:per_row]
+        files = sorted((runs_dir(args) / f"samples_{recipe}").glob("sample_*.ply"))[:per_row]
         rows.append([trimesh.load(f, process=False) for f in files])
         labels.append(f"generated: {recipe}")
     render_or_warn(render_grid, path, rows, labels=labels, frame="row", up=FRAME["up"])
@@ -241,7 +245,7 @@ def main():
     copy_below = 0.5 * float(np.median(nn))
     res = {}
     for recipe in ("small", "small_default"):
-        out = RUNS / f"samples_{recipe}"
+        out = runs_dir(args) / f"samples_{recipe}"
         summary = generate(load_generator(trained["runs"][recipe]), out, n=args.samples, seed=0,
                            resolution=args.resolution, progress=False)
         scored = score_samples(summary, train_pts, copy_below, floor)

@@ -6,23 +6,26 @@
 
 Shapes (`SHAPES`): pyvista's ant and airplane with their hand-annotated GCs, two procedural
 creatures with their parts, and the rest poses of four animals (deer, horse, fox, wolf) with
-their rig's GCs; each fitted on its own as a user fits one asset (train.py stage=fit, the
-default recipe with the min union, one thread, `--steps`, meshed at `--resolution`); `after`
-meshes the same checkpoint with the blend: the default loss does not depend on the union
-(`model.union.loss_shares` is off), so a fit with the blend would train the same network, and
-its training time per step is the before's by construction. The meshes are
-staged by bench/_seams.py; fits go through the bench's fit cache (`FitCache("seams")`: rerun to
-fill in what is missing, a stopped run keeps what it fitted).
+their rig's GCs; each fitted on its own as a user fits one asset (train.py stage=fit, one
+thread, `--steps`, meshed at `--resolution`) twice in the same run: `before` with the min union
+(`model.union.kind=min`, the paper's), `after` with the default recipe (the blend). Each is
+scored by its own fit stage (metrics.json, meshes/<name>.ply). The default loss does not depend
+on the union (`model.union.loss_shares` is off), so both train the same network: `same_network`
+records that the two checkpoints' weights are equal, and step_s is each fit's own measured
+training time per step. The meshes are staged by bench/_seams.py; fits go through the bench's
+fit cache (`FitCache("seams")`: rerun to fill in what is missing, a stopped run keeps what it
+fitted).
 
 Per shape and recipe, bench/results/seams.json `shapes` holds {name, recipe,
 junction_ratio_dist, junction_ratio_normal, ceiling_ratio_dist, ceiling_ratio_normal,
 excess_dist, excess_normal, extra_pieces, nc, fscore, ceiling_nc, ceiling_fscore,
-step_s, train_s, steps} (ngc_gen.eval.junctions; docs/metrics.md): the fit's error where GCs
+step_s, train_s, steps, same_network} (ngc_gen.eval.junctions; docs/metrics.md): the fit's error where GCs
 meet over its error elsewhere, the same figures of the mesh's exact SDF meshed at the same grid
 (the ceiling: what the grid allows), the fit's excess = its ratio over the ceiling's, loose
 pieces, NC and F@0.01, and training seconds per step. `edits`: the shipped edit programs on the
 ant and a creature (`EDITS`), each fit's junction ratios after the edit against the truth moved
-by the same edit (`edited_truth`), and their change from the unedited ratios. `minutes`: this
+by the same edit (`edited_truth`) beside that moved truth's own ceiling, and the change of the
+excess (fit / ceiling) from the unedited fit's. `minutes`: this
 run's wall time. bench/results/seams.png: per shape, its worst junction close up (truth, before,
 after). The JSON is written after each shape (`complete`: false until every shape is in).
 """
@@ -42,10 +45,9 @@ ROOT = Path(__file__).resolve().parents[1]
 SHAPES = (("ant", "annotated"), ("airplane", "annotated"), ("creature_0000", "annotated"),
           ("creature_0001", "annotated"), ("deer", "rig"), ("horse", "rig"), ("fox", "rig"),
           ("wolf", "rig"))
-#: the fit (today's recipe with the min union, which the loss does not see); `after` meshes the
-#: same checkpoint with the default `model.union` (the blend; its loss is the same per-row loss)
-RECIPES = ("before", "after")
-FIT = ["model.union.kind=min"]
+#: recipe -> its train.py overrides: the min union (the paper's), the default (the blend)
+FIT = {"before": ["model.union.kind=min"], "after": []}
+RECIPES = tuple(FIT)
 #: shipped edit programs measured on the fitted shapes (ngc_gen/conf/edit)
 EDITS = {"ant": "posed_ant_leg", "creature_0000": "bent_tail"}
 CLOSEUP = 0.08   # radius of a close-up around the worst junction (normalised units)
@@ -59,10 +61,10 @@ def staged(only: list[str] | None) -> list[tuple[str, str, Path]]:
     return [(n, g, f) for n, g, f in _seams.staged() if (n, g) in want]
 
 
-def overrides(folder: Path, steps: int, resolution: int) -> list[str]:
+def overrides(folder: Path, steps: int, resolution: int, recipe: str = "before") -> list[str]:
     return ["stage=fit", "data=folder", f"data.path={folder}", f"trainer.max_steps={steps}",
             f"extract.resolution={resolution}", "trainer.enable_progress_bar=false",
-            "logger=csv", *FIT,
+            "logger=csv", *FIT[recipe],
             f"prepare.cache_dir={ROOT}/.cache/prepared/seams/{folder.name}"]
 
 
@@ -75,68 +77,38 @@ def prepare(folder: Path, steps: int, resolution: int) -> None:
                     verbose=False)
 
 
-def fit_one(cache: FitCache, name: str, folder: Path, steps: int, resolution: int,
-            refit: bool = False):
-    """One shape: a cached train.py run in its own process (one thread), scored with the min."""
+def fit_one(cache: FitCache, name: str, folder: Path, recipe: str, steps: int,
+            resolution: int, refit: bool = False):
+    """One shape, one recipe: a cached train.py run in its own process (one thread), scored by
+    its fit stage with the recipe's union."""
     from ngc_gen.app.runtime.config import compose_config
+    from ngc_gen.data.prepare import CACHE_VERSION
 
-    over = overrides(folder, steps, resolution)
+    over = overrides(folder, steps, resolution, recipe)
 
     def fit(run_dir: Path) -> dict:
-        wall = train_subprocess(over, run_dir, f"the fit of {name}")
-        return {"wall_s": wall, "label": f"{name}/before"}
+        wall = train_subprocess(over, run_dir, f"the fit of {name} ({recipe})")
+        return {"wall_s": wall, "label": f"{name}/{recipe}"}
 
     f = cache.get({"stage": "seams_fit", "config": config_recipe(compose_config(overrides=over)),
-                   "data": file_identity([folder])}, fit, refit=refit)
-    print(f"{name} {'cached' if f.reused else 'fitted'}: {f.run_dir}", flush=True)
+                   "data": file_identity([folder]), "prepared": CACHE_VERSION}, fit, refit=refit)
+    print(f"{name} ({recipe}) {'cached' if f.reused else 'fitted'}: {f.run_dir}", flush=True)
     return f
 
 
-def unions() -> dict:
-    """recipe -> the Shape keyword arguments of its union: the min, and the default
-    `model.union` (conf/model)."""
-    from ngc_gen.app.runtime.config import compose_config
-    from ngc_gen.lit.autodecoder import check_union
-    from ngc_gen.shape.load import recorded_union
-
-    union = check_union(compose_config(overrides=["stage=fit"]).model.union)
-    return {"before": recorded_union({}), "after": recorded_union({"union": union})}
-
-
-def blended(run_dir: Path, name: str, resolution: int) -> dict:
-    """The fit's shape meshed with the default union (conf/model: the blend) and scored as the
-    fit stage scores (the same metrics and seeds), cached beside the run as after.json; its
-    mesh goes to meshes/<name>_after.ply."""
-    path = run_dir / "after.json"
-    if path.exists():
-        return json.loads(path.read_text())
+def same_network(a: Path, b: Path) -> bool:
+    """Whether two fits' checkpoints hold equal weights (decoder and codes)."""
     import torch
 
-    from bench._seams import truth_and_gcs
-    from ngc_gen.data.atomic import atomic_write
-    from ngc_gen.eval import junction_metrics, reconstruction_metrics
-    from ngc_gen.shape import load_shapes
-
-    union = unions()["after"]
-    truth, gcs = truth_and_gcs(run_dir, name)
-    shape = load_shapes(run_dir / "checkpoints" / "last.ckpt")[name].replaced(**union)
-    with torch.no_grad():
-        res = shape.mesh(resolution)
-    atomic_write(run_dir / "meshes" / f"{name}_after.ply",
-                 lambda f: f.write(res.mesh.export(file_type="ply")))
-    m = {**reconstruction_metrics(res.mesh, truth), **junction_metrics(res.mesh, truth, gcs)}
-    out = {"union": union, "extract_s": res.stats["seconds"],
-           **{k: m[k] for k in ("junction_ratio_dist", "junction_ratio_normal", "extra_pieces",
-                                "sliver_breaks", "normal_consistency", "fscore")}}
-    path.write_text(json.dumps(out))
-    return out
+    sa, sb = (torch.load(d / "checkpoints" / "last.ckpt", map_location="cpu",
+                         weights_only=True)["state_dict"] for d in (a, b))
+    return sa.keys() == sb.keys() and all(torch.equal(sa[k], sb[k]) for k in sa)
 
 
-def row(name: str, recipe: str, run_dir: Path, ceil: dict, resolution: int) -> dict:
-    """seams.json `shapes` entry of one fit run (its metrics.json: before; `blended`: after)
-    beside its ceiling."""
+def row(name: str, recipe: str, run_dir: Path, ceil: dict) -> dict:
+    """seams.json `shapes` entry of one fit run (its metrics.json) beside its ceiling."""
     m = json.loads((run_dir / "metrics.json").read_text())
-    s = m["shapes"][name] if recipe == "before" else blended(run_dir, name, resolution)
+    s = m["shapes"][name]
     out = {"name": name, "recipe": recipe,
            "junction_ratio_dist": s["junction_ratio_dist"],
            "junction_ratio_normal": s["junction_ratio_normal"],
@@ -166,12 +138,40 @@ def table(res: dict) -> str:
     """bench/README.md's block: one row per shape and union, then the edited shapes."""
     lines = rows_table(res["shapes"]) + ([""] if res.get("edits") else [])
     for e in res.get("edits", []):
-        lines.append(f"- edit `{e['program']}` on {e['name']} ({e['recipe']}): junction "
-                     f"{e['junction_ratio_dist']:.2f} / {e['junction_ratio_normal']:.2f}, "
-                     f"change {e['change_dist']:+.1%} / {e['change_normal']:+.1%}")
+        lines.append(edit_line(e))
     done = "" if res.get("complete", True) else " (partial: not every shape is in)"
+    ratio = step_ratio(res["shapes"])
+    steps = "" if ratio is None else f"; training time per step, blend / min: {ratio:.3f}"
     return "\n".join(lines) + f"\n\n{res['steps']} steps, {res['resolution']}^3, " \
-        f"{res['minutes']:.1f} min{done}"
+        f"{res['minutes']:.1f} min{done}{steps}"
+
+
+def step_ratio(rows: list[dict]) -> float | None:
+    """The after fits' training seconds per step over the before fits', summed over the shapes
+    both recipes fitted (target: <= 1.15)."""
+    by = {(r["name"], r["recipe"]): r["step_s"] for r in rows}
+    names = [n for n, rec in by if rec == "after" and (n, "before") in by]
+    den = sum(by[n, "before"] for n in names)
+    return sum(by[n, "after"] for n in names) / den if den else None
+
+
+def edit_line(e: dict) -> str:
+    """One edited shape: its junction ratios, the edited ceiling's, the excess and its change
+    from the unedited fit's (target: within 5%)."""
+    def pct(x):
+        return "-" if x is None else f"{x:+.1%}"
+
+    if "excess_dist" not in e:   # an older result: the raw ratios' change only
+        return (f"- edit `{e['program']}` on {e['name']} ({e['recipe']}): junction "
+                f"{e['junction_ratio_dist']:.2f} / {e['junction_ratio_normal']:.2f}, "
+                f"change {pct(e['change_dist'])} / {pct(e['change_normal'])}")
+    return (f"- edit `{e['program']}` on {e['name']} ({e['recipe']}): junction "
+            f"{e['junction_ratio_dist']:.2f} / {e['junction_ratio_normal']:.2f}, edited "
+            f"ceiling {e['ceiling_ratio_dist']:.2f} / {e['ceiling_ratio_normal']:.2f}, excess "
+            f"{e['excess_dist']:.2f} / {e['excess_normal']:.2f}, change of the excess "
+            f"{pct(e['change_dist'])} / {pct(e['change_normal'])} (raw ratios "
+            f"{pct(e['ratio_change_dist'])} / {pct(e['ratio_change_normal'])}), "
+            f"{e['extra_pieces']} extra")
 
 
 def headline(res: dict) -> str:
@@ -226,12 +226,13 @@ def main():
 
     def one(shape) -> None:   # fit, then score at once: a stopped run keeps whole shapes
         name, _, folder = shape
-        run_dir = fit_one(cache, name, folder, args.steps, args.resolution, args.refit).run_dir
-        ceil = _ceiling(run_dir, name, args.resolution)
-        mine = [row(name, r, run_dir, ceil, args.resolution) for r in RECIPES]
-        done = {(name, r): run_dir for r in RECIPES}
+        done = {(name, r): fit_one(cache, name, folder, r, args.steps, args.resolution,
+                                   args.refit).run_dir for r in RECIPES}
+        ceil = _ceiling(done[name, "before"], name, args.resolution)
+        same = same_network(done[name, "before"], done[name, "after"])
+        mine = [{**row(name, r, done[name, r], ceil), "same_network": same} for r in RECIPES]
         edited = close.edit_rows({name: EDITS[name]} if name in EDITS else {}, done, mine,
-                                 args.resolution, unions())
+                                 args.resolution)
         with lock:
             runs.update(done)
             rows.extend(mine)

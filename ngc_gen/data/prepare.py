@@ -2,8 +2,9 @@
 
 Per shape: normalise the mesh, check that the GC union covers its surface, sample near-surface
 points (surface + normal * N(0, offset_std)) and volume points uniform in the GC union, compute
-the signed distance (winding-number sign) and the relative coordinates of every sample in every
-GC that contains it. The result is one npz per shape, written atomically and keyed by a hash of
+the solid's signed distance (winding-number sign; surface samples and distances from the faces
+of the solid's boundary, not from faces inside another closed piece: mesh/sdf.py) and the
+relative coordinates of every sample in every GC that contains it. The result is one npz per shape, written atomically and keyed by a hash of
 (mesh bytes, annotation, settings): an unchanged shape is loaded, any change re-prepares, and the
 training loop does no geometry.
 """
@@ -30,12 +31,12 @@ from ngc_gen.data.atomic import atomic_write
 from ngc_gen.data.errors import DataError
 from ngc_gen.data.mesh.io import load_mesh
 from ngc_gen.data.mesh.sampling import gc_membership, sample_surface, sample_volume
-from ngc_gen.data.mesh.sdf import signed_distance
+from ngc_gen.data.mesh.sdf import signed_distance, solid_surface
 from ngc_gen.geometry import GeneralizedCylinder
 
 log = logging.getLogger(__name__)
 
-CACHE_VERSION = 1  # bump when the cached arrays or their meaning change
+CACHE_VERSION = 2  # bump when the cached arrays or their meaning change (2: the solid's SDF)
 
 
 @dataclass(frozen=True)
@@ -264,7 +265,8 @@ def compute_prepared(ann: Annotation, settings: PrepareSettings, key: str = "") 
         raise _coverage_error(ann, exact[~covered], len(exact), coverage, settings.min_coverage)
 
     n_surface = int(round(settings.n_samples * settings.surface_fraction))
-    surf, normals = sample_surface(V, F, n_surface, rng)
+    solid = solid_surface(V, F)   # less the faces inside other closed pieces (mesh/sdf.py)
+    surf, normals = sample_surface(*solid, n_surface, rng)
     if isinstance(settings.offset_std, tuple):  # a mixture: sample i gets std i mod k
         stds = np.asarray(settings.offset_std)[np.arange(n_surface) % len(settings.offset_std)]
         surf += normals * (rng.normal(0.0, 1.0, size=(n_surface, 1)) * stds[:, None])
@@ -280,7 +282,7 @@ def compute_prepared(ann: Annotation, settings: PrepareSettings, key: str = "") 
             vp, vg, vr = gc_membership(vol, gcs, margin=margin)
     sp, sg, sr = gc_membership(surf, gcs, margin=margin)
     points = np.concatenate([surf, vol])
-    sdf = signed_distance(points, V, F)
+    sdf = signed_distance(points, V, F, distance_mesh=solid)
     return PreparedShape(
         name=ann.name, key=key,
         points=points.astype(np.float32), sdf=sdf.astype(np.float32), n_surface=n_surface,

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 from typing import Sequence
 
-import igl
 import numpy as np
 import trimesh
 
@@ -35,15 +34,11 @@ def sample_surface(mesh: trimesh.Trimesh, n: int, seed: int) -> tuple[np.ndarray
 def on_solid_boundary(mesh: trimesh.Trimesh, points: np.ndarray, normals: np.ndarray
                       ) -> np.ndarray:
     """(n,) bool: the point (on a face of `mesh`, with that face's unit normal) has the outside
-    of the solid the mesh bounds on at least one side: the generalised winding number (libigl's
-    fast winding number) a hair (1e-4 x the box diagonal) off the face, on either side, is below
-    1/2 in magnitude. False inside another closed piece (both sides inside, |w| >= 1)."""
-    V = np.ascontiguousarray(mesh.vertices, dtype=np.float64)
-    F = np.ascontiguousarray(mesh.faces, dtype=np.int64)
-    eps = 1e-4 * float(np.linalg.norm(np.ptp(V, axis=0)))
-    p, nrm = np.asarray(points, dtype=np.float64), np.asarray(normals, dtype=np.float64)
-    w = igl.fast_winding_number(V, F, np.concatenate([p + eps * nrm, p - eps * nrm]))
-    return np.minimum(np.abs(w[:len(p)]), np.abs(w[len(p):])) < 0.5
+    of the solid the mesh bounds on at least one side (`ngc_gen.data.mesh.sdf.outside_on_a_side`:
+    the generalised winding number a hair off the face). False inside another closed piece."""
+    from ngc_gen.data.mesh.sdf import outside_on_a_side
+
+    return outside_on_a_side(mesh.vertices, mesh.faces, points, normals)
 
 
 def sample_boundary(mesh: trimesh.Trimesh, n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:

@@ -42,8 +42,8 @@ def _random_rotations(axes_normal_to: np.ndarray, degrees: np.ndarray,
 
 
 def edit_parameters(theta: np.ndarray, pt: PoseTransfer, rng: np.random.Generator,
-                    swing: float = 20.0, stretch=(0.9, 1.1), scale=(0.9, 1.1),
-                    twist: float = 0.0, swing_min_length: float = 0.25) -> np.ndarray:
+                    swing: float, stretch, scale, twist: float,
+                    swing_min_length: float) -> np.ndarray:
     """(N, P) raw GC parameters -> (N, P) each randomly edited (module docstring); `pt` gives
     the template's layout and parent tree. A GC whose chord is shorter than
     `swing_min_length` times the root's (an ear, an antler) only follows its parent: swung
@@ -96,7 +96,7 @@ def _pose_transfer(shape_latent, parents: dict) -> PoseTransfer:
     return PoseTransfer(shape_latent.template, parents)
 
 
-def edited_latents(shape_latent, parents: dict, copies: int, seed: int = 0,
+def edited_latents(shape_latent, parents: dict, copies: int, seed: int,
                    **ranges) -> torch.Tensor:
     """`copies` random GC edits of every training shape (`edit_parameters`'s ranges) as
     latents (copies * N, D) float."""

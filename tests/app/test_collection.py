@@ -44,7 +44,7 @@ def test_the_plan_links_every_step(tmp_path):
     assert sl.prepare.cache_dir == str(run / "prepared")
     diff = steps["diffusion"][0]
     assert diff.shape_latent_run == str(run / "shape_latent")
-    assert diff.diffusion.standardise == "pca" and diff.diffusion.augment.min_latents == 256
+    assert diff.diffusion.standardise == "pca" and diff.diffusion.augment.min_latents == 1024
     assert steps["sample"][0].run == str(run / "diffusion")
     assert steps["interpolate"][0].mode == "interpolate"
 

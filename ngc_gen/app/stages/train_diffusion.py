@@ -17,6 +17,7 @@ from torch.utils.data import RandomSampler, Sampler
 
 from ngc_gen import workspace
 from ngc_gen.data.atomic import atomic_write_text
+from ngc_gen.data.errors import DataError
 
 from ..runtime.next_hint import SAMPLE_KEYS, next_command
 from .train_shape_latent import with_stage_steps
@@ -81,6 +82,10 @@ def template_parents(path, annotate: dict | None = None) -> dict:
     return {g.name: g.parent for g in load_transfer_template(str(path), dict(annotate or {})).gcs}
 
 
+AUGMENT_KEYS = ("template", "min_latents", "swing", "stretch", "scale", "twist", "swing_min_length",
+                "transfer", "seed")
+
+
 def augmented_latents(shape_latent, settings, annotate=None) -> torch.Tensor:
     """`diffusion.augment`: random GC edits of every training shape until there are
     `min_latents` latents (none when there are that many shapes), and with `transfer` every
@@ -88,16 +93,20 @@ def augmented_latents(shape_latent, settings, annotate=None) -> torch.Tensor:
     from ngc_gen.generate.augment import edited_latents, transferred_latents
 
     s = dict(settings)
+    missing = [k for k in AUGMENT_KEYS if k not in s]
+    if missing:
+        raise DataError(f"diffusion.augment has no {missing}", field="diffusion.augment",
+                        fix=f"give all of {list(AUGMENT_KEYS)} (conf/experiment/collection.yaml "
+                            "holds the small-collection recipe's)")
     parents = template_parents(s["template"], annotate)
     n = len(shape_latent.names)
-    copies = max(0, -(-int(s.get("min_latents", 256)) // n) - 1)
+    copies = max(0, -(-int(s["min_latents"]) // n) - 1)
     if copies == 0:
-        print(f"augment: {n} shapes, at least {s.get('min_latents', 256)}: no GC edits", flush=True)
+        print(f"augment: {n} shapes, at least {s['min_latents']}: no GC edits", flush=True)
         return torch.zeros(0, shape_latent.latents.weight.shape[1])
-    ranges = {k: s[k] for k in ("swing", "stretch", "scale", "twist", "swing_min_length")
-              if s.get(k) is not None}
-    out = [edited_latents(shape_latent, parents, copies, int(s.get("seed", 0)), **ranges)]
-    if s.get("transfer", True) and n > 1:
+    ranges = {k: s[k] for k in ("swing", "stretch", "scale", "twist", "swing_min_length")}
+    out = [edited_latents(shape_latent, parents, copies, int(s["seed"]), **ranges)]
+    if s["transfer"] and n > 1:
         out.append(transferred_latents(shape_latent, parents))
     out = torch.cat(out)
     print(f"augment: {len(out)} latents from GC edits of the {n} training shapes ({copies} each"

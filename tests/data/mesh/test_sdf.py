@@ -6,7 +6,7 @@ import numpy as np
 import torch
 import trimesh
 
-from ngc_gen.data.mesh.sdf import signed_distance
+from ngc_gen.data.mesh.sdf import signed_distance, solid_surface
 
 
 def box_sdf(p: np.ndarray, half: np.ndarray) -> np.ndarray:
@@ -64,3 +64,32 @@ def test_sign_inside_intersecting_pieces():
     p = np.array([[0.0, 0, 0], [0.3, 0, 0], [0.6, 0, 0], [1.3, 0, 0], [-0.7, 0, 0]])
     d = signed_distance(p, both.vertices, both.faces)
     np.testing.assert_array_equal(d < 0, [True, True, True, False, False])
+
+
+def test_the_solids_distance_has_no_valley_at_faces_inside_another_piece():
+    """Two intersecting closed boxes in one mesh: the faces of each inside the other are no
+    surface of the solid. Every triangle's distance falls to 0 on them (a fit then cracks
+    there); the solid's distance (`solid_surface`) is the union's: exact outside (the min of
+    the boxes' SDFs), inside at least as deep as the deeper box says (up to the size the
+    crossing faces are split to), and a mesh without inner faces is left as it is."""
+    a = trimesh.creation.box(extents=(1.0, 1.0, 1.0))
+    b = trimesh.creation.box(extents=(0.6, 0.6, 0.6))
+    b.apply_translation([0.5, 0.1, 0.05])
+    both = trimesh.util.concatenate([a, b])
+    sv, sf = solid_surface(both.vertices, both.faces)
+    rng = np.random.default_rng(0)
+    p = rng.uniform(-0.7, 0.9, (4000, 3))
+    exact = np.minimum(box_sdf(p, np.full(3, 0.5)),
+                       box_sdf(p - [0.5, 0.1, 0.05], np.full(3, 0.3)))
+    solid = signed_distance(p, both.vertices, both.faces, distance_mesh=(sv, sf))
+    every = signed_distance(p, both.vertices, both.faces)
+    out = exact > 0
+    np.testing.assert_allclose(solid[out], exact[out], atol=1e-6)
+    edge = 2.5e-3 * np.linalg.norm(np.ptp(both.vertices, axis=0))   # the split's size
+    assert (solid[~out] <= exact[~out] + edge).all() and (solid[~out] < 0).all()
+    assert (every[~out] > exact[~out] + 0.01).any()           # the valley the fix removes
+    inner = np.array([[0.5, 0.1, 0.05], [0.3, 0.1, 0.05]])   # on a buried face, and near one
+    assert every[0] > -1e-9 and (signed_distance(inner, both.vertices, both.faces,
+                                                 distance_mesh=(sv, sf)) < -0.1).all()
+    v, f = solid_surface(a.vertices, a.faces)
+    assert v is not None and np.array_equal(f, a.faces)

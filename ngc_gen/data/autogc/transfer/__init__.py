@@ -36,7 +36,9 @@ Pinocchio's two steps (a discrete embedding, then a continuous refinement) on ou
    surface inside), children start inside their parents, curves stay smooth and symmetric
    pairs keep one thickness profile (their positions mirror only weakly: a posed animal's legs
    are not mirror images); then radii and caps are refitted to
-   the refined curves and coverage is repaired (``coverage.grow_to_cover``) as for a rig.
+   the refined curves and the GCs cover the surface hugging it (``hug``, settings `hug`,
+   `hug_quantile`: radii from each part's own slices, the rest by the cheapest local growth,
+   then tightened), or with `hug` off as for a rig (``coverage.grow_to_cover``).
 
 Modules: transfer_settings (TransferSettings, Transfer), tree (body frame, skeleton tree),
 orientation (which way the mesh faces), match (correspondence, paths), verify (the template's

@@ -11,6 +11,7 @@ from scipy.spatial import cKDTree
 
 from ngc_gen.data.autogc.coverage import grow_to_cover, rho_matrix
 from ngc_gen.data.autogc.frame import to_template
+from ngc_gen.data.autogc.hug import hug_radii, hug_to_cover, tighten
 from ngc_gen.data.autogc.orient import Orientation, parse_axis
 from ngc_gen.data.autogc.skeleton import local_thickness, proxy_skeleton
 from ngc_gen.data.autogc.template import AT_KEYS, Template, TemplateGC
@@ -217,32 +218,68 @@ def _missing_gc(pl: Placing, n: str, surface_body: np.ndarray) -> None:
         pl.gcs[n] = grow_to_cover([pl.gcs[n]], near)[0]
 
 
-def _covering(pl: Placing, owner: np.ndarray) -> list[GeneralizedCylinder]:
-    """The GCs in template order grown to cover: each its own samples near it first, then the
-    whole surface; the root must be a tube (step 5)."""
+def _grown(pl: Placing, owner: np.ndarray) -> list[GeneralizedCylinder]:
+    """The GCs in template order grown to cover the surface. Unless `hug` (the older way):
+    each grows over its own samples near it first, then every sample left outside goes to the
+    relatively nearest GC, whose radii both scale."""
     names, surface = pl.template.names, pl.surface
     ordered = [pl.gcs[n] for n in names]
+    if pl.st.hug:
+        return _hugging(pl, ordered, owner)
     for g, n in enumerate(names):  # alone first: a GC holds its own samples near it
         own = surface[owner == g]
         if n in pl.missing or not len(own):
             continue
         rho, _ = rho_matrix([ordered[g]], own)
         ordered[g] = grow_to_cover([ordered[g]], own[rho[0] <= OWN_REACH])[0]
-    ordered = grow_to_cover(ordered, surface)
+    return grow_to_cover(ordered, surface)
+
+
+def _hugging(pl: Placing, ordered: list[GeneralizedCylinder],
+             owner: np.ndarray) -> list[GeneralizedCylinder]:
+    """GCs that hug (``hug``): radii from each found part's own slices, each parent grown to
+    hold where its children start (children attached), the rest of the surface covered at
+    least added volume, then each found part tightened where others hold the surface."""
+    names, surface = pl.template.names, pl.surface
+    found = np.array([n not in pl.missing for n in names])
+    ordered = [hug_radii(gc, surface[owner == g], pl.st.hug_quantile, pl.st.margin, pl.floor)
+               if found[g] else gc for g, gc in enumerate(ordered)]
+    for g, n in enumerate(names):
+        parent = pl.template.gc(n).parent
+        if parent is not None:
+            p = names.index(parent)
+            start = np.asarray(ordered[g].to_world(np.array([[-1.0, 0.0, 0.0]])))
+            ordered[p] = hug_to_cover([ordered[p]], start)[0]
+    own = np.where((owner >= 0) & found[np.clip(owner, 0, None)], owner, -1)
+    return tighten(hug_to_cover(ordered, surface, owner=own), surface, own,
+                   fixed={g for g in range(len(names)) if not found[g]})
+
+
+def _covering(pl: Placing, owner: np.ndarray) -> list[GeneralizedCylinder]:
+    """The GCs in template order grown to cover (`_grown`); the root must be a tube (step 5),
+    judged by its radii as its own samples size them (hugging: before they are refitted)."""
+    names = pl.template.names
     root = next(n for n in names if pl.template.gc(n).parent is None)
-    if root in pl.paths:  # the template's parts are tubes: a plate (a chair's seat) is no torso
-        keys = ordered[names.index(root)].to_dict()["keys"]
-        r_gc = float(np.median([np.sqrt(np.prod(k["radii"])) for k in keys]))
-        tube = float(pl.tree.radius[pl.paths[root]].max()) / max(r_gc, 1e-12)
-        if tube < pl.st.min_tube:
-            t = pl.template
-            raise DataError(f"does not match template {t.name} ({t.source}): its {root} is no "
-                            f"tube (inside it at most {tube:.2f} of the {root} GC's radius thick, "
-                            f"need {pl.st.min_tube}: a plate or a frame, a chair's seat)",
-                            path=pl.where, field="annotate.template",
-                            fix="annotate this mesh with a template of its kind (or by hand), or "
-                                "lower annotate.min_tube")
+    if pl.st.hug and root in pl.paths:
+        _check_tube(pl, root, pl.gcs[root])
+    ordered = _grown(pl, owner)
+    if not pl.st.hug and root in pl.paths:
+        _check_tube(pl, root, ordered[names.index(root)])
     return ordered
+
+
+def _check_tube(pl: Placing, root: str, gc: GeneralizedCylinder) -> None:
+    """The template's parts are tubes: a plate (a chair's seat) is no torso."""
+    r_gc = float(np.median([np.sqrt(np.prod(k["radii"])) for k in gc.to_dict()["keys"]]))
+    tube = float(pl.tree.radius[pl.paths[root]].max()) / max(r_gc, 1e-12)
+    if tube < pl.st.min_tube:
+        t = pl.template
+        raise DataError(f"does not match template {t.name} ({t.source}): its {root} is no "
+                        f"tube (inside it at most {tube:.2f} of the {root} GC's radius thick, "
+                        f"need {pl.st.min_tube}: a plate or a frame, a chair's seat)",
+                        path=pl.where, field="annotate.template",
+                        fix="annotate this mesh with a template of its kind (or by hand), or "
+                            "lower annotate.min_tube")
 
 
 def transfer_template(mesh: trimesh.Trimesh, template: Template,

@@ -34,6 +34,8 @@ class TransferSettings:
     refine_steps: int
     min_tube: float
     min_confidence: float
+    hug: bool
+    hug_quantile: float
 
     def __post_init__(self):
         checks = {"resolution": self.resolution >= 16, "samples": self.samples >= 100,
@@ -41,13 +43,15 @@ class TransferSettings:
                   "missing_cost": self.missing_cost > 0, "max_match_cost": self.max_match_cost > 0,
                   "min_matched": 0 <= self.min_matched <= 1, "refine_steps": self.refine_steps >= 0,
                   "min_tube": 0 <= self.min_tube < 1,
-                  "min_confidence": 0 <= self.min_confidence < 1}
+                  "min_confidence": 0 <= self.min_confidence < 1,
+                  "hug": isinstance(self.hug, bool), "hug_quantile": 0.5 <= self.hug_quantile <= 1}
         for name, ok in checks.items():
             if not ok:
                 raise DataError(f"invalid value {getattr(self, name)!r}", field=f"annotate.{name}",
                                 fix="resolution >= 16; samples >= 100; skeleton auto|cgal|voxel; "
                                     "margin >= 0; missing_cost, max_match_cost > 0; min_matched "
-                                    "in [0, 1]; refine_steps >= 0; min_tube, min_confidence in [0, 1)")
+                                    "in [0, 1]; refine_steps >= 0; min_tube, min_confidence in [0, 1); "
+                                    "hug true|false; hug_quantile in [0.5, 1]")
         for name in ("up", "front"):
             parse_axis(getattr(self, name), f"annotate.{name}")
 
