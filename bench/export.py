@@ -124,34 +124,11 @@ def bad_input_timings(fit_run: str, tmp: Path) -> list[dict]:
     return rows
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--animals", default=None,
-                    help="a sample.py output dir with the animals (default: built and cached)")
-    ap.add_argument("--animal-shapes", nargs=2, default=["sample_000", "sample_001"])
-    ap.add_argument("--fit", default=None,
-                    help="a fit run holding ant and creature_0000 (default: built and cached)")
-    ap.add_argument("--frames", type=int, default=30)
-    ap.add_argument("--resolution", type=int, default=96)
-    ap.add_argument("--animal-keyframes", type=int, nargs="+", default=[4, 7, 11, 15, 18, 22, 26])
-    ap.add_argument("--made-with", default="", help="how --animals and --fit were made (recorded)")
-    args = ap.parse_args(argv)
-    bench = Bench("export")
+def run_cases(args) -> tuple[list[dict], list[dict]]:
+    """Export every case; -> (per-file rows, per-frame rows)."""
     from ngc_gen.export.blender import blender_available, blender_check
     from ngc_gen.export.validator import validate, validator_available
 
-    from ngc_gen.app.runtime.cli import set_threads
-
-    threads = set_threads("auto")  # sample.py's default: two threads on a loaded 2-core
-    # machine wait on each other (an animal's 30-keyframe export: 360 s against 25 s for one)
-    OUT.mkdir(parents=True, exist_ok=True)
-    if args.animals is None or args.fit is None:
-        from bench._export_inputs import build
-
-        built = build(args.resolution)
-        args.animals = args.animals or str(built["animals"])
-        args.fit = args.fit or str(built["fit"])
-        args.made_with = args.made_with or built["made_with"]
     cases = [(args.animals, s, "rig:horse/Walk", args.animal_keyframes)
              for s in args.animal_shapes]
     cases += [(args.fit, "ant", "edit:posed_ant_leg", [1]),
@@ -189,6 +166,36 @@ def main(argv=None):
             gif = render_animation([p.vertices(float(t)) for t in p.times], p.faces,
                                    ROOT / "bench/results/export_walk.gif", fps=12)
             print(f"animation: {gif}")
+    return exports, frames
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--animals", default=None,
+                    help="a sample.py output dir with the animals (default: built and cached)")
+    ap.add_argument("--animal-shapes", nargs=2, default=["sample_000", "sample_001"])
+    ap.add_argument("--fit", default=None,
+                    help="a fit run holding ant and creature_0000 (default: built and cached)")
+    ap.add_argument("--frames", type=int, default=30)
+    ap.add_argument("--resolution", type=int, default=96)
+    ap.add_argument("--animal-keyframes", type=int, nargs="+", default=[4, 7, 11, 15, 18, 22, 26])
+    ap.add_argument("--made-with", default="", help="how --animals and --fit were made (recorded)")
+    args = ap.parse_args(argv)
+    bench = Bench("export")
+
+    from ngc_gen.app.runtime.cli import set_threads
+
+    threads = set_threads("auto")  # sample.py's default: two threads on a loaded 2-core
+    # machine wait on each other (an animal's 30-keyframe export: 360 s against 25 s for one)
+    OUT.mkdir(parents=True, exist_ok=True)
+    if args.animals is None or args.fit is None:
+        from bench._export_inputs import build
+
+        built = build(args.resolution)
+        args.animals = args.animals or str(built["animals"])
+        args.fit = args.fit or str(built["fit"])
+        args.made_with = args.made_with or built["made_with"]
+    exports, frames = run_cases(args)
     counted = [f for f in frames if f["counted"]]
     animal = [e for e in exports if e["clip"].startswith("rig:")]
     result = {
