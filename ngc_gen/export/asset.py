@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .clips import Clip
-from .correctives import corrective_offsets, guide_field
+from .correctives import corrective_offsets
 from .glb_writer import GLBContent
 from .joint_chains import Skeleton, build_skeleton, joint_matrices
 from .weights import skin_weights
@@ -18,7 +18,8 @@ from .weights import skin_weights
 class ExportSettings:
     """joints_per_gc: joints along each GC; resolution: the mesh grid; blend, falloff: the skin
     weights' widths (`weights.skin_weights`); correctives: store the morph targets; newton_steps,
-    fd_step, max_step: their projection (`correctives.project`); colors: COLOR_0 by GC. No
+    fd_step, max_step, tolerance: their projection (`correctives.corrective_offsets`); colors: COLOR_0 by GC;
+    max_key_degrees: in-between joint keys beyond this turn (`glb_writer.in_between_keys`). No
     defaults here: conf/mode/export.yaml's `export:` block is their one source."""
 
     joints_per_gc: int
@@ -29,12 +30,21 @@ class ExportSettings:
     newton_steps: int
     fd_step: float
     max_step: float
+    tolerance: float
     colors: bool
+    max_key_degrees: float
 
     @classmethod
     def from_config(cls, d) -> "ExportSettings":
         names = set(cls.__dataclass_fields__)
         return cls(**{k: v for k, v in dict(d or {}).items() if k in names})
+
+    @classmethod
+    def from_yaml(cls, **overrides) -> "ExportSettings":
+        """conf/mode/export.yaml's values, some replaced (for callers without a config)."""
+        from ngc_gen.conf.defaults import yaml_settings
+
+        return yaml_settings(cls, "mode/export.yaml", "export", **overrides)
 
 
 @dataclass
@@ -75,10 +85,32 @@ def rig_shape(shape, settings: ExportSettings, parents: dict | None = None,
     return Rigged(shape, V, F, np.asarray(mesh.vertex_normals, np.float64), skeleton, rest, J, W)
 
 
+def export_shape(shape, path, settings: ExportSettings, parents: dict | None = None,
+                 make_clip=None, mesh=None) -> tuple[dict, Rigged, Clip | None]:
+    """Rig `shape` (`rig_shape`), add the clip `make_clip(rigged)` gives (None: the rest pose
+    only) and write the GLB to `path`: (summary, rigged, clip). sample.py mode=export, the
+    editor's export button and bench/export.py all export through this."""
+    from .glb_writer import write_glb
+
+    t0 = time.perf_counter()
+    rigged = rig_shape(shape, settings, parents, mesh)
+    clip = make_clip(rigged) if make_clip is not None else None
+    c, stats = content(rigged, clip, settings)
+    n_bytes = write_glb(path, c)
+    summary = {"file": str(path), "shape": shape.name, "joints": rigged.skeleton.n_joints,
+               "vertices": len(rigged.vertices),
+               "max_influences": int((rigged.weights > 0).sum(1).max()), "bytes": n_bytes,
+               "keyframes": 0 if clip is None else len(clip.times),
+               "correctives": bool(settings.correctives and clip is not None),
+               "export_s": time.perf_counter() - t0, **stats}
+    return summary, rigged, clip
+
+
 def content(r: Rigged, clip: Clip | None, settings: ExportSettings) -> tuple[GLBContent, dict]:
     """The file's content and what it took (seconds of the correctives, their mean shift)."""
     c = GLBContent(r.vertices, r.faces, r.normals, r.skeleton.names, r.skeleton.parent, r.rest,
-                   r.joints, r.weights, name=r.shape.name)
+                   r.joints, r.weights, name=r.shape.name,
+                   max_key_degrees=settings.max_key_degrees)
     if settings.colors:
         dominant = r.joints[np.arange(len(r.joints)), r.weights.argmax(1)]
         c.colors = _palette(len(r.skeleton.gc_names))[r.skeleton.gc[dominant]]
@@ -91,9 +123,10 @@ def content(r: Rigged, clip: Clip | None, settings: ExportSettings) -> tuple[GLB
         inv = np.linalg.inv(r.rest)
         offsets = []
         for k, posed in enumerate(clip.shapes):  # keyframes
-            d, _ = corrective_offsets(r.vertices, r.joints, r.weights, clip.world[k] @ inv,
-                                      lambda p, s=posed: guide_field(s, p),
-                                      settings.newton_steps, settings.fd_step, settings.max_step)
+            d, _ = corrective_offsets(r.vertices, r.normals, r.joints, r.weights,
+                                      clip.world[k] @ inv, lambda p, s=posed: s.sdf(p).numpy(),
+                                      settings.newton_steps, settings.fd_step, settings.max_step,
+                                      settings.tolerance)
             offsets.append(d)
         c.morph = np.stack(offsets)
         c.morph_weights = np.eye(len(offsets))

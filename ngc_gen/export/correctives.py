@@ -1,11 +1,14 @@
 """Corrective shapes: per keyframe, the skinned vertices moved onto NGC's exact posed surface.
 
 Linear blend skinning v' = sum_j w_j M_j B_j^-1 v approximates what NGC computes exactly: the
-posed shape's zero set. A few Newton steps along the posed field's gradient,
-x <- x - f(x) grad f / |grad f|^2 (the gradient by finite differences: the field's relative
-coordinates come from a closest-point solve, not autograd), put each skinned vertex on it. A
-glTF morph target is added before skinning, so the stored offset is in bind space: with the
-vertex's blended affine map x' = A v + b, the offset d solves A d = y - x'.
+posed shape's zero set. Each skinned vertex is moved onto it along its skinned normal (the
+rest normal through the vertex's blended map, A^-T n): secant steps on f(x + s n), kept in a
+bracket once the sign changes (regula falsi), one field value a step, stopping at |f| <= tol.
+A vertex already within tol costs one field value; one that does not settle (no root near
+it along its normal) takes Newton steps along the field's gradient (`project`; the gradient
+by finite differences: the field's relative coordinates come from a closest-point solve, not
+autograd). A glTF morph target is added before skinning, so the stored offset is in bind
+space: with the vertex's blended affine map x' = A v + b, the offset d solves A d = y - x'.
 """
 from __future__ import annotations
 
@@ -88,37 +91,75 @@ def bracket(sdf, x: np.ndarray, direction: np.ndarray, reach: float, samples: in
     return out
 
 
-def guide_field(shape, points: np.ndarray) -> np.ndarray:
-    """The shape's field (`Shape.sdf`), and outside every GC, where that is a constant with no
-    gradient, the decoder of the relatively nearest GC evaluated at the point's relative
-    coordinates there: a skinned vertex that left the posed GCs is still led back to the
-    surface."""
-    import torch
+def along_line(sdf, x: np.ndarray, d: np.ndarray, f0: np.ndarray, steps: int,
+               max_step: float, tol: float, outside: float) -> tuple[np.ndarray, np.ndarray]:
+    """x (M, 3) moved to a zero of sdf on the line x + s d (d (M, 3) unit, f0 = sdf(x)):
+    secant steps (the first with slope 1, as a distance field has along its normal), each at
+    most max_step, until the sign changes; then inside that bracket regula falsi (Illinois),
+    or bisection where an end is outside every GC (f == outside, the field's background: it
+    jumps there, where a GC's boundary cuts the material, and the mesher's surface is the
+    jump: there the point ends mid-bracket). Only unsettled points are evaluated.
+    -> (points (M, 3), settled (M,) bool: |f| <= tol or bracketed)."""
+    n = len(x)
+    sa, fa = np.zeros(n), np.asarray(f0, np.float64).copy()
+    sb = np.clip(-fa, -max_step, max_step)
+    lo, hi, flo, fhi = (np.full(n, np.nan) for _ in range(4))  # the bracket, once seen
+    jump = np.zeros(n, bool)  # the bracket has an end outside every GC: bisect
+    best, fbest = np.zeros(n), np.abs(fa)
+    active = np.flatnonzero(np.abs(fa) > tol)
+    for _ in range(int(steps)):
+        if not len(active):
+            break
+        a = active
+        fb = np.asarray(sdf(x[a] + sb[a, None] * d[a]), np.float64)
+        better = np.abs(fb) < fbest[a]
+        best[a[better]], fbest[a[better]] = sb[a[better]], np.abs(fb[better])
+        new = np.isnan(lo[a]) & (np.sign(fb) != np.sign(fa[a]))
+        i = a[new]
+        lo[i], flo[i], hi[i], fhi[i] = sa[i], fa[i], sb[i], fb[new]
+        jump[a] |= ~np.isnan(lo[a]) & ((fb == outside) | (fa[a] == outside))
+        old = ~np.isnan(lo[a]) & ~new
+        keep_hi = old & (np.sign(fb) == np.sign(flo[a]))  # the new point replaces lo
+        keep_lo = old & ~keep_hi
+        i, j = a[keep_hi], a[keep_lo]
+        lo[i], flo[i], fhi[i] = sb[i], fb[keep_hi], 0.5 * fhi[i]
+        hi[j], fhi[j], flo[j] = sb[j], fb[keep_lo], 0.5 * flo[j]
+        slope = (fb - fa[a]) / np.where(sb[a] == sa[a], 1.0, sb[a] - sa[a])
+        slope = np.where(np.abs(slope) > 1e-3, slope, 1.0)
+        sa[a], fa[a] = sb[a], fb
+        sb[a] -= np.clip(fb / slope, -max_step, max_step)
+        k = a[~np.isnan(lo[a])]
+        falsi = lo[k] - flo[k] * (hi[k] - lo[k]) / np.where(fhi[k] == flo[k], 1.0,
+                                                             fhi[k] - flo[k])
+        sb[k] = np.where(jump[k], 0.5 * (lo[k] + hi[k]), falsi)
+        active = a[(np.abs(fb) > tol) & (np.isnan(lo[a]) | (np.abs(hi[a] - lo[a]) > tol))]
+    bracketed = ~np.isnan(lo) & (fbest > tol)
+    best[bracketed & jump] = 0.5 * (lo + hi)[bracketed & jump]
+    return x + best[:, None] * d, (fbest <= tol) | bracketed
 
+
+def skinned_normals(normals: np.ndarray, M: np.ndarray) -> np.ndarray:
+    """(V, 3) rest normals through the blended maps M (V, 4, 4): A^-T n, unit."""
+    n = np.linalg.solve(np.swapaxes(M[:, :3, :3], 1, 2), normals[:, :, None])[:, :, 0]
+    return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
+
+
+def corrective_offsets(vertices: np.ndarray, normals: np.ndarray, joints: np.ndarray,
+                       weights: np.ndarray, skin: np.ndarray, sdf, steps: int, h: float,
+                       max_step: float, tol: float) -> tuple[np.ndarray, np.ndarray]:
+    """(offsets (V, 3) in bind space, target (V, 3) posed positions) of one keyframe: rest
+    vertices and normals (V, 3), skin matrices `skin` (J, 4, 4), `sdf` the posed shape's field
+    (points (N, 3) -> (N,))."""
     from ngc_gen.shape.shape import OUTSIDE
 
-    f = shape.sdf(points).numpy().astype(np.float64)
-    out = np.flatnonzero(f == OUTSIDE)  # Shape.sdf's background: in no GC
-    if len(out):
-        q = np.asarray(points, np.float64)[out]
-        best, value = np.full(len(q), np.inf), np.zeros(len(q))
-        for j, gc in enumerate(shape.gcs):  # GCs (tens), never points
-            rel = np.asarray(gc.to_relative(q))
-            m = gc.relative_measure(rel)
-            v = shape.gc_sdf(j, torch.as_tensor(rel, dtype=torch.float32)).double().numpy()
-            take = m < best
-            best[take], value[take] = m[take], v[take]
-        f[out] = value
-    return f
-
-
-def corrective_offsets(vertices: np.ndarray, joints: np.ndarray, weights: np.ndarray,
-                       skin: np.ndarray, sdf, steps: int, h: float,
-                       max_step: float) -> tuple[np.ndarray, np.ndarray]:
-    """(offsets (V, 3) in bind space, target (V, 3) posed positions) of one keyframe: skin
-    matrices `skin` (J, 4, 4), `sdf` the posed shape's field (points (N, 3) -> (N,))."""
     M = blended(joints, weights, skin)
     x = np.einsum("vab,vb->va", M[:, :3, :3], vertices) + M[:, :3, 3]
-    y = project(sdf, x, steps, h, max_step)
+    f0 = np.asarray(sdf(x), np.float64)
+    y, ok = along_line(sdf, x, skinned_normals(normals, M), f0, steps, max_step, tol, OUTSIDE)
+    if not ok.all():  # no sign change along the normal within reach: the field's gradient
+        bad = np.flatnonzero(~ok)
+        z = project(sdf, x[bad], steps, h, max_step, tol)
+        gain = np.abs(np.asarray(sdf(z), np.float64)) < np.abs(f0[bad])
+        y[bad[gain]] = z[gain]  # a point it cannot bring nearer the surface keeps skinning's
     d = np.linalg.solve(M[:, :3, :3], (y - x)[:, :, None])[:, :, 0]
     return d, y

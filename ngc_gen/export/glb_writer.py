@@ -4,7 +4,11 @@ One scene: the skinned mesh node and the joint hierarchy at the root. The skin l
 joints and their inverse bind matrices; the mesh has POSITION, NORMAL, JOINTS_0 (unsigned
 short), WEIGHTS_0 (float), optionally COLOR_0, and one morph target per keyframe (named in
 `extras.targetNames`, which Blender reads as shape-key names). The clip animates every joint's
-rotation and translation and the morph weights (linear). The file is written to a
+rotation and translation and the morph weights (linear). Where a joint turns more than
+`max_key_degrees` between two keyframes, the joint channels get in-between keys on the same
+slerp (`in_between_keys`): they change nothing for a client that slerps as glTF says, and a
+client that interpolates quaternions per component (Blender's fcurves) then plays the same
+pose. The keyframes are kept in the animation's `extras.keyframes`. The file is written to a
 temp file and renamed: a failure leaves no partial file.
 """
 from __future__ import annotations
@@ -26,7 +30,8 @@ class GLBContent:
     """Everything a file holds. vertices (V, 3) bind pose, faces (F, 3), normals (V, 3);
     joint names (J,), parent (J,), rest_world (J, 4, 4); skin joints (V, 4) / weights (V, 4);
     clip: name, times (K,), world (K, J, 4, 4); morph: (T, V, 3) bind-space offsets with
-    morph_weights (K, T) per keyframe (T = 0: none); colors (V, 4) or None."""
+    morph_weights (K, T) per keyframe (T = 0: none); colors (V, 4) or None; max_key_degrees:
+    the largest turn of a joint between two keys of its channels (`in_between_keys`)."""
 
     vertices: np.ndarray
     faces: np.ndarray
@@ -44,6 +49,7 @@ class GLBContent:
     morph_names: list[str] = field(default_factory=list)
     colors: np.ndarray | None = None
     name: str = "shape"
+    max_key_degrees: float = 180.0
 
 
 def local_trs(parent: np.ndarray, world: np.ndarray):
@@ -118,10 +124,38 @@ def _normalised_f32(w: np.ndarray) -> np.ndarray:
     return w
 
 
+def in_between_keys(times: np.ndarray, T: np.ndarray, R: np.ndarray,
+                    max_degrees: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Keys (times (K,), translations (K, J, 3), unit quaternions (K, J, 4) on the shorter
+    arcs) with in-between keys wherever a joint turns more than `max_degrees` between two:
+    the slerp and lerp glTF's LINEAR sampler gives there, so the clip plays the same under
+    glTF's rules and near it under per-component interpolation (its error falls as the cube
+    of the turn)."""
+    times = np.asarray(times, np.float64)
+    dot = np.clip(np.abs((R[1:] * R[:-1]).sum(-1)), 0.0, 1.0)  # (K - 1, J)
+    turn = np.degrees(2.0 * np.arccos(dot)).max(1)
+    n = np.maximum(1, np.ceil(turn / max(float(max_degrees), 1e-6))).astype(np.int64)
+    seg = np.repeat(np.arange(len(n)), n)
+    f = np.arange(len(seg)) - np.repeat(np.cumsum(n) - n, n)
+    f = f / n[seg]
+    seg, f = np.append(seg, len(n) - 1), np.append(f, 1.0)
+    q0, q1 = R[seg], R[seg + 1]
+    a = np.arccos(np.clip((q0 * q1).sum(-1, keepdims=True), -1.0, 1.0))  # (N, J, 1)
+    s = np.sin(a)
+    fb = f[:, None, None]
+    near = s < 1e-6  # the same rotation: lerp
+    w0 = np.where(near, 1.0 - fb, np.sin((1.0 - fb) * a) / np.where(near, 1.0, s))
+    w1 = np.where(near, fb, np.sin(fb * a) / np.where(near, 1.0, s))
+    q = w0 * q0 + w1 * q1
+    q /= np.linalg.norm(q, axis=-1, keepdims=True)
+    t = (1.0 - fb) * T[seg] + fb * T[seg + 1]
+    return (1.0 - f) * times[seg] + f * times[seg + 1], t, q
+
+
 def _animation(g, buf: _Buffer, c: GLBContent, mesh_node: int) -> None:
     import pygltflib as G
 
-    times = buf.add(np.asarray(c.times, np.float32), FLOAT, "SCALAR", None, True)
+    keys = buf.add(np.asarray(c.times, np.float32), FLOAT, "SCALAR", None, True)
     T, R = [], []
     for w in c.world:  # keyframes
         t, r, _ = local_trs(c.parent, w)
@@ -129,9 +163,14 @@ def _animation(g, buf: _Buffer, c: GLBContent, mesh_node: int) -> None:
     T, R = np.stack(T), np.stack(R)  # (K, J, 3), (K, J, 4)
     for j in range(1, len(R)):  # the shorter arc between keys: q and -q are one rotation
         R[j] *= np.where((R[j] * R[j - 1]).sum(-1, keepdims=True) < 0, -1.0, 1.0)
+    if len(R) > 1:
+        dense, T, R = in_between_keys(c.times, T, R, c.max_key_degrees)
+        times = buf.add(dense.astype(np.float32), FLOAT, "SCALAR", None, True)
+    else:
+        times = keys
     samplers, channels = [], []
 
-    def channel(node: int, path: str, values: np.ndarray, atype: str):
+    def channel(node: int, path: str, values: np.ndarray, atype: str, times=times):
         samplers.append(G.AnimationSampler(input=times, interpolation="LINEAR",
                                            output=buf.add(values.astype(np.float32), FLOAT,
                                                           atype)))
@@ -142,8 +181,9 @@ def _animation(g, buf: _Buffer, c: GLBContent, mesh_node: int) -> None:
         channel(j, "rotation", R[:, j], "VEC4")
         channel(j, "translation", T[:, j], "VEC3")  # an edit may change a bone's length
     if c.morph is not None and len(c.morph):
-        channel(mesh_node, "weights", np.asarray(c.morph_weights).reshape(-1), "SCALAR")
-    g.animations.append(G.Animation(name=c.clip_name, samplers=samplers, channels=channels))
+        channel(mesh_node, "weights", np.asarray(c.morph_weights).reshape(-1), "SCALAR", keys)
+    g.animations.append(G.Animation(name=c.clip_name, samplers=samplers, channels=channels,
+                                    extras={"keyframes": [float(x) for x in c.times]}))
 
 
 def glb_bytes(c: GLBContent) -> bytes:

@@ -9,6 +9,7 @@ import os
 import numpy as np
 
 from ngc_gen.data.rigs.gltf import _Reader, load_gltf_rig
+from ngc_gen.data.rigs.gltf_json import read_gltf
 from ngc_gen.data.rigs.rig import skin_vertices
 
 
@@ -16,10 +17,8 @@ class Playback:
     """The skinned mesh of a GLB at any time of its (first) clip."""
 
     def __init__(self, path: str | os.PathLike):
-        import pygltflib
-
         self.rig = load_gltf_rig(path)
-        g = pygltflib.GLTF2().load(os.fspath(path))
+        g = read_gltf(path)
         reader = _Reader(g, os.fspath(path))
         self.clip = next(iter(self.rig.clips), None)
         mesh_node = next(i for i, n in enumerate(g.nodes) if n.mesh is not None)
@@ -27,7 +26,10 @@ class Playback:
         self.targets = np.stack([reader.accessor(t["POSITION"], "morph target")
                                  for t in (prim.targets or [])]) if prim.targets else None
         self.weight_times = self.weight_values = None
+        self.keyframe_times = None
         for anim in g.animations or []:
+            if isinstance(anim.extras, dict) and "keyframes" in anim.extras:
+                self.keyframe_times = np.asarray(anim.extras["keyframes"], np.float64)
             for ch in anim.channels:
                 if ch.target.node == mesh_node and ch.target.path == "weights":
                     s = anim.samplers[ch.sampler]
@@ -44,6 +46,12 @@ class Playback:
         if self.clip is None:
             return np.zeros(1)
         return np.unique(np.concatenate([c.times for c in self.rig.clips[self.clip].channels]))
+
+    @property
+    def keyframes(self) -> np.ndarray:
+        """The exporter's keyframes (the poses its corrective shapes are exact at: the
+        animation's `extras.keyframes`); a file without them: its key times."""
+        return self.times if self.keyframe_times is None else self.keyframe_times
 
     def morph_weights(self, time: float) -> np.ndarray | None:
         if self.targets is None or self.weight_times is None:

@@ -123,22 +123,33 @@ class Shape:
 
     def sdf(self, points) -> torch.Tensor:
         """World points (N, 3) -> (N,) float32: the blend (or min, smooth min) over the GCs
-        containing each point; `OUTSIDE` where none does."""
+        containing each point; `OUTSIDE` where none does. The rows of all GCs go through one
+        decoder call (`rows`, the mesher's values)."""
         q = torch.as_tensor(np.asarray(points) if not isinstance(points, torch.Tensor) else points,
                             dtype=torch.float64)
         out = torch.full((len(q),), float("inf"), dtype=torch.float32)
-        mixed = BlendAccumulator(len(q), self.blend, self.blend_k) if self.blend else None
+        held = []  # (GC, point indices, relative coordinates, measure) per GC holding points
         for j, gc in enumerate(self.gcs):  # a loop over the K GCs, never over points
             rel, measure = gc.relative_inside(q)  # one closest-point solve per point and GC
-            idx = torch.from_numpy(np.flatnonzero(measure <= 1.0))
-            if len(idx) == 0:
-                continue
-            v = self.gc_sdf(j, rel[idx].float()).float()
+            idx = np.flatnonzero(measure <= 1.0)
+            if len(idx):
+                held.append((j, idx, rel[idx].float(), measure[idx]))
+        if not held:
+            return out.fill_(OUTSIDE)
+        values = self.rows(torch.from_numpy(np.concatenate([np.full(len(h[1]), h[0])
+                                                            for h in held])),
+                           torch.cat([h[2] for h in held])).float()
+        mixed = BlendAccumulator(len(q), self.blend, self.blend_k) if self.blend else None
+        start = 0
+        for _, idx, _, measure in held:  # GCs
+            v = values[start:start + len(idx)]
+            start += len(idx)
             if mixed is not None:
-                mixed.add(idx.numpy(), v.numpy(), measure[idx.numpy()])
+                mixed.add(idx, v.numpy(), measure)
                 continue
-            cur = out[idx]
-            out[idx] = torch.where(torch.isinf(cur), v, smooth_min(cur, v, self.smooth))
+            t = torch.from_numpy(idx)
+            cur = out[t]
+            out[t] = torch.where(torch.isinf(cur), v, smooth_min(cur, v, self.smooth))
         if mixed is not None:
             out = torch.from_numpy(mixed.result())
         return out.masked_fill_(torch.isinf(out), OUTSIDE)

@@ -24,7 +24,7 @@ def test_blender_imports_the_animal(animal_ckpt, tmp_path):
     out = tmp_path / "animal.glb"
     run_sample(export_config(animal_ckpt, out, f"clip=rig:{rig}/Swing",
                              f"export.template={tpl}", "export.frames=5"))
-    times = Playback(out).times
+    times = Playback(out).keyframes
     report = blender_check(out, list(TEMPLATE_NAMES.values()), 3,
                            [float(times[0]), float(times[2]) * 0.7, float(times[-1])])
     assert report["blender_ok"], report

@@ -59,7 +59,7 @@ def test_edit_program_clip(fit_ckpt, tmp_path, correctives):
                              f"export.correctives={str(correctives).lower()}"))
     _assert_valid(out)
     p = Playback(out)
-    assert list(p.times) == [0.0, 1.0]
+    assert list(p.keyframes) == [0.0, 1.0]
     assert (p.targets is not None) == correctives
     from ngc_gen.edit.program import EditProgram
 
@@ -72,6 +72,30 @@ def test_edit_program_clip(fit_ckpt, tmp_path, correctives):
     # the arm's last joint went where the edited GC's frame is
     world = joint_matrices(build_skeleton(posed.gcs, 3), posed.gcs)
     assert np.allclose(p.joint_positions(1.0), world[:, :3, 3], atol=1e-4)
+
+
+def test_in_between_keys_keep_the_slerp():
+    """In-between joint keys lie on glTF's slerp between the keyframes (so the clip plays the
+    same), and no joint turns more than the limit between two keys."""
+    from ngc_gen.data.rigs.rig import slerp
+    from ngc_gen.export.glb_writer import in_between_keys
+
+    rng = np.random.default_rng(0)
+    R = rng.normal(size=(3, 4, 4))
+    R /= np.linalg.norm(R, axis=-1, keepdims=True)
+    for k in (1, 2):  # the shorter arcs, as the writer hands them over
+        R[k] *= np.where((R[k] * R[k - 1]).sum(-1, keepdims=True) < 0, -1.0, 1.0)
+    T = rng.normal(size=(3, 4, 3))
+    times, t, q = in_between_keys(np.array([0.0, 1.0, 3.0]), T, R, 10.0)
+    assert times[0] == 0.0 and times[-1] == 3.0 and len(times) > 10
+    turn = np.degrees(2 * np.arccos(np.clip(np.abs((q[1:] * q[:-1]).sum(-1)), 0, 1)))
+    assert turn.max() <= 10.0 + 1e-9
+    for i, tm in enumerate(times):
+        seg = 0 if tm < 1.0 else 1
+        f = (tm - [0.0, 1.0][seg]) / [1.0, 2.0][seg]
+        want = np.stack([slerp(R[seg, j], R[seg + 1, j], f) for j in range(4)])
+        assert np.allclose(q[i], want, atol=1e-9)
+        assert np.allclose(t[i], (1 - f) * T[seg] + f * T[seg + 1])
 
 
 def _mini_rig(path, degrees):
@@ -111,7 +135,7 @@ def test_rig_clip_by_template_names(animal_ckpt, tmp_path):
                              "export.frames=3"))
     _assert_valid(out)
     p = Playback(out)
-    assert len(p.times) == 3 and p.targets.shape[0] == 3
+    assert len(p.keyframes) == 3 and p.targets.shape[0] == 3
     w0 = p.rig.world_matrices(p.clip, 0.0)[p.rig.joints]
     w1 = p.rig.world_matrices(p.clip, p.times[-1])[p.rig.joints]
     names = p.joint_names

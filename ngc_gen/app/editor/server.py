@@ -3,8 +3,8 @@
 Scene: the shape's mesh, its GCs drawn translucent, every control point as a dot and the
 selected GC's control points as draggable handles (transform controls). Panel: GC and key
 choice, radius and twist sliders, stretch, pose, part mixing, sample / A<->B interpolation for a
-generation run, undo / redo, save program, export mesh, and a message line. Each control calls
-one session interaction; the session accepts or refuses it (the message says why) and the scene
+generation run, undo / redo, save program, export mesh (PLY) or glb (a rigged glTF through
+`ngc_gen.export`), and a message line. Each control calls one session interaction; the session accepts or refuses it (the message says why) and the scene
 and controls are then set from the session's state, so a refused drag or slider springs back to
 the last valid shape. Callbacks never raise: the server outlives any interaction.
 """
@@ -178,6 +178,7 @@ class EditorServer:
             self.redo_button = gui.add_button("redo")
             self.save_button = gui.add_button("save program")
             self.export_button = gui.add_button("export mesh")
+            self.export_glb_button = gui.add_button("export glb")
             self.ops_view = gui.add_markdown("")
 
         self.shape_menu.on_update(self._on_shape)
@@ -195,6 +196,7 @@ class EditorServer:
         self.redo_button.on_click(self._on_redo)
         self.save_button.on_click(self._on_save)
         self.export_button.on_click(self._on_export)
+        self.export_glb_button.on_click(self._on_export_glb)
 
     def say(self, text: str) -> None:
         self.message.content = text
@@ -406,6 +408,14 @@ class EditorServer:
     def _on_export(self, _):
         self.say(self.session.export_mesh(self.out_dir / "mesh.ply",
                                           int(self.editor.refine_resolution)).message)
+
+    @_guard
+    def _on_export_glb(self, _):
+        from ..stages.export_shape import default_parents
+
+        self.say(self.session.export_glb(self.out_dir / "shape.glb",
+                                         int(self.editor.refine_resolution),
+                                         default_parents(self.session.shape.gc_names)).message)
 
     @_guard
     def _on_sample(self, _):

@@ -385,6 +385,22 @@ class EditorSession:
         return Outcome(True, self.message, (path,))
 
 
+    def export_glb(self, path, resolution: int, parents: dict | None = None) -> Outcome:
+        """Write the current shape at `resolution` as a rigged glTF binary through the
+        exporter `sample.py mode=export` runs (`ngc_gen.export.export_shape`, its other
+        settings conf/mode/export.yaml's): the mesh `export_mesh` writes, the GC chains as its
+        skeleton (joined by `parents`, GC name -> parent name; None: inferred), no clip."""
+        from ngc_gen.export import ExportSettings, export_shape
+
+        version, shape = self.snapshot()
+        settings = ExportSettings.from_yaml(resolution=int(resolution))
+        summary, _, _ = export_shape(shape, Path(path), settings, parents,
+                                     mesh=self.mesh(resolution, shape, version).mesh)
+        self.message = (f"exported {summary['joints']} joints, {summary['vertices']} vertices "
+                        f"to {path}")
+        return Outcome(True, self.message, (Path(path),))
+
+
 def describe(op: dict) -> str:
     """A short label of an op for messages: `scale arm t=0.5 factor=1.2`."""
     parts = [op["op"], str(op.get("gc"))]

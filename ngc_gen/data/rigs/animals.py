@@ -42,7 +42,7 @@ REST = "rest"
 
 @functools.lru_cache(maxsize=4)
 def _rig(path: str):
-    """A worker process reads each GLB once (pygltflib takes about a second per file)."""
+    """A worker process reads each GLB once (a fraction of a second per file)."""
     return load_gltf_rig(path)
 
 

@@ -1,4 +1,5 @@
-"""Read a skinned glTF 2.0 / GLB file into a `Rig` (pygltflib reads the JSON and buffers).
+"""Read a skinned glTF 2.0 / GLB file into a `Rig` (`gltf_json.read_gltf` reads the JSON and
+buffers).
 
 What is read: every node (name, parent, rest translation / rotation / scale, or a matrix), the
 first skin (joints, inverse bind matrices), every mesh primitive of the nodes that use that skin
@@ -15,6 +16,7 @@ import numpy as np
 
 from ngc_gen.data.errors import DataError
 
+from .gltf_json import read_gltf
 from .rig import INTERPOLATIONS, PATHS, Channel, Clip, Rig, matrix_trs
 
 _COMPONENTS = {5120: np.int8, 5121: np.uint8, 5122: np.int16, 5123: np.uint16, 5125: np.uint32,
@@ -22,15 +24,6 @@ _COMPONENTS = {5120: np.int8, 5121: np.uint8, 5122: np.int16, 5123: np.uint16, 5
 _WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
 _NORM = {5120: 127.0, 5121: 255.0, 5122: 32767.0, 5123: 65535.0}
 _FIX = "re-export the rig as a glTF 2.0 binary (.glb) with its skin and animations"
-
-
-def _gltf_module():
-    try:
-        import pygltflib
-    except ImportError as e:  # a broken install: say what to run
-        raise DataError("pygltflib is not installed", field="rigs",
-                        fix="pip install pygltflib (a dependency of ngc-gen: pip install -e .)") from e
-    return pygltflib
 
 
 class _Reader:
@@ -102,10 +95,9 @@ def load_gltf_rig(path: str | os.PathLike) -> Rig:
     source = os.fspath(path)
     if not path.is_file():
         raise DataError("rig file not found", path=source, fix="check the path")
-    pygltflib = _gltf_module()
     try:
-        g = pygltflib.GLTF2().load(source)
-    except Exception as e:  # pygltflib raises many kinds on a bad file
+        g = read_gltf(source)
+    except Exception as e:  # json, struct and unicode errors on a bad file
         raise DataError(f"could not read the glTF ({type(e).__name__}: {str(e)[:120]})",
                         path=source, fix=_FIX) from None
     if g is None or not g.nodes:

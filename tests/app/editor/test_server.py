@@ -144,3 +144,25 @@ def test_the_shape_casts_no_shadow_by_default(server):
     server._show_mesh(99, 16, SimpleNamespace(mesh=trimesh.creation.box()), 0.01)
     props = server.server.scene._handle_from_node_name["/shape"]._impl.props
     assert props.cast_shadow is False and props.receive_shadow is False
+
+
+def test_export_glb_button_writes_the_current_shape(server, tmp_path):
+    """The panel's export glb button writes shape.glb: the current (edited) shape's mesh with
+    its GC chains as the skeleton, as sample.py mode=export writes it."""
+    from ngc_gen.export import Playback
+    from ngc_gen.export.validator import validate, validator_available
+
+    s = server.session
+    server.select("arm")
+    user_sets(server.twist, 30.0)
+    for cb in server.export_glb_button._impl.update_cb:  # what a click on the page runs
+        cb(SimpleNamespace(client=USER, target=server.export_glb_button))
+    out = tmp_path / "shape.glb"
+    assert server.message.content.startswith("exported ") and out.is_file(), \
+        server.message.content
+    p = Playback(out)
+    assert p.joint_names[:2] == ["body_0", "body_1"] and len(p.joint_names) == 3 * 4
+    mesh = s.mesh(24).mesh  # the editor's refine resolution: the mesh it shows, edited
+    assert np.allclose(p.vertices(), mesh.vertices, atol=1e-6)
+    if validator_available():
+        assert validate(out)["errors"] == 0
