@@ -261,13 +261,13 @@ def _hugging(pl: Placing, ordered: list[GeneralizedCylinder],
 
 def _covering(pl: Placing, owner: np.ndarray) -> list[GeneralizedCylinder]:
     """The GCs in template order grown to cover (`_grown`); the root must be a tube (step 5),
-    judged by its radii as its own samples size them (hugging: before they are refitted)."""
+    judged by its radii as grown (hugging: also before they are refitted)."""
     names = pl.template.names
     root = next(n for n in names if pl.template.gc(n).parent is None)
     if pl.st.hug and root in pl.paths:
         _check_tube(pl, root, pl.gcs[root])
     ordered = _grown(pl, owner)
-    if not pl.st.hug and root in pl.paths:
+    if root in pl.paths:  # and as grown to cover: a seat's torso is wide where it is thin
         _check_tube(pl, root, ordered[names.index(root)])
     return ordered
 
