@@ -61,15 +61,17 @@ def tube_decoder_(decoder, feature_scale: float = 0.25, seed: int = 0):
     return decoder
 
 
-def make_module(seed: int = 0, shapes=("one", "two")) -> AutoDecoder:
-    """An AutoDecoder with len(shapes) shapes of the three test GCs and tube weights."""
+def make_module(seed: int = 0, shapes=("one", "two"), gc_dicts=None) -> AutoDecoder:
+    """An AutoDecoder with len(shapes) shapes, each of `gc_dicts` (default: the three test GCs),
+    and tube weights."""
+    gc_dicts = GC_DICTS if gc_dicts is None else gc_dicts
     torch.manual_seed(seed)
     metas, off = [], 0
     for name in shapes:
-        ann = {"name": name, "mesh": "unused.ply", "normalize": {"bound": 0.8}, "gcs": GC_DICTS}
-        metas.append({"name": name, "code_offset": off, "n_codes": len(GC_DICTS),
+        ann = {"name": name, "mesh": "unused.ply", "normalize": {"bound": 0.8}, "gcs": gc_dicts}
+        metas.append({"name": name, "code_offset": off, "n_codes": len(gc_dicts),
                       "annotation_yaml": yaml.safe_dump(ann, sort_keys=False)})
-        off += len(GC_DICTS)
+        off += len(gc_dicts)
     module = AutoDecoder(kind="ngc", decoder=dict(SIZES), n_codes=off, lr=0.0, code_init_std=1.0,
                          meta={"shapes": metas})
     tube_decoder_(module.decoder)

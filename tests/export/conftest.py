@@ -4,12 +4,10 @@ and the automatic GCs of a small tube mesh; a config composer for `sample.py mod
 from __future__ import annotations
 
 import pytest
-import torch
-import yaml
 
 from ngc_gen.lit.autodecoder import AutoDecoder
 
-from ..edit.conftest import GC_DICTS, SIZES, save_checkpoint, tube_decoder_
+from ..edit.conftest import GC_DICTS, make_module, save_checkpoint
 from ..helpers import compose_config
 
 #: the edit tests' GCs renamed after the quadruped template (datasets/animals/quadruped.yaml)
@@ -19,17 +17,7 @@ SMALL = ["export.resolution=32", "export.joints_per_gc=3", "export.picture=false
 
 def module_of(gc_dicts, shapes=("one",), seed=0) -> AutoDecoder:
     """An AutoDecoder holding `shapes`, each with GCs `gc_dicts`, with tube weights."""
-    torch.manual_seed(seed)
-    metas, off = [], 0
-    for name in shapes:
-        ann = {"name": name, "mesh": "unused.ply", "normalize": {"bound": 0.8}, "gcs": gc_dicts}
-        metas.append({"name": name, "code_offset": off, "n_codes": len(gc_dicts),
-                      "annotation_yaml": yaml.safe_dump(ann, sort_keys=False)})
-        off += len(gc_dicts)
-    module = AutoDecoder(kind="ngc", decoder=dict(SIZES), n_codes=off, lr=0.0,
-                         code_init_std=1.0, meta={"shapes": metas})
-    tube_decoder_(module.decoder)
-    return module.eval()
+    return make_module(seed, shapes, gc_dicts)
 
 
 def _saved(tmp_path_factory, module, name):
