@@ -18,7 +18,9 @@ from .weights import skin_weights
 class ExportSettings:
     """joints_per_gc: joints along each GC; resolution: the mesh grid; blend, falloff: the skin
     weights' widths (`weights.skin_weights`); correctives: store the morph targets; newton_steps,
-    fd_step, max_step, tolerance: their projection (`correctives.corrective_offsets`); colors: COLOR_0 by GC;
+    fd_step, max_step, tolerance: their projection (`correctives.corrective_offsets`);
+    fold_rounds, fold_stretch, fold_off: the fins of folds smoothed away (`correctives.unfold`);
+    colors: COLOR_0 by GC;
     max_key_degrees: in-between joint keys beyond this turn (`glb_writer.in_between_keys`). No
     defaults here: conf/mode/export.yaml's `export:` block is their one source."""
 
@@ -31,6 +33,9 @@ class ExportSettings:
     fd_step: float
     max_step: float
     tolerance: float
+    fold_rounds: int
+    fold_stretch: float
+    fold_off: float
     colors: bool
     max_key_degrees: float
 
@@ -122,11 +127,13 @@ def content(r: Rigged, clip: Clip | None, settings: ExportSettings) -> tuple[GLB
         t0 = time.perf_counter()
         inv = np.linalg.inv(r.rest)
         offsets = []
+        fold = {"rounds": settings.fold_rounds, "stretch": settings.fold_stretch,
+                "off": settings.fold_off}
         for k, posed in enumerate(clip.shapes):  # keyframes
-            d, _ = corrective_offsets(r.vertices, r.normals, r.joints, r.weights,
+            d, _ = corrective_offsets(r.vertices, r.normals, r.faces, r.joints, r.weights,
                                       clip.world[k] @ inv, lambda p, s=posed: s.sdf(p).numpy(),
                                       settings.newton_steps, settings.fd_step, settings.max_step,
-                                      settings.tolerance)
+                                      settings.tolerance, fold)
             offsets.append(d)
         c.morph = np.stack(offsets)
         c.morph_weights = np.eye(len(offsets))

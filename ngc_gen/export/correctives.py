@@ -7,8 +7,11 @@ bracket once the sign changes (regula falsi), one field value a step, stopping a
 A vertex already within tol costs one field value; one that does not settle (no root near
 it along its normal) takes Newton steps along the field's gradient (`project`; the gradient
 by finite differences: the field's relative coordinates come from a closest-point solve, not
-autograd). A glTF morph target is added before skinning, so the stored offset is in bind
-space: with the vertex's blended affine map x' = A v + b, the offset d solves A d = y - x'.
+autograd). Where skinning folds a joint's inside into its neighbour, adjacent vertices' rays
+reach different sheets of the posed surface and the faces between them span the crease off it
+(`unfold` smooths those fins away). A glTF morph target is added before skinning, so the stored
+offset is in bind space: with the vertex's blended affine map x' = A v + b, the offset d solves
+A d = y - x'.
 """
 from __future__ import annotations
 
@@ -138,18 +141,62 @@ def along_line(sdf, x: np.ndarray, d: np.ndarray, f0: np.ndarray, steps: int,
     return x + best[:, None] * d, (fbest <= tol) | bracketed
 
 
+def _neighbour_mean(faces: np.ndarray, n: int):
+    """(n, n) sparse row-stochastic matrix: each vertex's mean over its edge neighbours."""
+    import scipy.sparse as sp
+
+    e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+    a = sp.coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n, n)).tocsr()
+    a = ((a + a.T) > 0).astype(np.float64)
+    deg = np.maximum(np.asarray(a.sum(1)).ravel(), 1.0)
+    return sp.diags(1.0 / deg) @ a
+
+
+def _longest_edge(p: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    return np.linalg.norm(p[faces[:, [1, 2, 0]]] - p[faces], axis=2).max(1)
+
+
+def unfold(sdf, x: np.ndarray, y: np.ndarray, faces: np.ndarray, rest_edge: np.ndarray,
+           fold: dict, steps: int, h: float, max_step: float, tol: float) -> np.ndarray:
+    """y (V, 3), skinned vertices x moved onto the zero set, with the fins of folds smoothed
+    away. Where skinning folds a joint's inside into its neighbour (a hind leg swung back into
+    the torso), adjacent vertices' normal rays reach different sheets of the posed surface (the
+    leg's, the torso's) and the faces between them span the crease, off the surface: a few
+    dozen such faces held most of a walk frame's Chamfer. A face is a fin when its longest edge
+    grew more than fold["stretch"] x over skinning's and its centroid is off the zero set by
+    more than fold["off"] x its mean rest edge `rest_edge` (F,) (only stretched faces are
+    evaluated); its vertices take their edge neighbours' mean offset y - x (the offset field
+    smoothed, not the positions: thin parts do not shrink) and are projected onto the zero set
+    again (`project`), fold["rounds"] times."""
+    y = np.array(y, dtype=np.float64)
+    mean = _neighbour_mean(faces, len(x))
+    skin_edge = _longest_edge(x, faces)
+    for _ in range(int(fold["rounds"])):
+        cand = np.flatnonzero(_longest_edge(y, faces) > fold["stretch"] * skin_edge)
+        if not len(cand):
+            break
+        off = np.abs(np.asarray(sdf(y[faces[cand]].mean(1)), np.float64))
+        fins = cand[off > fold["off"] * rest_edge[cand]]
+        if not len(fins):
+            break
+        v = np.unique(faces[fins])
+        y[v] = project(sdf, x[v] + mean[v] @ (y - x), steps, h, max_step, tol)
+    return y
+
+
 def skinned_normals(normals: np.ndarray, M: np.ndarray) -> np.ndarray:
     """(V, 3) rest normals through the blended maps M (V, 4, 4): A^-T n, unit."""
     n = np.linalg.solve(np.swapaxes(M[:, :3, :3], 1, 2), normals[:, :, None])[:, :, 0]
     return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
 
 
-def corrective_offsets(vertices: np.ndarray, normals: np.ndarray, joints: np.ndarray,
-                       weights: np.ndarray, skin: np.ndarray, sdf, steps: int, h: float,
-                       max_step: float, tol: float) -> tuple[np.ndarray, np.ndarray]:
+def corrective_offsets(vertices: np.ndarray, normals: np.ndarray, faces: np.ndarray,
+                       joints: np.ndarray, weights: np.ndarray, skin: np.ndarray, sdf,
+                       steps: int, h: float, max_step: float, tol: float,
+                       fold: dict) -> tuple[np.ndarray, np.ndarray]:
     """(offsets (V, 3) in bind space, target (V, 3) posed positions) of one keyframe: rest
-    vertices and normals (V, 3), skin matrices `skin` (J, 4, 4), `sdf` the posed shape's field
-    (points (N, 3) -> (N,))."""
+    vertices and normals (V, 3), faces (F, 3), skin matrices `skin` (J, 4, 4), `sdf` the posed
+    shape's field (points (N, 3) -> (N,)), `fold` `unfold`'s settings (rounds 0: off)."""
     from ngc_gen.shape.shape import OUTSIDE
 
     M = blended(joints, weights, skin)
@@ -161,5 +208,7 @@ def corrective_offsets(vertices: np.ndarray, normals: np.ndarray, joints: np.nda
         z = project(sdf, x[bad], steps, h, max_step, tol)
         gain = np.abs(np.asarray(sdf(z), np.float64)) < np.abs(f0[bad])
         y[bad[gain]] = z[gain]  # a point it cannot bring nearer the surface keeps skinning's
+    rest_edge = np.linalg.norm(vertices[faces[:, [1, 2, 0]]] - vertices[faces], axis=2).mean(1)
+    y = unfold(sdf, x, y, faces, rest_edge, fold, steps, h, max_step, tol)
     d = np.linalg.solve(M[:, :3, :3], (y - x)[:, :, None])[:, :, 0]
     return d, y

@@ -86,10 +86,11 @@ def check_export(cfg) -> dict:
     config_number(cfg, "export.joints_per_gc", integer=True, minimum=1)
     config_number(cfg, "export.frames", integer=True, minimum=2)
     config_number(cfg, "export.resolution", integer=True, minimum=16)
-    for key in ("export.newton_steps",):
+    for key in ("export.newton_steps", "export.fold_rounds"):
         config_number(cfg, key, integer=True, minimum=0)
     for key in ("export.blend", "export.falloff", "export.fd_step", "export.max_step",
-                "export.tolerance", "export.seconds_per_step"):
+                "export.tolerance", "export.fold_stretch", "export.fold_off",
+                "export.seconds_per_step"):
         config_number(cfg, key, minimum=0)
     config_number(cfg, "export.max_key_degrees", minimum=0, strict_minimum=True)
     out = _out_path(cfg, name)
