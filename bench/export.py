@@ -17,9 +17,11 @@ bytes, export seconds (mesh, skeleton, skin, clip, correctives, write: the libra
 
 Posed frames: at chosen keyframes, the file played back by the glTF rules (`Playback`; skinning
 alone: morph weights 0) against NGC's own mesh of that pose (the posed shape meshed at the same
-resolution): squared Chamfer (`mesh_chamfer`, 10k points each way) and normal consistency. The
-metric's sampling floor per frame is the Chamfer between NGC's meshes of the pose at resolution R
-and R + 1 (what two correct meshings of one surface differ by); a frame counts when skinning's
+resolution): squared Chamfer (`mesh_chamfer`, 10k points each way) and normal consistency, and
+the corrective pose's two halves of the Chamfer apart (file -> NGC: the exported surface off
+NGC's; NGC -> file: NGC's surface the exported mesh does not cover, which no vertex move can
+fix where the topologies differ). The metric's sampling floor per frame is the Chamfer between
+NGC's meshes of the pose at resolution R and R + 1 (what two correct meshings of one surface differ by); a frame counts when skinning's
 own Chamfer is at least 10 x that floor. Target: with correctives the Chamfer is <= 1/5 of
 skinning's on every counted frame. Also the bad-input commands' exit codes and seconds.
 
@@ -83,6 +85,17 @@ def _surface(mesh, n, seed):
     return sample_surface(mesh, n, seed)
 
 
+def _one_way(src, dst, n: int) -> float:
+    """Mean squared distance from n points on `src` to `dst`'s surface (`mesh_chamfer`'s half,
+    the same samples)."""
+    import trimesh
+
+    from ngc_gen.eval.fitting import point_mesh_distance
+
+    pts, _ = trimesh.sample.sample_surface(src, int(n), seed=0)
+    return float((point_mesh_distance(pts, dst) ** 2).mean())
+
+
 def frame_metrics(path: Path, clip, k: int, faces, resolution: int) -> dict:
     import trimesh
 
@@ -96,11 +109,14 @@ def frame_metrics(path: Path, clip, k: int, faces, resolution: int) -> dict:
     rp, rn = _surface(ref, 10_000, 0)
     out = {"keyframe": k, "time": round(t, 4),
            "floor": mesh_chamfer(ref, ref2, n=10_000)}
-    for key, morph in (("skin", False), ("corrective", True)):
-        m = trimesh.Trimesh(p.vertices(t, morph=morph), faces, process=False)
+    meshes = {key: trimesh.Trimesh(p.vertices(t, morph=morph), faces, process=False)
+              for key, morph in (("skin", False), ("corrective", True))}
+    for key, m in meshes.items():
         pp, pn = _surface(m, 10_000, 1)
         out[f"chamfer_{key}"] = mesh_chamfer(m, ref, n=10_000)
         out[f"nc_{key}"] = normal_consistency(pp, pn, rp, rn)
+    out["corrective_to_ngc"] = _one_way(meshes["corrective"], ref, 10_000)
+    out["ngc_to_corrective"] = _one_way(ref, meshes["corrective"], 10_000)
     out["counted"] = bool(out["chamfer_skin"] >= FLOOR_FACTOR * out["floor"])
     out["ratio"] = out["chamfer_corrective"] / max(out["chamfer_skin"], 1e-300)
     return out
@@ -233,6 +249,14 @@ def table(r: dict) -> str:
                   f"{r['target_ratio']:g} on every counted frame: "
                   f"{'met' if r['ratio_met'] else 'not met'} (worst "
                   f"{r['max_ratio_counted']:.2f} over {r['frames_counted']} frames)."]
+    if all("ngc_to_corrective" in f for f in r["frames"]):
+        f = max(r["frames"], key=lambda f: f["ngc_to_corrective"] / f["floor"])
+        share = [g["corrective_to_ngc"] / g["chamfer_corrective"] for g in r["frames"]]
+        lines += ["", f"With correctives, NGC's surface the file does not cover (the Chamfer's "
+                      f"NGC -> file half) is at most {f['ngc_to_corrective'] / f['floor']:.2f} x "
+                      f"the frame's floor (`{f['shape']}` keyframe {f['keyframe']}); the file's "
+                      f"surface off NGC's (file -> NGC) holds {min(share):.0%}-{max(share):.0%} "
+                      f"of the corrective Chamfer."]
     if r.get("animal_export_s"):
         lines += ["", f"An animal with a {r['animal_keyframes']}-keyframe clip exported in "
                       f"{min(r['animal_export_s']):.1f}-{max(r['animal_export_s']):.1f} s "
