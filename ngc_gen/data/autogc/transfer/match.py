@@ -21,6 +21,8 @@ MAX_ATTACH = 3.0   # at most this much: a galloping animal's skeleton may join i
 W_THICKNESS = 0.5  # weight of log(thickness ratio)^2
 BEYOND = 1e3       # the cost of a free end above where a leg attaches (second pass)
 LEG_DOWN = 0.5     # a limb whose place ends this much lower than it starts is a leg
+W_SHORT = 1.0      # second pass: weight of log(branch length / the GC's template length)^2 for
+                   # a shorter branch: a spur inside the body, within a tail's reach, is no tail
 
 
 def _children(template: Template) -> dict[str, list[str]]:
@@ -80,6 +82,7 @@ def match_cost(template: Template, tree: Tree, body: BodyFrame, leaf_gcs: list[s
     # GC's radius the enclosing one: only their ratios to the body compare)
     r_mesh = tree.branch_r[tree.branch_of[leaves]] / float(tree.radius[tree.main].max())
     r_root = max(g.place["radius"] for g in template.gcs)
+    long = branch_lengths(tree)[tree.branch_of[leaves]]
     at_front = body.to_body(tree.branch_root[tree.branch_of[leaves]])[:, 0]  # (L,)
     C = np.zeros((len(leaf_gcs), len(leaves)))
     for i, name in enumerate(leaf_gcs):
@@ -111,9 +114,20 @@ def match_cost(template: Template, tree: Tree, body: BodyFrame, leaf_gcs: list[s
             pos = ((at - length) / SIGMA_TIP) ** 2 + side + np.where(up, BEYOND, 0.0)
         else:
             pos = (((tip - end) / sigma) ** 2).sum(1)
+        short = np.minimum(np.log(np.maximum(long, 1e-9) / max(body.length(end - start), 1e-9)),
+                           0.0) if reach else 0.0
         C[i] = (pos + W_ATTACH * att + W_DIRECTION * (1.0 - d_mesh @ d_t)
-                + W_THICKNESS * np.log(np.maximum(r_mesh, 1e-6) / (pl["radius"] / r_root)) ** 2)
+                + W_THICKNESS * np.log(np.maximum(r_mesh, 1e-6) / (pl["radius"] / r_root)) ** 2
+                + W_SHORT * short ** 2)
     return C
+
+
+def branch_lengths(tree: Tree) -> np.ndarray:
+    """(B,) arc length of each branch of the tree (its edges within the branch)."""
+    G = tree.graph.tocoo()
+    same = tree.branch_of[G.row] == tree.branch_of[G.col]
+    return np.bincount(tree.branch_of[G.row[same]], weights=G.data[same],
+                       minlength=len(tree.branch_r)) / 2.0
 
 
 def _front_to_back(template: Template, tree: Tree, body: BodyFrame,
