@@ -21,6 +21,8 @@ MAX_ATTACH = 3.0   # at most this much: a galloping animal's skeleton may join i
 W_THICKNESS = 0.5  # weight of log(thickness ratio)^2
 BEYOND = 1e3       # the cost of a free end above where a leg attaches (second pass)
 LEG_DOWN = 0.5     # a limb whose place ends this much lower than it starts is a leg
+END_REACH = 1.5    # a chain's path passing this x SIGMA_TIP from where its template part ends
+                   # ends the template's part there (_template_end)
 W_SHORT = 1.0      # second pass: weight of log(branch length / the GC's template length)^2 for
                    # a shorter branch: a spur inside the body, within a tail's reach, is no tail
 
@@ -180,6 +182,18 @@ def _split_by(arc: np.ndarray, fractions: list[float]) -> list[int]:
     return [0] + [int(np.clip(np.searchsorted(arc, c), 1, len(arc) - 2)) for c in cuts] + [len(arc) - 1]
 
 
+def _template_end(path: list[int], nodes: np.ndarray, body: BodyFrame, place: dict) -> int:
+    """The index on a chain's path (junction -> tip) where the template's chain ends: the node
+    nearest its last GC's place end when within END_REACH x SIGMA_TIP of it (body units, twice
+    that across) and the tip is not (the path runs on away from there), else the tip. What runs
+    on past it (an elephant's trunk) is the last GC's, and the chain is cut by the template's
+    lengths up to there only."""
+    off = (body.to_body(nodes[path]) - np.asarray(place["end"])) / (SIGMA_TIP * np.array([1.0, 2.0, 1.0]))
+    d = np.linalg.norm(off, axis=1)
+    k = int(np.argmin(d))
+    return k if d[k] <= END_REACH < d[-1] and k > 0 else len(path) - 1
+
+
 def _bend_near(P: np.ndarray, arc: np.ndarray, i: int, window: float = 0.2) -> int:
     """The index within `window` x the path's length of i where the path (P, 3) bends most
     (the angle between the chords over that window before and after): a neck meets its head
@@ -337,7 +351,9 @@ def _paths(template: Template, tree: Tree, body: BodyFrame,
         chain = chain[::-1]                                           # top -> leaf
         lengths = [body.length(np.subtract(template.gc(c).place["end"],
                                            template.gc(c).place["start"]) / 1.0) for c in chain]
-        cut = _split_by(arc, lengths) if len(own) > len(chain) else \
+        k = _template_end(own, tree.nodes, body, template.gc(chain[-1]).place) \
+            if len(chain) > 1 else len(own) - 1
+        cut = _split_by(arc[: k + 1], lengths)[:-1] + [len(own) - 1] if k + 1 > len(chain) else \
             list(np.linspace(0, len(own) - 1, len(chain) + 1).astype(int))
         cut = [cut[0]] + [_bend_near(tree.nodes[own], arc, c) for c in cut[1:-1]] + [cut[-1]]
         cut = _before_side_branches(np.asarray(own), arc, cut, tree.degree)
