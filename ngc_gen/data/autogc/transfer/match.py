@@ -21,10 +21,12 @@ MAX_ATTACH = 3.0   # at most this much: a galloping animal's skeleton may join i
 W_THICKNESS = 0.5  # weight of log(thickness ratio)^2
 BEYOND = 1e3       # the cost of a free end above where a leg attaches (second pass)
 LEG_DOWN = 0.5     # a limb whose place ends this much lower than it starts is a leg
+SIDE_SLACK = 0.05  # a left limb's free end lies at most this far (body units) right of the middle
 END_REACH = 1.5    # a chain's path passing this x SIGMA_TIP from where its template part ends
                    # ends the template's part there (_template_end)
-W_SHORT = 1.0      # second pass: weight of log(branch length / the GC's template length)^2 for
-                   # a shorter branch: a spur inside the body, within a tail's reach, is no tail
+W_SHORT = 1.0      # second pass, a part on the mid-plane: weight of log(branch length / the
+                   # GC's template length)^2 for a shorter branch: a spur inside the hip, within
+                   # a tail's reach, is no tail (a leg's branch may end where a bunched leg joins)
 
 
 def _children(template: Template) -> dict[str, list[str]]:
@@ -84,7 +86,7 @@ def match_cost(template: Template, tree: Tree, body: BodyFrame, leaf_gcs: list[s
     # GC's radius the enclosing one: only their ratios to the body compare)
     r_mesh = tree.branch_r[tree.branch_of[leaves]] / float(tree.radius[tree.main].max())
     r_root = max(g.place["radius"] for g in template.gcs)
-    long = branch_lengths(tree)[tree.branch_of[leaves]]
+    long = branch_lengths(tree)[tree.branch_of[leaves]] if reach else None
     at_front = body.to_body(tree.branch_root[tree.branch_of[leaves]])[:, 0]  # (L,)
     C = np.zeros((len(leaf_gcs), len(leaves)))
     for i, name in enumerate(leaf_gcs):
@@ -117,7 +119,7 @@ def match_cost(template: Template, tree: Tree, body: BodyFrame, leaf_gcs: list[s
         else:
             pos = (((tip - end) / sigma) ** 2).sum(1)
         short = np.minimum(np.log(np.maximum(long, 1e-9) / max(body.length(end - start), 1e-9)),
-                           0.0) if reach else 0.0
+                           0.0) if reach and template.gc(name).symmetric is None else 0.0
         C[i] = (pos + W_ATTACH * att + W_DIRECTION * (1.0 - d_mesh @ d_t)
                 + W_THICKNESS * np.log(np.maximum(r_mesh, 1e-6) / (pl["radius"] / r_root)) ** 2
                 + W_SHORT * short ** 2)
@@ -274,7 +276,29 @@ def _assign(template: Template, tree: Tree, body: BodyFrame, settings: TransferS
         for r, c in zip(*linear_sum_assignment(C2)):
             if C2[r, c] < settings.missing_cost:
                 assign[left_gcs[r]] = int(free[c])
+    assign = _on_sides(template, tree, body, assign)
+    if len(assign) < max(need, 2):
+        raise DataError(f"does not match template {template.name} ({template.source}): "
+                        f"{len(assign)} of {T} limbs matched on their own sides, need "
+                        f"{max(need, 2)}", path=where, field="annotate.template",
+                        fix="annotate this mesh with a template of its kind (or by hand), or "
+                            "give its frame (frame: {up: +y, front: -z} in its YAML)")
     return _front_to_back(template, tree, body, assign), cost
+
+
+def _on_sides(template: Template, tree: Tree, body: BodyFrame,
+              assign: dict[str, int]) -> dict[str, int]:
+    """The assignment without the limbs of a symmetric pair whose free end lies more than
+    SIDE_SLACK (body units) across the mid-plane from the side the template puts them on (a
+    spur under the right shoulder taken for the left leg when the legs' ends are not free):
+    such a limb is missing, and stands in on its own side, rather than named on the other."""
+    out = dict(assign)
+    for n, leaf in assign.items():
+        side = float(template.gc(n).place["end"][1])
+        if template.gc(n).symmetric is not None and abs(side) >= SIDE_SLACK and \
+                body.to_body(tree.nodes[leaf])[1] * np.sign(side) < -SIDE_SLACK:
+            del out[n]
+    return out
 
 
 def correspond(template: Template, tree: Tree, body: BodyFrame, settings: TransferSettings,

@@ -133,6 +133,19 @@ def _try(ctx, o: Orientation, refine: bool) -> Trial:
     return best
 
 
+def ground_up(feet: np.ndarray, up: np.ndarray) -> np.ndarray | None:
+    """The normal (on `up`'s side) of the plane the feet (K, 3), K >= 4, lie on, when they lie
+    on one (the least spread across it at most LEVEL_FLAT x the next) tilted from `up` within
+    LEVEL_DEG; else None."""
+    if len(feet) < 4:
+        return None
+    _, s, Vt = np.linalg.svd(feet - feet.mean(0))
+    n = Vt[2] * (np.sign(Vt[2] @ up) or 1.0)
+    tilt = float(np.degrees(np.arccos(np.clip(n @ up, -1.0, 1.0))))
+    ok = s[2] <= LEVEL_FLAT * s[1] and LEVEL_DEG[0] <= tilt <= LEVEL_DEG[1]
+    return n if ok else None
+
+
 def _levelled(ctx, trial: Trial) -> Trial:
     """The trial turned so that its matched feet (the legs' ends) lie on one level plane, the
     ground, when they do lie on one (4+ feet within LEVEL_FLAT) tilted within LEVEL_DEG: kept
@@ -145,14 +158,13 @@ def _levelled(ctx, trial: Trial) -> Trial:
             template.gc(n).place["start"][2] - template.gc(n).place["end"][2] >= LEG_DOWN]
     if len(feet) < 4:
         return trial
-    P = tree.nodes[[int(paths[n][-1]) for n in feet]]
-    _, s, Vt = np.linalg.svd(P - P.mean(0))
-    up, o = Vt[2] * np.sign(Vt[2] @ trial.orientation.up), trial.orientation
-    tilt = float(np.degrees(np.arccos(np.clip(up @ o.up, -1.0, 1.0))))
-    if s[2] > LEVEL_FLAT * s[1] or not LEVEL_DEG[0] <= tilt <= LEVEL_DEG[1]:
+    o = trial.orientation
+    up = ground_up(tree.nodes[[int(paths[n][-1]) for n in feet]], o.up)
+    if up is None:
         return trial
     axis = np.cross(o.up, up)
-    R = Rotation.from_rotvec(axis / np.linalg.norm(axis) * np.radians(tilt)).as_matrix()
+    angle = np.arccos(np.clip(up @ o.up, -1.0, 1.0))
+    R = Rotation.from_rotvec(axis / np.linalg.norm(axis) * angle).as_matrix()
     level = _try(ctx, Orientation(up, R @ o.front, o.source), refine=False)
     same = all(_ends(level).get(n) == _ends(trial)[n] for n in feet)
     return level if level.failed is None and same else trial
