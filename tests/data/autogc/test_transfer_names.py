@@ -107,7 +107,8 @@ def test_feet_on_a_tilted_plane_give_the_ground(template):
     raised[0, 2] += 0.6
     assert ground_up(raised @ R.T, up) is None
     assert ground_up(feet, up) is None                              # level already
-    steep = Rotation.from_rotvec(np.radians(LEVEL_DEG[1] + 10.0) * np.array([0, 1.0, 0])).as_matrix()
+    steep = Rotation.from_rotvec(np.radians(LEVEL_DEG[1] + 10.0) * np.array([0, 1.0, 0]))
+    steep = steep.as_matrix()
     assert ground_up(feet @ steep.T, up) is None
     assert ground_up(feet[:3] @ R.T, up) is None
 

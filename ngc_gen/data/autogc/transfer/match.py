@@ -190,8 +190,8 @@ def _template_end(path: list[int], nodes: np.ndarray, body: BodyFrame, place: di
     that across) and the tip is not (the path runs on away from there), else the tip. What runs
     on past it (an elephant's trunk) is the last GC's, and the chain is cut by the template's
     lengths up to there only."""
-    off = (body.to_body(nodes[path]) - np.asarray(place["end"])) / (SIGMA_TIP * np.array([1.0, 2.0, 1.0]))
-    d = np.linalg.norm(off, axis=1)
+    off = body.to_body(nodes[path]) - np.asarray(place["end"])
+    d = np.linalg.norm(off / (SIGMA_TIP * np.array([1.0, 2.0, 1.0])), axis=1)
     k = int(np.argmin(d))
     return k if d[k] <= END_REACH < d[-1] and k > 0 else len(path) - 1
 

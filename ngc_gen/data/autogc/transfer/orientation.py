@@ -7,7 +7,8 @@ detected candidate is matched, turned to the frame its matched parts imply (``fr
 every matched GC's path direction against its template place's), snapped to the signed world
 axes when within SNAP_DEG of them, and matched again; then checked (``verify``). The given
 axes are kept when they pass and cost at most PRIOR_SLACK more than the best detected frame,
-else overruled with a warning. Nothing passes: DataError naming the failed check.
+else overruled with a warning. A detected frame is then levelled on its matched feet
+(``_levelled``). Nothing passes: DataError naming the failed check.
 """
 from __future__ import annotations
 
