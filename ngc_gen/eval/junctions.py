@@ -29,7 +29,7 @@ metrics average away. Conventions (distances in the meshes' own units):
   junctions (torso to neck and legs) are broad and smooth while elsewhere holds the hooves,
   ears and face, so even the exact SDF meshed at 256^3 scores 0.78-0.82 there, and a fit
   whose error is 20x the grid's is held to the grid's curvature mix. The local ratio asks
-  whether a junction is worse than the parts that meet at it (the grid's own: 0.89-0.99 on
+  whether a junction is worse than the parts that meet at it (the grid's own: 0.85-0.99 on
   the animals).
 - ``extra_pieces``: the fit's pieces beyond the truth's. A fitted mesh is a level set, whose
   connected components (``face_components``) never intersect, so each is a piece. The truth's
