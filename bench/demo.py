@@ -27,25 +27,37 @@ ROOT = Path(__file__).resolve().parents[1]
 TARGET_S = 600.0  # issue: make demo within 10 minutes on 2 idle cores
 
 
+def fresh_clone(rev: str, workdir, prefix: str) -> tuple[str, Path, Path]:
+    """This repository at `rev` cloned into a new folder: (commit, folder, clone)."""
+    commit = subprocess.run(["git", "-C", str(ROOT), "rev-parse", rev],
+                            check=True, capture_output=True, text=True).stdout.strip()
+    work = Path(tempfile.mkdtemp(prefix=prefix, dir=workdir))
+    clone = work / "clone"
+    subprocess.run(["git", "clone", "-q", str(ROOT), str(clone)], check=True)
+    subprocess.run(["git", "-C", str(clone), "checkout", "-q", commit], check=True)
+    return commit, work, clone
+
+
+def make_in(clone: Path, target: str, log_path: Path, env=None) -> float:
+    """`make <target>` in `clone`, its output in `log_path`: the wall seconds (exits on failure)."""
+    start = time.perf_counter()
+    with open(log_path, "w") as log:
+        rc = subprocess.run(["make", target], cwd=clone, stdout=log, stderr=subprocess.STDOUT,
+                            env=env).returncode
+    if rc != 0:
+        sys.exit(f"make {target} failed (exit {rc}); see {log_path}")
+    return time.perf_counter() - start
+
+
 def main(argv=None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--commit", default="HEAD", help="what to clone (default: HEAD)")
     ap.add_argument("--workdir", default=None, help="where the clone goes (default: a temp dir)")
     args = ap.parse_args(argv)
-    commit = subprocess.run(["git", "-C", str(ROOT), "rev-parse", args.commit],
-                            check=True, capture_output=True, text=True).stdout.strip()
-    work = Path(tempfile.mkdtemp(prefix="ngc_demo_", dir=args.workdir))
-    clone = work / "clone"
-    subprocess.run(["git", "clone", "-q", str(ROOT), str(clone)], check=True)
-    subprocess.run(["git", "-C", str(clone), "checkout", "-q", commit], check=True)
+    commit, work, clone = fresh_clone(args.commit, args.workdir, "ngc_demo_")
     bench = Bench("demo")   # the load before make demo
     print(f"make demo in {clone} (commit {commit[:7]}, load {bench.load_before}) ...", flush=True)
-    start = time.perf_counter()
-    with open(work / "make_demo.log", "w") as log:
-        rc = subprocess.run(["make", "demo"], cwd=clone, stdout=log, stderr=subprocess.STDOUT).returncode
-    wall = time.perf_counter() - start
-    if rc != 0:
-        sys.exit(f"make demo failed (exit {rc}); see {work / 'make_demo.log'}")
+    wall = make_in(clone, "demo", work / "make_demo.log")
     summary = json.loads(next((clone / "outputs/demo").glob("*/summary.json")).read_text())
     result = {
         **summary,
