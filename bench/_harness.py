@@ -203,6 +203,7 @@ def file_identity(paths) -> dict:
 #: they existed: left out of a recipe while they hold it, so adding a setting does not
 #: invalidate every cached fit (a fit with any other value gets its own key)
 NEUTRAL = {("junction_weight",): 0.0, ("prepare", "pair_margin"): 0.0,
+           ("prepare", "shell_fraction"): 0.0, ("prepare", "shell_width"): 0.1,
            ("diffusion", "pose_transfer"): None, ("diffusion", "pca_complete"): "mean"}
 
 
