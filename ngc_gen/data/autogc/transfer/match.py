@@ -320,6 +320,22 @@ def correspond(template: Template, tree: Tree, body: BodyFrame, settings: Transf
     return {k: np.asarray(v) for k, v in paths.items()}, labels, missing, cost
 
 
+def _chain_cuts(template: Template, tree: Tree, body: BodyFrame, own: list[int],
+                chain: list[str]) -> list[int]:
+    """Where a chain of template GCs (top -> leaf) cuts its path `own` (junction -> tip): by
+    the template's lengths up to where the template's chain ends (``_template_end``), each
+    inner cut moved to the nearest bend and before side branches."""
+    arc = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(tree.nodes[own], axis=0), axis=1))]
+    lengths = [body.length(np.subtract(template.gc(c).place["end"],
+                                       template.gc(c).place["start"]) / 1.0) for c in chain]
+    k = _template_end(own, tree.nodes, body, template.gc(chain[-1]).place) \
+        if len(chain) > 1 else len(own) - 1
+    cut = _split_by(arc[: k + 1], lengths)[:-1] + [len(own) - 1] if k + 1 > len(chain) else \
+        list(np.linspace(0, len(own) - 1, len(chain) + 1).astype(int))
+    cut = [cut[0]] + [_bend_near(tree.nodes[own], arc, c) for c in cut[1:-1]] + [cut[-1]]
+    return _before_side_branches(np.asarray(own), arc, cut, tree.degree)
+
+
 def _paths(template: Template, tree: Tree, body: BodyFrame,
            assign: dict[str, int]) -> tuple[dict[str, list[int]], set[str]]:
     """Each matched GC's path (node indices, root side first): chains above one matched leaf
@@ -371,16 +387,8 @@ def _paths(template: Template, tree: Tree, body: BodyFrame,
         p = leaf_path[leaf]
         j = top_node[chain[-1]]
         own = p[: p.index(j) + 1][::-1]                               # junction -> tip
-        arc = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(tree.nodes[own], axis=0), axis=1))]
         chain = chain[::-1]                                           # top -> leaf
-        lengths = [body.length(np.subtract(template.gc(c).place["end"],
-                                           template.gc(c).place["start"]) / 1.0) for c in chain]
-        k = _template_end(own, tree.nodes, body, template.gc(chain[-1]).place) \
-            if len(chain) > 1 else len(own) - 1
-        cut = _split_by(arc[: k + 1], lengths)[:-1] + [len(own) - 1] if k + 1 > len(chain) else \
-            list(np.linspace(0, len(own) - 1, len(chain) + 1).astype(int))
-        cut = [cut[0]] + [_bend_near(tree.nodes[own], arc, c) for c in cut[1:-1]] + [cut[-1]]
-        cut = _before_side_branches(np.asarray(own), arc, cut, tree.degree)
+        cut = _chain_cuts(template, tree, body, own, chain)
         for k, c in enumerate(chain):
             paths[c] = own[cut[k]: cut[k + 1] + 1]
             done.add(c)
