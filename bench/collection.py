@@ -31,7 +31,7 @@ import time
 from pathlib import Path
 
 from bench._collection_data import FRAME, TEMPLATE, training_folder
-from bench._harness import Bench
+from bench._harness import Bench, fresh_clone, make_in
 from bench._tables import pct, rows_table
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -211,7 +211,6 @@ def record_fresh_clone(args, bench: Bench) -> None:
     a new .venv, the 0ad-data fetch and cache, annotate ... interpolate. Keeps the rest."""
     import os
 
-    from bench.demo import fresh_clone, make_in
 
     commit, work, clone = fresh_clone("HEAD", None, "ngc_demo_collection_")
     env = dict(os.environ)

@@ -14,39 +14,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import subprocess
-import sys
-import tempfile
-import time
 from pathlib import Path
 
-from bench._harness import Bench  # standard library only
+from bench._harness import Bench, fresh_clone, make_in  # standard library only
 from bench._tables import pct, rows_table, sci
 
 ROOT = Path(__file__).resolve().parents[1]
 TARGET_S = 600.0  # issue: make demo within 10 minutes on 2 idle cores
-
-
-def fresh_clone(rev: str, workdir, prefix: str) -> tuple[str, Path, Path]:
-    """This repository at `rev` cloned into a new folder: (commit, folder, clone)."""
-    commit = subprocess.run(["git", "-C", str(ROOT), "rev-parse", rev],
-                            check=True, capture_output=True, text=True).stdout.strip()
-    work = Path(tempfile.mkdtemp(prefix=prefix, dir=workdir))
-    clone = work / "clone"
-    subprocess.run(["git", "clone", "-q", str(ROOT), str(clone)], check=True)
-    subprocess.run(["git", "-C", str(clone), "checkout", "-q", commit], check=True)
-    return commit, work, clone
-
-
-def make_in(clone: Path, target: str, log_path: Path, env=None) -> float:
-    """`make <target>` in `clone`, its output in `log_path`: the wall seconds (exits on failure)."""
-    start = time.perf_counter()
-    with open(log_path, "w") as log:
-        rc = subprocess.run(["make", target], cwd=clone, stdout=log, stderr=subprocess.STDOUT,
-                            env=env).returncode
-    if rc != 0:
-        sys.exit(f"make {target} failed (exit {rc}); see {log_path}")
-    return time.perf_counter() - start
 
 
 def main(argv=None) -> dict:

@@ -17,11 +17,14 @@ Pinocchio's two steps (a discrete embedding, then a continuous refinement) on ou
    in the other order than the template starts them (a gallop's crossed legs) are swapped
    (``_front_to_back``). A second pass gives the limbs left out (a grazing
    head, galloping legs) the free ends left over that lie within their reach: at the limb
-   chain's length from where it attaches, on its own side. Still missing: matched once more
+   chain's length from where it attaches, on its own side (a mid-plane part's branch not much
+   shorter than its template part: a spur in the hip is no tail); a paired limb whose end lies
+   across the mid-plane is left out. Still missing: matched once more
    on a finer tree (spurs ``FINER`` x as long kept: a short tail). Tree-consistent by
    construction: a leaf's path toward the template root's place is its own up to where it
    meets another matched leaf's path (its junction); a chain
-   of template GCs above one leaf (neck, head) shares that path by the template's lengths; a
+   of template GCs above one leaf (neck, head) shares that path by the template's lengths (up
+   to where the template's chain ends, when the path runs on past it: a trunk); a
    GC above several matched leaves (a torso) is the longest tree path between its children's
    junctions. Every other skeleton node (ears, antlers) goes to the GC nearest along the tree.
    Too few matched leaves, or a mean cost of the matched ones above ``max_match_cost``: the

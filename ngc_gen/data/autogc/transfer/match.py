@@ -21,6 +21,12 @@ MAX_ATTACH = 3.0   # at most this much: a galloping animal's skeleton may join i
 W_THICKNESS = 0.5  # weight of log(thickness ratio)^2
 BEYOND = 1e3       # the cost of a free end above where a leg attaches (second pass)
 LEG_DOWN = 0.5     # a limb whose place ends this much lower than it starts is a leg
+SIDE_SLACK = 0.05  # a left limb's free end lies at most this far (body units) right of the middle
+END_REACH = 1.5    # a chain's path passing this x SIGMA_TIP from where its template part ends
+                   # ends the template's part there (_template_end)
+W_SHORT = 1.0      # second pass, a part on the mid-plane: weight of log(branch length / the
+                   # GC's template length)^2 for a shorter branch: a spur inside the hip, within
+                   # a tail's reach, is no tail (a leg's branch may end where a bunched leg joins)
 
 
 def _children(template: Template) -> dict[str, list[str]]:
@@ -80,6 +86,7 @@ def match_cost(template: Template, tree: Tree, body: BodyFrame, leaf_gcs: list[s
     # GC's radius the enclosing one: only their ratios to the body compare)
     r_mesh = tree.branch_r[tree.branch_of[leaves]] / float(tree.radius[tree.main].max())
     r_root = max(g.place["radius"] for g in template.gcs)
+    long = branch_lengths(tree)[tree.branch_of[leaves]] if reach else None
     at_front = body.to_body(tree.branch_root[tree.branch_of[leaves]])[:, 0]  # (L,)
     C = np.zeros((len(leaf_gcs), len(leaves)))
     for i, name in enumerate(leaf_gcs):
@@ -111,9 +118,20 @@ def match_cost(template: Template, tree: Tree, body: BodyFrame, leaf_gcs: list[s
             pos = ((at - length) / SIGMA_TIP) ** 2 + side + np.where(up, BEYOND, 0.0)
         else:
             pos = (((tip - end) / sigma) ** 2).sum(1)
+        short = np.minimum(np.log(np.maximum(long, 1e-9) / max(body.length(end - start), 1e-9)),
+                           0.0) if reach and template.gc(name).symmetric is None else 0.0
         C[i] = (pos + W_ATTACH * att + W_DIRECTION * (1.0 - d_mesh @ d_t)
-                + W_THICKNESS * np.log(np.maximum(r_mesh, 1e-6) / (pl["radius"] / r_root)) ** 2)
+                + W_THICKNESS * np.log(np.maximum(r_mesh, 1e-6) / (pl["radius"] / r_root)) ** 2
+                + W_SHORT * short ** 2)
     return C
+
+
+def branch_lengths(tree: Tree) -> np.ndarray:
+    """(B,) arc length of each branch of the tree (its edges within the branch)."""
+    G = tree.graph.tocoo()
+    same = tree.branch_of[G.row] == tree.branch_of[G.col]
+    return np.bincount(tree.branch_of[G.row[same]], weights=G.data[same],
+                       minlength=len(tree.branch_r)) / 2.0
 
 
 def _front_to_back(template: Template, tree: Tree, body: BodyFrame,
@@ -164,6 +182,18 @@ def _split_by(arc: np.ndarray, fractions: list[float]) -> list[int]:
     """Indices cutting a path with arc lengths `arc` (P,) into pieces of these length shares."""
     cuts = np.cumsum(fractions)[:-1] / max(sum(fractions), 1e-12) * arc[-1]
     return [0] + [int(np.clip(np.searchsorted(arc, c), 1, len(arc) - 2)) for c in cuts] + [len(arc) - 1]
+
+
+def _template_end(path: list[int], nodes: np.ndarray, body: BodyFrame, place: dict) -> int:
+    """The index on a chain's path (junction -> tip) where the template's chain ends: the node
+    nearest its last GC's place end when within END_REACH x SIGMA_TIP of it (body units, twice
+    that across) and the tip is not (the path runs on away from there), else the tip. What runs
+    on past it (an elephant's trunk) is the last GC's, and the chain is cut by the template's
+    lengths up to there only."""
+    off = body.to_body(nodes[path]) - np.asarray(place["end"])
+    d = np.linalg.norm(off / (SIGMA_TIP * np.array([1.0, 2.0, 1.0])), axis=1)
+    k = int(np.argmin(d))
+    return k if d[k] <= END_REACH < d[-1] and k > 0 else len(path) - 1
 
 
 def _bend_near(P: np.ndarray, arc: np.ndarray, i: int, window: float = 0.2) -> int:
@@ -246,7 +276,29 @@ def _assign(template: Template, tree: Tree, body: BodyFrame, settings: TransferS
         for r, c in zip(*linear_sum_assignment(C2)):
             if C2[r, c] < settings.missing_cost:
                 assign[left_gcs[r]] = int(free[c])
+    assign = _on_sides(template, tree, body, assign)
+    if len(assign) < max(need, 2):
+        raise DataError(f"does not match template {template.name} ({template.source}): "
+                        f"{len(assign)} of {T} limbs matched on their own sides, need "
+                        f"{max(need, 2)}", path=where, field="annotate.template",
+                        fix="annotate this mesh with a template of its kind (or by hand), or "
+                            "give its frame (frame: {up: +y, front: -z} in its YAML)")
     return _front_to_back(template, tree, body, assign), cost
+
+
+def _on_sides(template: Template, tree: Tree, body: BodyFrame,
+              assign: dict[str, int]) -> dict[str, int]:
+    """The assignment without the limbs of a symmetric pair whose free end lies more than
+    SIDE_SLACK (body units) across the mid-plane from the side the template puts them on (a
+    spur under the right shoulder taken for the left leg when the legs' ends are not free):
+    such a limb is missing, and stands in on its own side, rather than named on the other."""
+    out = dict(assign)
+    for n, leaf in assign.items():
+        side = float(template.gc(n).place["end"][1])
+        if template.gc(n).symmetric is not None and abs(side) >= SIDE_SLACK and \
+                body.to_body(tree.nodes[leaf])[1] * np.sign(side) < -SIDE_SLACK:
+            del out[n]
+    return out
 
 
 def correspond(template: Template, tree: Tree, body: BodyFrame, settings: TransferSettings,
@@ -266,6 +318,22 @@ def correspond(template: Template, tree: Tree, body: BodyFrame, settings: Transf
     labels = _labels(template, tree, paths, chained)
     missing = [n for n in template.names if n not in paths]
     return {k: np.asarray(v) for k, v in paths.items()}, labels, missing, cost
+
+
+def _chain_cuts(template: Template, tree: Tree, body: BodyFrame, own: list[int],
+                chain: list[str]) -> list[int]:
+    """Where a chain of template GCs (top -> leaf) cuts its path `own` (junction -> tip): by
+    the template's lengths up to where the template's chain ends (``_template_end``), each
+    inner cut moved to the nearest bend and before side branches."""
+    arc = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(tree.nodes[own], axis=0), axis=1))]
+    lengths = [body.length(np.subtract(template.gc(c).place["end"],
+                                       template.gc(c).place["start"]) / 1.0) for c in chain]
+    k = _template_end(own, tree.nodes, body, template.gc(chain[-1]).place) \
+        if len(chain) > 1 else len(own) - 1
+    cut = _split_by(arc[: k + 1], lengths)[:-1] + [len(own) - 1] if k + 1 > len(chain) else \
+        list(np.linspace(0, len(own) - 1, len(chain) + 1).astype(int))
+    cut = [cut[0]] + [_bend_near(tree.nodes[own], arc, c) for c in cut[1:-1]] + [cut[-1]]
+    return _before_side_branches(np.asarray(own), arc, cut, tree.degree)
 
 
 def _paths(template: Template, tree: Tree, body: BodyFrame,
@@ -319,14 +387,8 @@ def _paths(template: Template, tree: Tree, body: BodyFrame,
         p = leaf_path[leaf]
         j = top_node[chain[-1]]
         own = p[: p.index(j) + 1][::-1]                               # junction -> tip
-        arc = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(tree.nodes[own], axis=0), axis=1))]
         chain = chain[::-1]                                           # top -> leaf
-        lengths = [body.length(np.subtract(template.gc(c).place["end"],
-                                           template.gc(c).place["start"]) / 1.0) for c in chain]
-        cut = _split_by(arc, lengths) if len(own) > len(chain) else \
-            list(np.linspace(0, len(own) - 1, len(chain) + 1).astype(int))
-        cut = [cut[0]] + [_bend_near(tree.nodes[own], arc, c) for c in cut[1:-1]] + [cut[-1]]
-        cut = _before_side_branches(np.asarray(own), arc, cut, tree.degree)
+        cut = _chain_cuts(template, tree, body, own, chain)
         for k, c in enumerate(chain):
             paths[c] = own[cut[k]: cut[k + 1] + 1]
             done.add(c)

@@ -7,7 +7,8 @@ detected candidate is matched, turned to the frame its matched parts imply (``fr
 every matched GC's path direction against its template place's), snapped to the signed world
 axes when within SNAP_DEG of them, and matched again; then checked (``verify``). The given
 axes are kept when they pass and cost at most PRIOR_SLACK more than the best detected frame,
-else overruled with a warning. Nothing passes: DataError naming the failed check.
+else overruled with a warning. A detected frame is then levelled on its matched feet
+(``_levelled``). Nothing passes: DataError naming the failed check.
 """
 from __future__ import annotations
 
@@ -31,6 +32,9 @@ DISTINCT_DEG = 30.0  # the runner-up for the confidence: a frame at least this f
                      # puts some name on another part
 REFINE_ROUNDS = 2  # a detected candidate is turned to its match's implied frame this many times
 LEAF_WEIGHT = 0.5   # a swinging limb's direction counts this much in the implied frame
+LEG_DOWN = 0.5      # a part whose place ends this much lower than it starts is a leg
+LEVEL_FLAT = 0.15   # feet lie on one plane: the least spread across it over the next (4+ feet)
+LEVEL_DEG = (2.0, 45.0)  # a frame whose feet's plane is tilted this much is levelled on them
 TILT_DEG = 25.0     # each candidate also tilted this much about its left and its up axis: a long
                     # neck or tail turns the principal axes off the body's (a donkey's by 21
                     # degrees), too far for the match to start from
@@ -130,6 +134,43 @@ def _try(ctx, o: Orientation, refine: bool) -> Trial:
     return best
 
 
+def ground_up(feet: np.ndarray, up: np.ndarray) -> np.ndarray | None:
+    """The normal (on `up`'s side) of the plane the feet (K, 3), K >= 4, lie on, when they lie
+    on one (the least spread across it at most LEVEL_FLAT x the next) tilted from `up` within
+    LEVEL_DEG; else None."""
+    if len(feet) < 4:
+        return None
+    _, s, Vt = np.linalg.svd(feet - feet.mean(0))
+    n = Vt[2] * (np.sign(Vt[2] @ up) or 1.0)
+    tilt = float(np.degrees(np.arccos(np.clip(n @ up, -1.0, 1.0))))
+    ok = s[2] <= LEVEL_FLAT * s[1] and LEVEL_DEG[0] <= tilt <= LEVEL_DEG[1]
+    return n if ok else None
+
+
+def _levelled(ctx, trial: Trial) -> Trial:
+    """The trial turned so that its matched feet (the legs' ends) lie on one level plane, the
+    ground, when they do lie on one (4+ feet within LEVEL_FLAT) tilted within LEVEL_DEG: kept
+    when it passes and puts every leg on the same foot. The match's cost prefers the frame
+    in which a long neck points as the template's does (a giraffe tilted 35 degrees); the
+    ground under the feet does not depend on the neck."""
+    template, tree = ctx[0], ctx[1]
+    paths = trial.found[0]
+    feet = [n for n, p in paths.items() if len(p) >= 2 and
+            template.gc(n).place["start"][2] - template.gc(n).place["end"][2] >= LEG_DOWN]
+    if len(feet) < 4:
+        return trial
+    o = trial.orientation
+    up = ground_up(tree.nodes[[int(paths[n][-1]) for n in feet]], o.up)
+    if up is None:
+        return trial
+    axis = np.cross(o.up, up)
+    angle = np.arccos(np.clip(up @ o.up, -1.0, 1.0))
+    R = Rotation.from_rotvec(axis / np.linalg.norm(axis) * angle).as_matrix()
+    level = _try(ctx, Orientation(up, R @ o.front, o.source), refine=False)
+    same = all(_ends(level).get(n) == _ends(trial)[n] for n in feet)
+    return level if level.failed is None and same else trial
+
+
 def _ends(trial: Trial) -> dict:
     """Where each matched GC's path ends: two frames that put every name on the same parts
     read the mesh alike, however far apart they are."""
@@ -187,4 +228,4 @@ def choose(template: Template, tree, surface: np.ndarray, share: np.ndarray, st,
                         field="annotate.template",
                         fix="give the mesh's frame (frame: {up: +y, front: -z} in its YAML or the "
                             "folder's frames.yaml), or annotate it by hand")
-    return Choice(best, confidence, warnings)
+    return Choice(best if best is prior else _levelled(ctx, best), confidence, warnings)
