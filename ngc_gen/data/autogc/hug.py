@@ -119,8 +119,9 @@ def recentred(gc: GeneralizedCylinder, own: np.ndarray, bins: int = 0) -> Genera
     """gc with its curve moved to the middle of its own body samples (M, 3) (the midpoint of
     their extent in each frame axis; THICK as in ``hug_radii``) at each key, or at `bins`
     points evenly along it, lerped between: a curve off the middle of its part makes the
-    centred ellipse twice the offset wider. The moved centre line is refitted as a Bezier of
-    the same degree; a slice without enough samples follows its neighbours."""
+    centred ellipse twice the offset wider. The ends stay (where the part attaches and ends,
+    as the template calibrates them); the moved centre line is refitted as a Bezier of the
+    same degree; a slice without enough samples follows its neighbours."""
     d = gc.to_dict()
     key_t = np.array([k["t"] for k in d["keys"]])
     radii = np.array([k["radii"] for k in d["keys"]], dtype=np.float64)
@@ -135,10 +136,13 @@ def recentred(gc: GeneralizedCylinder, own: np.ndarray, bins: int = 0) -> Genera
         np.minimum.at(lo, nearest[body], v)
         np.maximum.at(hi, nearest[body], v)
         shift[have, j] = (lo[have] + hi[have]) / 2.0
+    inner = have & (at > 0.0) & (at < 1.0)   # the ends stay: where the part attaches and ends
+    if K < 3 or not inner.any():               # (a calibrated template's start_at, end_at)
+        return gc
     s = np.linspace(0.0, 1.0, 64)
     r_s = np.stack([np.interp(s, key_t, radii[:, j]) for j in range(2)], 1)
-    c_s = np.stack([np.interp(s, at[have], shift[have, j]) for j in range(2)], 1) if K > 1 \
-        else np.broadcast_to(shift[0], (len(s), 2))
+    c_s = np.stack([np.interp(s, np.r_[0.0, at[inner], 1.0], np.r_[0.0, shift[inner, j], 0.0])
+                    for j in range(2)], 1)
     line = np.asarray(gc.to_world(np.column_stack([2.0 * s - 1.0, c_s / r_s])), dtype=np.float64)
     d["curve"] = {"type": "bezier",
                   "points": _bezier_through(line, len(d["curve"]["points"]) - 1).tolist()}

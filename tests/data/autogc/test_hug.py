@@ -126,21 +126,23 @@ def _straight(radius, length=0.6, up=(0, 0, 1)):
 
 def test_a_curve_off_the_middle_of_its_part_moves_to_the_middle():
     """A thigh the skeleton's path runs along the back of (0.06 off a tube of radius 0.1):
-    recentred, the curve runs down the tube's axis, and the GC that hugs it has the tube's
-    radius, not the path's distance to the far side (both hold every sample)."""
+    recentred, the curve's middle runs down the tube's axis (its ends stay: where the part
+    attaches), and the GC that hugs it is narrower (both hold every sample)."""
     mesh = tubes([((-0.3, 0, 0.06), (0.3, 0, 0.06))], [0.1], h=0.01)
     pts, _ = sample_surface(np.asarray(mesh.vertices), np.asarray(mesh.faces), 4000,
                             np.random.default_rng(0))
     pts = pts[np.abs(pts[:, 0]) < 0.28]                    # the tube's side, not its ends
     off = hug_radii(_straight(0.2), pts, 1.0, 0.0, 1e-3)
     moved = recentred(off, pts)
-    assert np.abs(moved.centre_line(9)[:, 2] - 0.06).max() < 0.01
+    line = moved.centre_line(9)
+    assert np.abs(line[2:-2, 2] - 0.06).max() < 0.015               # the middle moves
+    np.testing.assert_allclose(line[[0, -1]], off.centre_line(9)[[0, -1]], atol=1e-9)  # ends stay
     best = hugged(_straight(0.2), pts, 1.0, 0.0, 1e-3)
     for g in (off, best):
         assert len(np.unique(gc_membership(pts, [hug_to_cover([g], pts)[0]])[0])) == len(pts)
-    assert max(max(k["radii"]) for k in off.to_dict()["keys"]) > 0.15
-    assert max(max(k["radii"]) for k in best.to_dict()["keys"]) < 0.11
-    assert gc_volume(best) < 0.6 * gc_volume(off)
+    assert max(off.to_dict()["keys"][2]["radii"]) > 0.15             # the middle key
+    assert max(best.to_dict()["keys"][2]["radii"]) < 0.125
+    assert gc_volume(best) < 0.85 * gc_volume(off)
 
 
 def test_tighten_finds_the_least_volume_a_key_at_a_time_misses():
