@@ -53,6 +53,8 @@ import platform
 import shutil
 import subprocess
 import sys
+import tempfile
+import time
 from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
@@ -201,6 +203,7 @@ def file_identity(paths) -> dict:
 #: they existed: left out of a recipe while they hold it, so adding a setting does not
 #: invalidate every cached fit (a fit with any other value gets its own key)
 NEUTRAL = {("junction_weight",): 0.0, ("prepare", "pair_margin"): 0.0,
+           ("prepare", "shell_fraction"): 0.0, ("prepare", "shell_width"): 0.1,
            ("diffusion", "pose_transfer"): None, ("diffusion", "pca_complete"): "mean"}
 
 
@@ -400,3 +403,25 @@ def latest_fit(bench: str, where: dict | None = None, root: Path = FITS) -> Fit:
         raise SystemExit(f"no {bench} fit in {Path(root) / bench}" + (f" with {want}" if want
                          else "") + f": run `make bench-{bench.replace('_', '-')}` first")
     return fits[-1]
+
+
+def fresh_clone(rev: str, workdir, prefix: str) -> tuple[str, Path, Path]:
+    """This repository at `rev` cloned into a new folder: (commit, folder, clone)."""
+    commit = subprocess.run(["git", "-C", str(ROOT), "rev-parse", rev],
+                            check=True, capture_output=True, text=True).stdout.strip()
+    work = Path(tempfile.mkdtemp(prefix=prefix, dir=workdir))
+    clone = work / "clone"
+    subprocess.run(["git", "clone", "-q", str(ROOT), str(clone)], check=True)
+    subprocess.run(["git", "-C", str(clone), "checkout", "-q", commit], check=True)
+    return commit, work, clone
+
+
+def make_in(clone: Path, target: str, log_path: Path, env=None) -> float:
+    """`make <target>` in `clone`, its output in `log_path`: the wall seconds (exits on failure)."""
+    start = time.perf_counter()
+    with open(log_path, "w") as log:
+        rc = subprocess.run(["make", target], cwd=clone, stdout=log, stderr=subprocess.STDOUT,
+                            env=env).returncode
+    if rc != 0:
+        sys.exit(f"make {target} failed (exit {rc}); see {log_path}")
+    return time.perf_counter() - start

@@ -154,21 +154,27 @@ def exact_sdf_mesh(vertices: np.ndarray, faces: np.ndarray, resolution: int):
     return extract_world_mesh(exact, resolution, 1.0, coarse_step=4, lipschitz=1.0).mesh
 
 
+#: the junction figures a ceiling records (ngc_gen.eval.junctions)
+CEILING_KEYS = ("junction_ratio_dist", "junction_ratio_normal", "junction_ratio_dist_local",
+                "junction_ratio_normal_local", "junction_dist", "elsewhere_dist",
+                "junction_normal_deg", "elsewhere_normal_deg", "extra_pieces")
+
+
 def ceiling(run_dir: Path, name: str, resolution: int) -> dict:
     """What the grid allows on this mesh and GCs: its exact signed distance meshed at the fit's
     resolution and scored like a fit (marching cubes rounds the creases where parts meet, and
     thin sheets break), cached beside the run as ceiling.json."""
     path = run_dir / "ceiling.json"
     if path.exists():
-        return json.loads(path.read_text())
+        cached = json.loads(path.read_text())
+        if set(CEILING_KEYS) <= set(cached):   # else written before a figure was added
+            return cached
     from ngc_gen.eval import junction_metrics, reconstruction_metrics
 
     truth, gcs = truth_and_gcs(run_dir, name)
     mesh = exact_sdf_mesh(np.asarray(truth.vertices), np.asarray(truth.faces), resolution)
     m = {**reconstruction_metrics(mesh, truth), **junction_metrics(mesh, truth, gcs)}
-    out = {"junction_ratio_dist": m["junction_ratio_dist"],
-           "junction_ratio_normal": m["junction_ratio_normal"],
-           "extra_pieces": m["extra_pieces"], "nc": m["normal_consistency"],
+    out = {**{k: m[k] for k in CEILING_KEYS if k in m}, "nc": m["normal_consistency"],
            "fscore": m["fscore"], "resolution": resolution}
     path.write_text(json.dumps(out))
     return out
@@ -217,8 +223,17 @@ def truth_and_gcs(run_dir: Path, name: str):
     from ngc_gen.data.prepare import cache_path, load_prepared
 
     cfg = OmegaConf.load(run_dir / "config.yaml")
-    prep = load_prepared(cache_path(cfg.prepare.cache_dir, name))
+    prep = load_prepared(cache_path(moved_cache(Path(cfg.prepare.cache_dir)), name))
     return trimesh.Trimesh(prep.mesh_vertices, prep.mesh_faces, process=False), prep.gcs()
+
+
+def moved_cache(recorded: Path) -> Path:
+    """A run's recorded prepared-sample folder, or the same folder under this checkout's
+    .cache when the run was fitted from another checkout that shares the cache (and is gone)."""
+    parts = recorded.parts
+    if recorded.exists() or ".cache" not in parts:
+        return recorded
+    return ROOT.joinpath(*parts[parts.index(".cache"):])
 
 
 def labelled_runs() -> dict:

@@ -14,13 +14,9 @@ from __future__ import annotations
 
 import argparse
 import json
-import subprocess
-import sys
-import tempfile
-import time
 from pathlib import Path
 
-from bench._harness import Bench  # standard library only
+from bench._harness import Bench, fresh_clone, make_in  # standard library only
 from bench._tables import pct, rows_table, sci
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -32,20 +28,10 @@ def main(argv=None) -> dict:
     ap.add_argument("--commit", default="HEAD", help="what to clone (default: HEAD)")
     ap.add_argument("--workdir", default=None, help="where the clone goes (default: a temp dir)")
     args = ap.parse_args(argv)
-    commit = subprocess.run(["git", "-C", str(ROOT), "rev-parse", args.commit],
-                            check=True, capture_output=True, text=True).stdout.strip()
-    work = Path(tempfile.mkdtemp(prefix="ngc_demo_", dir=args.workdir))
-    clone = work / "clone"
-    subprocess.run(["git", "clone", "-q", str(ROOT), str(clone)], check=True)
-    subprocess.run(["git", "-C", str(clone), "checkout", "-q", commit], check=True)
+    commit, work, clone = fresh_clone(args.commit, args.workdir, "ngc_demo_")
     bench = Bench("demo")   # the load before make demo
     print(f"make demo in {clone} (commit {commit[:7]}, load {bench.load_before}) ...", flush=True)
-    start = time.perf_counter()
-    with open(work / "make_demo.log", "w") as log:
-        rc = subprocess.run(["make", "demo"], cwd=clone, stdout=log, stderr=subprocess.STDOUT).returncode
-    wall = time.perf_counter() - start
-    if rc != 0:
-        sys.exit(f"make demo failed (exit {rc}); see {work / 'make_demo.log'}")
+    wall = make_in(clone, "demo", work / "make_demo.log")
     summary = json.loads(next((clone / "outputs/demo").glob("*/summary.json")).read_text())
     result = {
         **summary,

@@ -19,10 +19,13 @@ fitted).
 Per shape and recipe, bench/results/seams.json `shapes` holds {name, recipe,
 junction_ratio_dist, junction_ratio_normal, ceiling_ratio_dist, ceiling_ratio_normal,
 excess_dist, excess_normal, extra_pieces, nc, fscore, ceiling_nc, ceiling_fscore,
-step_s, train_s, steps, same_network} (ngc_gen.eval.junctions; docs/metrics.md): the fit's error where GCs
+step_s, train_s, steps, same_network, local_ratio_*, ceiling_local_ratio_*, excess_local_*,
+net_ratio_*} (ngc_gen.eval.junctions; docs/metrics.md): the fit's error where GCs
 meet over its error elsewhere, the same figures of the mesh's exact SDF meshed at the same grid
 (the ceiling: what the grid allows), the fit's excess = its ratio over the ceiling's, loose
-pieces, NC and F@0.01, and training seconds per step. `edits`: the shipped edit programs on the
+pieces, NC and F@0.01, and training seconds per step. `local_*`: the same with each junction
+against the parts that meet there (`junction_ratio_*_local`); `net_ratio_*`: the fit's error
+beyond the ceiling's, at junctions over elsewhere (`net_ratio`). `edits`: the shipped edit programs on the
 ant and a creature (`EDITS`), each fit's junction ratios after the edit against the truth moved
 by the same edit (`edited_truth`) beside that moved truth's own ceiling, and the change of the
 excess (fit / ceiling) from the unedited fit's. `minutes`: this
@@ -105,10 +108,32 @@ def same_network(a: Path, b: Path) -> bool:
     return sa.keys() == sb.keys() and all(torch.equal(sa[k], sb[k]) for k in sa)
 
 
+LOCAL = ("junction_ratio_dist_local", "junction_ratio_normal_local")
+
+
+def fit_figures(run_dir: Path, name: str) -> dict:
+    """The fit's scores (metrics.json), with the junction figures it lacks when an older
+    version scored it (the local ratios) computed from its mesh and cached as junctions.json."""
+    s = json.loads((run_dir / "metrics.json").read_text())["shapes"][name]
+    if all(k in s for k in LOCAL):
+        return s
+    path = run_dir / "junctions.json"
+    if not path.exists():
+        import trimesh
+
+        from bench._seams import truth_and_gcs
+        from ngc_gen.eval import junction_metrics
+
+        truth, gcs = truth_and_gcs(run_dir, name)
+        mesh = trimesh.load(run_dir / "meshes" / f"{name}.ply", process=False)
+        path.write_text(json.dumps(junction_metrics(mesh, truth, gcs)))
+    return {**s, **json.loads(path.read_text())}
+
+
 def row(name: str, recipe: str, run_dir: Path, ceil: dict) -> dict:
     """seams.json `shapes` entry of one fit run (its metrics.json) beside its ceiling."""
     m = json.loads((run_dir / "metrics.json").read_text())
-    s = m["shapes"][name]
+    s = fit_figures(run_dir, name)
     out = {"name": name, "recipe": recipe,
            "junction_ratio_dist": s["junction_ratio_dist"],
            "junction_ratio_normal": s["junction_ratio_normal"],
@@ -121,7 +146,22 @@ def row(name: str, recipe: str, run_dir: Path, ceil: dict) -> dict:
     for k in ("dist", "normal"):
         fit, top = out[f"junction_ratio_{k}"], out[f"ceiling_ratio_{k}"]
         out[f"excess_{k}"] = fit / top if fit is not None and top else None
+        out[f"local_ratio_{k}"] = s.get(f"junction_ratio_{k}_local")
+        out[f"ceiling_local_ratio_{k}"] = ceil.get(f"junction_ratio_{k}_local")
+        fit, top = out[f"local_ratio_{k}"], out[f"ceiling_local_ratio_{k}"]
+        out[f"excess_local_{k}"] = fit / top if fit is not None and top else None
+        out[f"net_ratio_{k}"] = net_ratio(s, ceil, "dist" if k == "dist" else "normal_deg")
     return out
+
+
+def net_ratio(fit: dict, ceil: dict, what: str) -> float | None:
+    """The fit's error beyond the grid's at junctions over the same elsewhere: (fit - ceiling)
+    of the mean junction error over (fit - ceiling) of the mean elsewhere error."""
+    try:
+        den = fit[f"elsewhere_{what}"] - ceil[f"elsewhere_{what}"]
+        return (fit[f"junction_{what}"] - ceil[f"junction_{what}"]) / den if den > 0 else None
+    except (KeyError, TypeError):
+        return None
 
 
 def meets_targets(r: dict) -> bool:
@@ -186,13 +226,16 @@ def rows_table(rows: list[dict]) -> list[str]:
     def f(x, p=2):
         return "-" if x is None else f"{x:.{p}f}"
 
-    out = ["| shape | recipe | junction d / n | ceiling d / n | excess d / n | extra | NC | F "
-           "| ms/step | met |", "|---|---|---|---|---|---|---|---|---|---|"]
+    out = ["| shape | recipe | junction d / n | ceiling d / n | excess d / n | local excess d / n "
+           "| net d / n | extra | NC | F | ms/step | met |",
+           "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         out.append(f"| {r['name']} | {r['recipe']} | {f(r['junction_ratio_dist'])} / "
                    f"{f(r['junction_ratio_normal'])} | {f(r['ceiling_ratio_dist'])} / "
                    f"{f(r['ceiling_ratio_normal'])} | {f(r['excess_dist'])} / "
-                   f"{f(r['excess_normal'])} | {r['extra_pieces']} | {f(r['nc'], 3)} | "
+                   f"{f(r['excess_normal'])} | {f(r.get('excess_local_dist'))} / "
+                   f"{f(r.get('excess_local_normal'))} | {f(r.get('net_ratio_dist'))} / "
+                   f"{f(r.get('net_ratio_normal'))} | {r['extra_pieces']} | {f(r['nc'], 3)} | "
                    f"{f(r['fscore'], 3)} | {1e3 * r['step_s']:.1f} | "
                    f"{'yes' if meets_targets(r) else 'no'} |")
     return out

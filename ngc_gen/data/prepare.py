@@ -53,6 +53,10 @@ class PrepareSettings:
     past the GC's boundary that the union never reads from that GC; so at the boundary, where
     the union hands over to another GC, the network is not at the edge of what it learned
     (docs/fitting.md, "Seams").
+    shell_fraction of the volume samples (volume_region="gcs") lie in the GCs' outer shells,
+    relative radius in [1 - shell_width, 1], the rest uniform in the union: where a GC's field
+    fades out in the blended union, and where a GC that alone holds a point must not dip
+    below zero far from the surface (a floater).
     """
 
     n_samples: int
@@ -63,6 +67,8 @@ class PrepareSettings:
     seed: int
     volume_region: str
     pair_margin: float
+    shell_fraction: float
+    shell_width: float
 
     @classmethod
     def from_yaml(cls, **overrides) -> "PrepareSettings":
@@ -82,12 +88,15 @@ class PrepareSettings:
             "min_coverage": 0.0 <= self.min_coverage <= 1.0,
             "volume_region": self.volume_region in ("gcs", "box"),
             "pair_margin": 0.0 <= self.pair_margin <= 1.0,
+            "shell_fraction": 0.0 <= self.shell_fraction <= 1.0,
+            "shell_width": 0.0 < self.shell_width <= 1.0,
         }
         for name, ok in checks.items():
             if not ok:
                 raise DataError(f"invalid value {getattr(self, name)!r}", field=f"prepare.{name}",
                                 fix="n_samples, coverage_samples >= 1; volume_region gcs or box; surface_fraction, min_coverage, "
-                                    "pair_margin in [0, 1]; offset_std >= 0")
+                                    "pair_margin, shell_fraction in [0, 1]; shell_width in (0, 1]; "
+                                    "offset_std >= 0")
 
 
 @dataclass
@@ -151,6 +160,9 @@ def cache_key(mesh_bytes: bytes, annotation: Annotation, settings: PrepareSettin
     fields = dataclasses.asdict(settings)
     if not fields["pair_margin"]:   # added later: samples without a margin keep their keys
         fields.pop("pair_margin")
+    if not fields["shell_fraction"]:   # added later: samples without shells keep their keys
+        fields.pop("shell_fraction")
+        fields.pop("shell_width")
     h.update(json.dumps(fields, sort_keys=True).encode())
     return h.hexdigest()
 
@@ -277,7 +289,7 @@ def compute_prepared(ann: Annotation, settings: PrepareSettings, key: str = "") 
         vol = rng.uniform(-1.0, 1.0, (settings.n_samples - n_surface, 3))
         vp, vg, vr = gc_membership(vol, gcs, margin=margin)
     else:
-        vol, (vp, vg, vr) = sample_volume(gcs, settings.n_samples - n_surface, rng)
+        vol, (vp, vg, vr) = union_volume(gcs, settings, settings.n_samples - n_surface, rng)
         if margin:   # the same points, also paired with the GCs whose margin holds them
             vp, vg, vr = gc_membership(vol, gcs, margin=margin)
     sp, sg, sr = gc_membership(surf, gcs, margin=margin)
@@ -294,6 +306,19 @@ def compute_prepared(ann: Annotation, settings: PrepareSettings, key: str = "") 
         center=np.asarray(center, dtype=np.float64), scale=float(scale),
         settings=dataclasses.asdict(settings),
     )
+
+
+def union_volume(gcs: list, settings: PrepareSettings, n: int, rng: np.random.Generator):
+    """n volume samples in the GC union, shell_fraction of them in the GCs' outer shells
+    (`sample_volume` with `shell`), with their membership pairs."""
+    n_shell = int(round(n * settings.shell_fraction))
+    vol, (vp, vg, vr) = sample_volume(gcs, n - n_shell, rng)
+    if not n_shell:
+        return vol, (vp, vg, vr)
+    shell, (sp, sg, sr) = sample_volume(gcs, n_shell, rng, shell=settings.shell_width)
+    return (np.concatenate([vol, shell]),
+            (np.concatenate([vp, sp + len(vol)]), np.concatenate([vg, sg]),
+             np.concatenate([vr, sr])))
 
 
 def prepare_shape(annotation: Annotation | str | os.PathLike, settings: PrepareSettings | None = None,

@@ -81,3 +81,30 @@ def test_the_step_time_ratio_pairs_each_shapes_two_fits():
             {"name": "c", "recipe": "before", "step_s": 9.0}]      # no after: left out
     assert seams.step_ratio(rows) == pytest.approx(0.55 / 0.5)
     assert seams.step_ratio(rows[-1:]) is None
+
+
+def test_a_row_carries_the_local_and_net_figures_beside_its_ceiling(tmp_path):
+    """A fit's row holds its local ratios over the ceiling's (the excess against the parts
+    that meet) and the net ratio: the fit's error beyond the grid's, junctions over elsewhere
+    (the grid's own error taken out of both means)."""
+    import json
+
+    fit = {"junction_ratio_dist": 1.0, "junction_ratio_normal": 1.1,
+           "junction_ratio_dist_local": 1.05, "junction_ratio_normal_local": 1.2,
+           "junction_dist": 2.0, "elsewhere_dist": 2.2, "junction_normal_deg": 10.0,
+           "elsewhere_normal_deg": 9.0, "extra_pieces": 0, "normal_consistency": 0.97,
+           "fscore": 0.99}
+    (tmp_path / "metrics.json").write_text(json.dumps(
+        {"shapes": {"deer": fit}, "train_s": 10.0, "steps": 100}))
+    ceil = {"junction_ratio_dist": 0.8, "junction_ratio_normal": 0.8,
+            "junction_ratio_dist_local": 0.95, "junction_ratio_normal_local": 1.0,
+            "junction_dist": 0.2, "elsewhere_dist": 0.2, "junction_normal_deg": 3.0,
+            "elsewhere_normal_deg": 4.0, "nc": 0.99, "fscore": 1.0}
+    r = seams.row("deer", "after", tmp_path, ceil)
+    assert r["excess_dist"] == pytest.approx(1.25)
+    assert r["excess_local_dist"] == pytest.approx(1.05 / 0.95)
+    assert r["excess_local_normal"] == pytest.approx(1.2)
+    assert r["net_ratio_dist"] == pytest.approx(1.8 / 2.0)
+    assert r["net_ratio_normal"] == pytest.approx(7.0 / 5.0)
+    assert seams.net_ratio(fit, {}, "dist") is None       # an old ceiling without the means
+    assert "1.11 / 1.20" in "\n".join(seams.rows_table([{**r, "same_network": True}]))

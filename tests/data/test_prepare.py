@@ -69,7 +69,8 @@ def test_volume_samples_are_uniform_over_the_union(sphere_file, write_yaml, gc_d
     """A small GC nested in a big one must not double the sample density where they overlap."""
     big, small = gc_dict("big", -0.3, 0.3, (0.9, 0.9), (0.8, 0.8)), gc_dict("small", -0.1, 0.1, (0.3, 0.3), (0.2, 0.2))
     path = write_yaml({"name": "nested", "mesh": sphere_file.name, "gcs": [big, small]})
-    settings = dataclasses.replace(SMALL, surface_fraction=0.0, n_samples=10_000)
+    settings = dataclasses.replace(SMALL, surface_fraction=0.0, n_samples=10_000,
+                                   shell_fraction=0.0)
     shape = prepare_shape(path, settings, cache)
 
     def volume(d):
@@ -207,7 +208,10 @@ def test_auto_annotation_of_real_meshes_prepares(tmp_path):
         shape = prepare_shape(auto_annotation(spec, settings=AutoGCSettings.from_yaml(method="axis")), SMALL, tmp_path)
         assert shape.coverage == 1.0
         inside = shape.sdf < 0
-        assert 0.01 < inside[shape.n_surface:].mean() < 0.9  # thin parts: some volume samples inside
+        n_vol = len(shape.points) - shape.n_surface
+        uniform = slice(shape.n_surface, len(shape.points) - round(n_vol * SMALL.shell_fraction))
+        assert 0.005 < inside[uniform].mean() < 0.9  # thin parts: some uniform samples inside
+        #                                              (about 1% of the 750 uniform ones here)
 
 
 def test_invalid_settings():
@@ -273,3 +277,35 @@ def test_pair_margin_trains_a_gc_past_its_boundary(sphere_file, write_yaml, gc_d
         np.testing.assert_array_equal(np.sort(wide.pair_point[sel]), np.flatnonzero(near))
     with pytest.raises(DataError, match="pair_margin"):
         PrepareSettings.from_yaml(pair_margin=-0.1)
+
+
+def test_shell_samples_lie_where_a_gc_fades_out(sphere_file, write_yaml, gc_dict, cache):
+    """With shell_fraction f, f of the volume samples lie in their GCs' outer shells (relative
+    radius in [1 - shell_width, 1] in a GC that holds them), paired like any volume sample;
+    the rest stay uniform in the union; at f = 0 the width is no part of the cache key."""
+    path = write_yaml({"name": "two", "mesh": sphere_file.name,
+                       "gcs": [gc_dict("left", -0.6, 0.1), gc_dict("right", -0.1, 0.6)]})
+    none = dataclasses.replace(SMALL, shell_fraction=0.0)
+    plain = prepare_shape(path, none, cache)
+    assert plain.key == prepare_shape(path, dataclasses.replace(none, shell_width=0.5),
+                                      cache).key
+    shelled = prepare_shape(path, dataclasses.replace(SMALL, shell_fraction=0.5,
+                                                      shell_width=0.1), cache)
+    assert shelled.key != plain.key
+    gcs = shelled.gcs()
+    rho = np.stack([np.sqrt(GeneralizedCylinder.relative_measure(np.asarray(
+        g.to_relative(shelled.points[shelled.n_surface:].astype(np.float64))))) for g in gcs])
+    in_shell = ((rho >= 0.9 - 1e-5) & (rho <= 1.0 + 1e-5)).any(0)
+    n_vol = len(shelled.points) - shelled.n_surface
+    assert in_shell[n_vol - n_vol // 2:].all()          # the shell half: every one in a shell
+    uniform = in_shell[:n_vol - n_vol // 2].mean()      # the rest: about the shells' volume
+    assert 0.1 < uniform < 0.45 and in_shell.mean() > uniform + 0.25
+    for g, gc in enumerate(gcs):                         # paired with every GC holding it
+        sel = shelled.pair_gc == g
+        np.testing.assert_allclose(gc.to_world(shelled.pair_rel[sel].astype(np.float64)),
+                                   shelled.points[shelled.pair_point[sel]], atol=1e-4)
+        held = np.flatnonzero(rho[g] <= 1.0 + 1e-6) + shelled.n_surface
+        vol_pairs = np.sort(shelled.pair_point[sel][shelled.pair_point[sel] >= shelled.n_surface])
+        np.testing.assert_array_equal(vol_pairs, held)
+    with pytest.raises(DataError, match="shell_width"):
+        PrepareSettings.from_yaml(shell_width=0.0)

@@ -181,3 +181,40 @@ def test_defaults_are_the_metrics_group():
     conf = compose_config(overrides=["stage=fit"]).metrics.junctions
     sig = inspect.signature(junction_metrics).parameters
     assert {k: sig[k].default for k in conf} == dict(conf)
+
+
+def test_the_local_ratio_weighs_a_junction_against_the_parts_that_meet_there():
+    """A part that is hard everywhere (GC 1, error 5) is no seam: junction samples between GCs
+    0 and 2 with the error of those two parts score 1 against them, while the plain ratio, which
+    compares them with the whole shape, calls them better than elsewhere; a junction twice as bad
+    as its parts scores 2; a GC with under MIN_OWNED elsewhere samples falls back to the whole
+    elsewhere mean."""
+    from ngc_gen.eval.junctions import MIN_OWNED, local_ratio
+
+    n = 100
+    rho = np.full((3, 4 * n), np.inf)
+    for g in range(3):                       # elsewhere samples deep in GC g alone
+        rho[g, g * n:(g + 1) * n] = 0.5
+    rho[0, 3 * n:], rho[2, 3 * n:] = 0.9, 0.95   # junction samples of GCs 0 and 2
+    junction = np.arange(4 * n) >= 3 * n
+    err = np.r_[np.full(n, 1.0), np.full(n, 5.0), np.full(n, 1.0), np.full(n, 1.0)]
+    assert local_ratio(err, rho, junction) == pytest.approx(1.0)
+    assert err[junction].mean() / err[~junction].mean() < 0.5      # the plain ratio
+    assert local_ratio(np.where(junction, 2.0, err), rho, junction) == pytest.approx(2.0)
+    few = np.arange(4 * n) < 2 * n + MIN_OWNED - 1      # GC 2 keeps too few samples to own
+    keep = few | junction
+    whole = err[keep & ~junction].mean()
+    assert local_ratio(err[keep], rho[:, keep], junction[keep]) == pytest.approx(
+        1.0 / (0.5 * (1.0 + whole)))
+    assert local_ratio(err, rho, np.zeros(4 * n, bool)) is None
+
+
+def test_the_local_ratio_sees_a_bump_at_the_junction_and_not_one_elsewhere(scene):
+    truth, gcs = scene
+    j = junction_mask(truth.vertices, gcs, 0.1)
+    at_junction = truth.vertices[j][np.argmax(truth.vertices[j][:, 1])]
+    seam = junction_metrics(displaced(truth, at_junction), truth, gcs)
+    away = junction_metrics(displaced(truth, AWAY), truth, gcs)
+    for k in ("dist", "normal"):
+        assert seam[f"junction_ratio_{k}_local"] > 2.0
+        assert away[f"junction_ratio_{k}_local"] < 0.8

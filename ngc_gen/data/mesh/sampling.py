@@ -80,7 +80,7 @@ def _sorted_pairs(pp: list, pg: list, pr: list) -> Pairs:
 
 
 def sample_volume(gcs: Sequence[GeneralizedCylinder], n: int, rng: np.random.Generator,
-                  max_rounds: int = 100) -> tuple[np.ndarray, Pairs]:
+                  max_rounds: int = 100, shell: float = 0.0) -> tuple[np.ndarray, Pairs]:
     """n points uniform inside the union of the GCs, with their GC membership pairs.
 
     Candidates come from the mixture of GC bounding boxes (box chosen by volume), are kept if
@@ -88,6 +88,9 @@ def sample_volume(gcs: Sequence[GeneralizedCylinder], n: int, rng: np.random.Gen
     the kept density is then constant over the union, so overlaps are not over-sampled.
     The first round draws n candidates, later ones scale by the measured acceptance, so few
     candidates are wasted. Returns points (n, 3) and pairs as in ``gc_membership``.
+    shell > 0: only points in the outer shell of their GC, relative radius in [1 - shell, 1]
+    (where the blended union fades the GC out, and where a GC holding a point alone must still
+    be right far from the surface).
     """
     if n <= 0:
         return np.zeros((0, 3)), (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)))
@@ -110,6 +113,9 @@ def sample_volume(gcs: Sequence[GeneralizedCylinder], n: int, rng: np.random.Gen
             if len(idx):
                 own_rel[idx] = np.asarray(gc.to_relative(cand[idx]))
                 own[idx] = np.asarray(GeneralizedCylinder.inside_relative(own_rel[idx]))
+        if shell > 0:
+            depth = np.sqrt(np.asarray(GeneralizedCylinder.relative_measure(own_rel)))
+            own &= depth >= 1.0 - shell
         cand, which, own_rel = cand[own], which[own], own_rel[own]
         pp, pg, pr = gc_membership(cand, gcs, skip=which)  # the other GCs holding each candidate
         pp, pg, pr = _sorted_pairs([pp, np.arange(len(cand))], [pg, which], [pr, own_rel])
