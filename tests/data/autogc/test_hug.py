@@ -7,8 +7,10 @@ import numpy as np
 import pytest
 
 from ngc_gen.data.autogc.coverage import grow_to_cover
-from ngc_gen.data.autogc.hug import hug_radii, hug_to_cover, min_area_factors, plan, tighten
+from ngc_gen.data.autogc.hug import (hug_radii, hug_to_cover, hugged, min_area_factors, plan,
+                                     recentred)
 from ngc_gen.data.autogc.radii import ellipse_radii
+from ngc_gen.data.autogc.tighten import gc_volume, tighten
 from ngc_gen.data.mesh.sampling import gc_membership, sample_surface
 from ngc_gen.geometry import GeneralizedCylinder
 
@@ -89,9 +91,10 @@ def test_a_sample_goes_to_the_gc_that_holds_it_for_less_volume_not_the_relativel
     assert 0 < costs[0] < 0.2 * costs[1]
 
 
-def test_tighten_shrinks_a_gc_where_another_holds_the_surface_but_keeps_its_own(horned):
-    """A head grown 3x and a horn GC that holds the horn: tightening brings the head back to
-    its own samples (the head's), every sample stays covered."""
+def test_tighten_releasing_shrinks_a_gc_where_another_holds_the_surface_but_keeps_its_own(horned):
+    """A head grown 3x and a horn GC that holds the horn: tightening with `release` brings
+    the head back to its own samples (the head's), every sample stays covered; without it the
+    head keeps the horn's base it holds."""
     horn = GeneralizedCylinder.from_dict({
         "name": "horn", "curve": {"type": "bezier", "points": [[0.2, 0, 0.0], [0.2, 0, 0.45]]},
         "up": [1, 0, 0], "caps": [0.03, 0.03],
@@ -100,7 +103,9 @@ def test_tighten_shrinks_a_gc_where_another_holds_the_surface_but_keeps_its_own(
     owner = np.where(on_horn, 1, 0)
     head = hug_to_cover([_gc(3 * R_HEAD)], horned[~on_horn])[0]
     horn = hug_to_cover([horn], horned[on_horn])[0]
-    out = tighten([head, horn], horned, owner)
+    kept = tighten([head, horn], horned, owner)
+    assert max(max(k["radii"]) for k in kept[0].to_dict()["keys"]) > 1.6 * R_HEAD
+    out = tighten([head, horn], horned, owner, release=True)
     pp, _, _ = gc_membership(horned, out)
     assert len(np.unique(pp)) == len(horned)
     keys = out[0].to_dict()["keys"]
@@ -109,3 +114,49 @@ def test_tighten_shrinks_a_gc_where_another_holds_the_surface_but_keeps_its_own(
     # without the horn GC the head must keep holding the horn
     alone = tighten([_gc(4.5 * R_HEAD)], horned, np.zeros(len(horned), int))[0]
     assert len(np.unique(gc_membership(horned, [alone])[0])) == len(horned)
+
+
+def _straight(radius, length=0.6, up=(0, 0, 1)):
+    return GeneralizedCylinder.from_dict({
+        "name": "leg", "curve": {"type": "bezier", "points": [[-length / 2, 0, 0], [0, 0, 0],
+                                                              [length / 2, 0, 0]]},
+        "up": list(up), "caps": [radius, radius],
+        "keys": [{"t": t, "radii": [radius, radius]} for t in (0.0, 0.25, 0.5, 0.75, 1.0)]})
+
+
+def test_a_curve_off_the_middle_of_its_part_moves_to_the_middle():
+    """A thigh the skeleton's path runs along the back of (0.06 off a tube of radius 0.1):
+    recentred, the curve's middle runs down the tube's axis (its ends stay: where the part
+    attaches), and the GC that hugs it is narrower (both hold every sample)."""
+    mesh = tubes([((-0.3, 0, 0.06), (0.3, 0, 0.06))], [0.1], h=0.01)
+    pts, _ = sample_surface(np.asarray(mesh.vertices), np.asarray(mesh.faces), 4000,
+                            np.random.default_rng(0))
+    pts = pts[np.abs(pts[:, 0]) < 0.28]                    # the tube's side, not its ends
+    off = hug_radii(_straight(0.2), pts, 1.0, 0.0, 1e-3)
+    moved = recentred(off, pts)
+    line = moved.centre_line(9)
+    assert np.abs(line[2:-2, 2] - 0.06).max() < 0.015               # the middle moves
+    np.testing.assert_allclose(line[[0, -1]], off.centre_line(9)[[0, -1]], atol=1e-9)  # ends stay
+    best = hugged(_straight(0.2), pts, 1.0, 0.0, 1e-3)
+    for g in (off, best):
+        assert len(np.unique(gc_membership(pts, [hug_to_cover([g], pts)[0]])[0])) == len(pts)
+    assert max(off.to_dict()["keys"][2]["radii"]) > 0.15             # the middle key
+    assert max(best.to_dict()["keys"][2]["radii"]) < 0.125
+    assert gc_volume(best) < 0.85 * gc_volume(off)
+
+
+def test_tighten_finds_the_least_volume_a_key_at_a_time_misses():
+    """A cone (radius 0.05 to 0.15) in a GC grown 2x: the joint fit lands near the cone's own
+    volume and holds every sample; it never grows the GC."""
+    x = np.linspace(-0.3, 0.3, 61)
+    th = np.linspace(0, 2 * np.pi, 48, endpoint=False)
+    r = 0.1 + x / 6.0
+    pts = np.stack(np.broadcast_arrays(x[:, None], (r[:, None] * np.cos(th)),
+                                       (r[:, None] * np.sin(th))), -1).reshape(-1, 3)
+    start = _straight(0.3)
+    out = tighten([start], pts)[0]
+    assert len(np.unique(gc_membership(pts, [out])[0])) == len(pts)
+    cone = np.pi * 0.6 * (0.05 ** 2 + 0.05 * 0.15 + 0.15 ** 2) / 3
+    assert gc_volume(out) < 1.25 * cone < gc_volume(start)
+    keys = out.to_dict()["keys"]
+    assert keys[0]["radii"][0] < 0.07 and keys[-1]["radii"][0] < 0.17

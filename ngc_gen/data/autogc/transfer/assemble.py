@@ -11,10 +11,11 @@ from scipy.spatial import cKDTree
 
 from ngc_gen.data.autogc.coverage import grow_to_cover, rho_matrix
 from ngc_gen.data.autogc.frame import to_template
-from ngc_gen.data.autogc.hug import hug_radii, hug_to_cover, tighten
+from ngc_gen.data.autogc.hug import hug_to_cover, hugged
 from ngc_gen.data.autogc.orient import Orientation, parse_axis
 from ngc_gen.data.autogc.skeleton import local_thickness, proxy_skeleton
 from ngc_gen.data.autogc.template import AT_KEYS, Template, TemplateGC
+from ngc_gen.data.autogc.tighten import tighten
 from ngc_gen.data.errors import DataError
 from ngc_gen.data.mesh.proxy import closed_proxy
 from ngc_gen.data.mesh.sampling import gc_membership, sample_surface
@@ -241,12 +242,13 @@ def _grown(pl: Placing, owner: np.ndarray) -> list[GeneralizedCylinder]:
 
 def _hugging(pl: Placing, ordered: list[GeneralizedCylinder],
              owner: np.ndarray) -> list[GeneralizedCylinder]:
-    """GCs that hug (``hug``): radii from each found part's own slices, each parent grown to
-    hold where its children start (children attached), the rest of the surface covered at
-    least added volume, then each found part tightened where others hold the surface."""
+    """GCs that hug (``hug``): curve and radii from each found part's own slices, each parent
+    grown to hold where its children start (children attached), the rest of the surface
+    covered at least added volume, then each found part shrunk to the least volume that holds
+    what it holds."""
     names, surface = pl.template.names, pl.surface
     found = np.array([n not in pl.missing for n in names])
-    ordered = [hug_radii(gc, surface[owner == g], pl.st.hug_quantile, pl.st.margin, pl.floor)
+    ordered = [hugged(gc, surface[owner == g], pl.st.hug_quantile, pl.st.margin, pl.floor)
                if found[g] else gc for g, gc in enumerate(ordered)]
     for g, n in enumerate(names):
         parent = pl.template.gc(n).parent
