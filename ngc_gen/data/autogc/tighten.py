@@ -105,7 +105,19 @@ def least_volume(key_t: np.ndarray, radii: np.ndarray, caps: np.ndarray, length:
                    constraints=[{"type": "ineq", "fun": slack, "jac": jac}])
     x = res.x if np.all(np.isfinite(res.x)) else x0
     x = x + 0.5 * float(np.log(max(1.0 - float(slack(x).min()), 1.0)))
-    return np.exp(np.stack([x[:K], x[K:2 * K]], 1)), np.exp(x[2 * K:])
+    radii = np.exp(np.stack([x[:K], x[K:2 * K]], 1))
+    return radii, np.maximum(np.exp(x[2 * K:]), min_caps(radii))
+
+
+#: a cap is at least this share of the smaller radius at its end: a longer cap only loosens
+#: each sample's measure, and a cap shrunk toward 0 (5e-207 seen) is a degenerate GC whose log
+#: cap a generator cannot learn (its samples decoded caps of 0, which no annotation accepts)
+MIN_CAP = 0.1
+
+
+def min_caps(radii: np.ndarray) -> np.ndarray:
+    """The least caps (2,) of a GC with key radii (K, 2): MIN_CAP x the smaller end radius."""
+    return MIN_CAP * np.array([radii[0].min(), radii[-1].min()])
 
 
 def _samples(gc: GeneralizedCylinder, rel: np.ndarray) -> tuple:

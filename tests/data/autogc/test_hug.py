@@ -160,3 +160,18 @@ def test_tighten_finds_the_least_volume_a_key_at_a_time_misses():
     assert gc_volume(out) < 1.25 * cone < gc_volume(start)
     keys = out.to_dict()["keys"]
     assert keys[0]["radii"][0] < 0.07 and keys[-1]["radii"][0] < 0.17
+
+
+def test_tighten_never_shrinks_a_cap_to_nothing():
+    """Samples only inside the tube ask for no cap; the joint fit must still leave each cap at
+    least MIN_CAP x its end's smaller radius (a cap near 0 decoded to 0 in a generator's sample,
+    which no annotation accepts)."""
+    from ngc_gen.data.autogc.tighten import MIN_CAP
+
+    x = np.linspace(-0.28, 0.28, 57)
+    th = np.linspace(0, 2 * np.pi, 48, endpoint=False)
+    pts = np.stack(np.broadcast_arrays(x[:, None], 0.1 * np.cos(th), 0.1 * np.sin(th)),
+                   -1).reshape(-1, 3)
+    out = tighten([_straight(0.3)], pts)[0].to_dict()
+    radii = np.array([k["radii"] for k in out["keys"]])
+    assert min(out["caps"]) >= MIN_CAP * radii.min() * (1 - 1e-9)
