@@ -66,12 +66,17 @@ def test_junction_samples_are_where_both_gcs_reach(scene):
     assert not junction_mask(pts, gcs[:1], 0.1).any()     # one GC: no junction
 
 
-def test_a_bump_at_the_junction_raises_the_ratio_and_one_elsewhere_lowers_it(scene):
+def bumped(scene) -> tuple[dict, dict]:
+    """The scene's metrics with a bump at its highest junction vertex, and with one elsewhere."""
     truth, gcs = scene
     j = junction_mask(truth.vertices, gcs, 0.1)
     at_junction = truth.vertices[j][np.argmax(truth.vertices[j][:, 1])]
-    seam = junction_metrics(displaced(truth, at_junction), truth, gcs)
-    away = junction_metrics(displaced(truth, AWAY), truth, gcs)
+    return (junction_metrics(displaced(truth, at_junction), truth, gcs),
+            junction_metrics(displaced(truth, AWAY), truth, gcs))
+
+
+def test_a_bump_at_the_junction_raises_the_ratio_and_one_elsewhere_lowers_it(scene):
+    seam, away = bumped(scene)
     assert 0.02 < seam["junction_share"] < 0.2
     assert seam["junction_ratio_dist"] > 2.0 and seam["junction_ratio_normal"] > 2.0
     assert away["junction_ratio_dist"] < 0.8 and away["junction_ratio_normal"] < 0.8
@@ -210,11 +215,7 @@ def test_the_local_ratio_weighs_a_junction_against_the_parts_that_meet_there():
 
 
 def test_the_local_ratio_sees_a_bump_at_the_junction_and_not_one_elsewhere(scene):
-    truth, gcs = scene
-    j = junction_mask(truth.vertices, gcs, 0.1)
-    at_junction = truth.vertices[j][np.argmax(truth.vertices[j][:, 1])]
-    seam = junction_metrics(displaced(truth, at_junction), truth, gcs)
-    away = junction_metrics(displaced(truth, AWAY), truth, gcs)
+    seam, away = bumped(scene)
     for k in ("dist", "normal"):
         assert seam[f"junction_ratio_{k}_local"] > 2.0
         assert away[f"junction_ratio_{k}_local"] < 0.8
