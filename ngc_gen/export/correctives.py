@@ -141,17 +141,6 @@ def along_line(sdf, x: np.ndarray, d: np.ndarray, f0: np.ndarray, steps: int,
     return x + best[:, None] * d, (fbest <= tol) | bracketed
 
 
-def _neighbour_mean(faces: np.ndarray, n: int):
-    """(n, n) sparse row-stochastic matrix: each vertex's mean over its edge neighbours."""
-    import scipy.sparse as sp
-
-    e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
-    a = sp.coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n, n)).tocsr()
-    a = ((a + a.T) > 0).astype(np.float64)
-    deg = np.maximum(np.asarray(a.sum(1)).ravel(), 1.0)
-    return sp.diags(1.0 / deg) @ a
-
-
 def _longest_edge(p: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return np.linalg.norm(p[faces[:, [1, 2, 0]]] - p[faces], axis=2).max(1)
 
@@ -168,8 +157,11 @@ def unfold(sdf, x: np.ndarray, y: np.ndarray, faces: np.ndarray, rest_edge: np.n
     evaluated); its vertices take their edge neighbours' mean offset y - x (the offset field
     smoothed, not the positions: thin parts do not shrink) and are projected onto the zero set
     again (`project`), fold["rounds"] times."""
+    import trimesh
+    from trimesh.smoothing import laplacian_calculation
+
     y = np.array(y, dtype=np.float64)
-    mean = _neighbour_mean(faces, len(x))
+    mean = laplacian_calculation(trimesh.Trimesh(x, faces, process=False)).tocsr()
     skin_edge = _longest_edge(x, faces)
     for _ in range(int(fold["rounds"])):
         cand = np.flatnonzero(_longest_edge(y, faces) > fold["stretch"] * skin_edge)
