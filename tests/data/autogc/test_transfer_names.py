@@ -61,8 +61,8 @@ def test_a_spur_inside_the_hip_is_no_tail_within_the_tails_reach(template, monke
     inside the hip pointing down reads as a tail as well as the tail itself does. The spur is
     a quarter of a tail's length: it costs more, and the tail takes the real one. Without the
     length term the spur wins (the test can fail)."""
-    spur = np.array([[-0.2, 0.1, 0.2], [-0.25, 0.1, 0.11]])
-    tail = np.linspace([-0.2, 0.1, 0.35], [-0.95, 0.28, 0.75], 6)   # both leave the hip
+    spur = np.array([[-0.68, 0.1, 0.2], [-0.73, 0.1, 0.11]])
+    tail = np.linspace([-0.68, 0.1, 0.35], [-1.0, 0.28, 0.75], 6)   # both leave the hip
     tree = _tree([np.array([[0.0, 0.0, 0.3], [0.0, 0.0, 0.31]]), spur, tail])
     leaves = np.array([3, len(tree.nodes) - 1])                  # the spur's end, the tail's
     C = match_cost(template, tree, BODY, ["tail"], leaves, reach=True)[0]
@@ -125,3 +125,31 @@ def test_a_leg_whose_end_lies_across_the_middle_is_missing_not_named_on_the_othe
     got = match_module._on_sides(template, tree, BODY,
                                  {"leg_fl": 0, "leg_fr": 1, "tail": 2, "leg_bl": 3})
     assert got == {"tail": 2, "leg_bl": 3}    # leg_fr's end lies left: out too; leg_bl: within
+
+
+def test_an_ear_beside_a_short_neck_is_no_head_the_trunk_in_front_is(template, monkeypatch):
+    """An elephant's skeleton has no free end where the template's head ends: its trunk hangs
+    down in front, a thin branch, and an ear stands out beside the short neck, a thick plate.
+    Within the head's reach (the second pass) the ear reads as a head better (its thickness);
+    but a head's free end lies in front of where its neck starts, as a leg's lies below its
+    hip: the ear, behind that, is out, and the trunk is the head's. A head lowered to graze
+    stays within reach. Without the rule the ear wins (the test can fail)."""
+    ear = np.linspace([0.1, 0.0, 0.4], [0.11, 0.59, 0.39], 5)
+    trunk = np.linspace([0.5, 0.0, 0.5], [0.6, 0.05, -0.8], 8)
+    tree = _tree([np.array([[0.0, 0.0, 0.3], [0.0, 0.0, 0.31]]), ear, trunk])
+    tree.branch_r[:] = [0.2, 0.1, 0.03]                   # a plate of an ear, a thin trunk
+    leaves = np.array([len(ear) + 1, len(tree.nodes) - 1])   # the ear's end, the trunk's
+    C = match_cost(template, tree, BODY, ["head"], leaves, reach=True)[0]
+    assert C[1] < C[0]
+    assert C[1] < 6.0                                     # within reach (annotate.missing_cost)
+    monkeypatch.setattr(match_module, "_behind", lambda *a: np.zeros(len(a[-1]), bool))
+    C0 = match_cost(template, tree, BODY, ["head"], leaves, reach=True)[0]
+    assert C0[0] < C0[1]
+    monkeypatch.undo()
+    # the same rule at the other end: a tail's free end lies behind where the tail starts
+    tips = np.array([[-0.9, 0.0, 0.0], [-0.5, 0.0, -0.3]])
+    assert list(match_module._behind(template, "tail", np.asarray(
+        template.gc("tail").place["end"]), tips)) == [False, True]
+    grazing = np.array([[0.7, 0.0, -0.9]])
+    assert not match_module._behind(template, "neck", np.asarray(
+        template.gc("head").place["end"]), grazing).any()

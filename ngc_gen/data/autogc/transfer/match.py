@@ -21,6 +21,8 @@ MAX_ATTACH = 3.0   # at most this much: a galloping animal's skeleton may join i
 W_THICKNESS = 0.5  # weight of log(thickness ratio)^2
 BEYOND = 1e3       # the cost of a free end above where a leg attaches (second pass)
 LEG_DOWN = 0.5     # a limb whose place ends this much lower than it starts is a leg
+REACH_OUT = 0.2    # a limb whose chain ends this much further front (back) than it starts is an
+                   # end's (a head, a tail): its free end lies beyond where the chain starts
 SIDE_SLACK = 0.05  # a left limb's free end lies at most this far (body units) right of the middle
 END_REACH = 1.5    # a chain's path passing this x SIGMA_TIP from where its template part ends
                    # ends the template's part there (_template_end)
@@ -111,11 +113,13 @@ def match_cost(template: Template, tree: Tree, body: BodyFrame, leaf_gcs: list[s
             at = np.linalg.norm(tip - np.asarray(template.gc(top).place["start"]), axis=1)
             side = ((tip[:, 1] - end[1]) / SIGMA_TIP) ** 2 if template.gc(name).symmetric \
                 else 0.0
-            # and a limb that reaches down (a leg) ends below where it attaches: its reach also
-            # holds an ear above the shoulder (a grazing head may point anywhere)
+            # and a limb that reaches down (a leg) ends below where it attaches, an end's (a
+            # head, a tail) beyond it (_behind): its reach also holds an ear above the shoulder
+            # or beside a short neck (a grazing head may point anywhere in front)
             start_z = template.gc(top).place["start"][2]
             up = tip[:, 2] >= start_z if start_z - end[2] >= LEG_DOWN else np.zeros(len(tip), bool)
-            pos = ((at - length) / SIGMA_TIP) ** 2 + side + np.where(up, BEYOND, 0.0)
+            away = up | _behind(template, top, end, tip)
+            pos = ((at - length) / SIGMA_TIP) ** 2 + side + np.where(away, BEYOND, 0.0)
         else:
             pos = (((tip - end) / sigma) ** 2).sum(1)
         short = np.minimum(np.log(np.maximum(long, 1e-9) / max(body.length(end - start), 1e-9)),
@@ -124,6 +128,18 @@ def match_cost(template: Template, tree: Tree, body: BodyFrame, leaf_gcs: list[s
                 + W_THICKNESS * np.log(np.maximum(r_mesh, 1e-6) / (pl["radius"] / r_root)) ** 2
                 + W_SHORT * short ** 2)
     return C
+
+
+def _behind(template: Template, top: str, end: np.ndarray, tip: np.ndarray) -> np.ndarray:
+    """(L,) whether each free end (body frame) lies on the near side of where an end's chain
+    (a neck and head, a tail: REACH_OUT front or back) starts: within the chain's reach, an ear
+    beside a short-necked head (an elephant's, beside its trunk) or a spur inside the hip is
+    still no head or tail, whose free ends lie beyond the chain's start, as a leg's lie below."""
+    start_x = float(template.gc(top).place["start"][0])
+    out = float(end[0]) - start_x
+    if abs(out) < REACH_OUT:
+        return np.zeros(len(tip), bool)
+    return (tip[:, 0] - start_x) * np.sign(out) <= 0.0
 
 
 def branch_lengths(tree: Tree) -> np.ndarray:
