@@ -153,3 +153,64 @@ def test_an_ear_beside_a_short_neck_is_no_head_the_trunk_in_front_is(template, m
     grazing = np.array([[0.7, 0.0, -0.9]])
     assert not match_module._behind(template, "neck", np.asarray(
         template.gc("head").place["end"]), grazing).any()
+
+
+def _joined(chain: np.ndarray, sides: list[tuple[int, np.ndarray]]) -> Tree:
+    """A tree of one path `chain` (P, 3) and side branches (Q, 3), each leaving it at node j."""
+    nodes = np.vstack([chain, *[b for _, b in sides]])
+    edges = [(i, i + 1) for i in range(len(chain) - 1)]
+    start = len(chain)
+    for j, b in sides:
+        edges += [(j, start)] + [(start + i, start + i + 1) for i in range(len(b) - 1)]
+        start += len(b)
+    e = np.asarray(edges)
+    w = np.linalg.norm(nodes[e[:, 0]] - nodes[e[:, 1]], axis=1)
+    graph = csr_matrix((np.r_[w, w], (np.r_[e[:, 0], e[:, 1]], np.r_[e[:, 1], e[:, 0]])),
+                       shape=(len(nodes), len(nodes)))
+    n = len(nodes)
+    return Tree(nodes=nodes, radius=np.full(n, 0.05), graph=graph, main=np.ones(n, bool),
+                branch_of=np.zeros(n, int), branch_dir=np.zeros((1, 3)),
+                branch_r=np.full(1, 0.05), branch_root=nodes[:1])
+
+
+def test_a_head_starts_where_its_ears_leave_a_short_neck(template, monkeypatch):
+    """A rhino's neck is short and its head long: the template's lengths cut its neck-and-head
+    path far past its ears, and the neck GC takes the skull. Ears stand out of the head in a
+    mirrored pair: the head starts just before where they leave the path. One side branch
+    alone, or a pair behind where the neck starts (shoulder spurs), moves nothing. Without
+    the rule the cut stays past the ears (the test can fail)."""
+    chain = np.vstack([np.linspace([0.15, 0.0, 0.2], [0.38, 0.0, 0.27], 16)[:-1],
+                       np.linspace([0.38, 0.0, 0.27], [0.69, 0.0, -0.21], 25)[:-1],
+                       np.linspace([0.69, 0.0, -0.21], [0.97, 0.0, 0.09], 20)])
+    j = 15                                                    # the ears' junction
+    ears = [(j, np.linspace([0.45, 0.1, 0.35], [0.56, 0.5, 0.54], 5)),
+            (j, np.linspace([0.45, -0.1, 0.35], [0.55, -0.5, 0.53], 5))]
+    own = list(range(len(chain)))
+    cut = match_module._chain_cuts(template, _joined(chain, ears), BODY, own, ["neck", "head"])
+    assert cut[1] == j - 1 and cut[0] == 0 and cut[-1] == len(chain) - 1
+    monkeypatch.setattr(match_module, "paired_junction", lambda *a: None)
+    late = match_module._chain_cuts(template, _joined(chain, ears), BODY, own, ["neck", "head"])
+    assert late[1] > j + 10
+    monkeypatch.undo()
+    one = match_module._chain_cuts(template, _joined(chain, ears[:1]), BODY, own, ["neck", "head"])
+    assert one == late
+    spurs = [(3, np.linspace([0.2, 0.1, 0.1], [0.25, 0.5, -0.2], 5)),
+             (3, np.linspace([0.2, -0.1, 0.1], [0.25, -0.5, -0.2], 5))]
+    behind = match_module._chain_cuts(template, _joined(chain, spurs), BODY, own, ["neck", "head"])
+    assert behind == late
+
+
+def test_a_spur_out_of_one_hip_is_no_tail_the_thin_one_on_the_mid_plane_is(template):
+    """A giraffe calf's rump holds two free ends behind the hips: its thin tail, hanging on
+    the mid-plane, and a thicker spur out of the right hip. A tail leaves the body on the
+    mid-plane (only a head, on its neck's joints, turns its side away), so the spur's side
+    costs what a leg's does and the tail takes the thin end. With the side weighed at half (as
+    for a head) the thicker spur won: the calf was written with its tail on a hip."""
+    tail = np.linspace([-0.81, 0.17, -0.28], [-0.86, 0.0, -0.49], 6)
+    spur = np.linspace([-0.69, -0.03, -0.23], [-0.83, -0.31, -0.5], 6)
+    tree = _tree([np.array([[0.0, 0.0, 0.3], [0.0, 0.0, 0.31]]), tail, spur])
+    tree.branch_r[:] = [0.2, 0.024, 0.046]
+    leaves = np.array([1 + len(tail), len(tree.nodes) - 1])
+    for attach in (False, True):
+        C = match_cost(template, tree, BODY, ["tail"], leaves, attach=attach)[0]
+        assert C[0] < C[1]

@@ -10,6 +10,7 @@ from scipy.spatial import cKDTree
 from ngc_gen.data.autogc.template import Template
 from ngc_gen.data.errors import DataError
 
+from .side_pairs import paired_junction
 from .transfer_settings import TransferSettings
 from .tree import BodyFrame, Tree
 
@@ -97,9 +98,12 @@ def match_cost(template: Template, tree: Tree, body: BodyFrame, leaf_gcs: list[s
         d_t = end - start
         d_t /= max(np.linalg.norm(d_t), 1e-12)
         sigma = np.full(3, SIGMA_TIP)
-        if template.gc(name).symmetric is None:  # on the mid-plane: its side hardly tells
-            sigma[1] *= 2.0
         chain = _chain(template, name)
+        if template.gc(name).symmetric is None and len(chain) > 1:
+            # on the mid-plane at a chain's end (a head on its neck): it turns aside at the
+            # chain's joints, its side hardly tells; a part straight on the root (a tail)
+            # leaves the body on the mid-plane, where a spur out of one hip does not lie
+            sigma[1] *= 2.0
         # where its branch leaves the body, front to back, against where any GC of its chain
         # starts (a branch may hold a whole leg, or only a head past its ears): it stays when
         # the limb swings (a galloping front foot behind its shoulder)
@@ -340,7 +344,9 @@ def _chain_cuts(template: Template, tree: Tree, body: BodyFrame, own: list[int],
                 chain: list[str]) -> list[int]:
     """Where a chain of template GCs (top -> leaf) cuts its path `own` (junction -> tip): by
     the template's lengths up to where the template's chain ends (``_template_end``), each
-    inner cut moved to the nearest bend and before side branches."""
+    inner cut moved to the nearest bend and before side branches; on the mid-plane, the last
+    GC (a head) started where a mirrored pair of side branches leaves the path
+    (``side_pairs``)."""
     arc = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(tree.nodes[own], axis=0), axis=1))]
     lengths = [body.length(np.subtract(template.gc(c).place["end"],
                                        template.gc(c).place["start"]) / 1.0) for c in chain]
@@ -349,7 +355,15 @@ def _chain_cuts(template: Template, tree: Tree, body: BodyFrame, own: list[int],
     cut = _split_by(arc[: k + 1], lengths)[:-1] + [len(own) - 1] if k + 1 > len(chain) else \
         list(np.linspace(0, len(own) - 1, len(chain) + 1).astype(int))
     cut = [cut[0]] + [_bend_near(tree.nodes[own], arc, c) for c in cut[1:-1]] + [cut[-1]]
-    return _before_side_branches(np.asarray(own), arc, cut, tree.degree)
+    cut = _before_side_branches(np.asarray(own), arc, cut, tree.degree)
+    if len(chain) > 1 and all(template.gc(c).symmetric is None for c in chain):
+        # a chain on the mid-plane: its free end's part (a head on its neck) starts at the
+        # first mirrored pair of side branches (ears, horns) in front of the chain's start
+        j = paired_junction(tree, body, own, lambda tips: ~_behind(
+            template, chain[0], np.asarray(template.gc(chain[-1]).place["end"]), tips))
+        if j is not None:
+            cut[-2] = int(np.clip(j - 1, cut[-3] + 1, cut[-1] - 1))
+    return cut
 
 
 def _paths(template: Template, tree: Tree, body: BodyFrame,
