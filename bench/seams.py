@@ -48,8 +48,11 @@ ROOT = Path(__file__).resolve().parents[1]
 SHAPES = (("ant", "annotated"), ("airplane", "annotated"), ("creature_0000", "annotated"),
           ("creature_0001", "annotated"), ("deer", "rig"), ("horse", "rig"), ("fox", "rig"),
           ("wolf", "rig"))
-#: recipe -> its train.py overrides: the min union (the paper's), the default (the blend)
-FIT = {"before": ["model.union.kind=min"], "after": []}
+#: recipe -> its train.py overrides: the min union (the paper's) on samples without shell
+#: samples, the defaults (the blend, `prepare.shell_fraction`)
+FIT = {"before": ["model.union.kind=min", "prepare.shell_fraction=0"], "after": []}
+#: recipe -> its prepared samples' folder under .cache/prepared (the recipes draw different ones)
+PREPARED = {"before": "seams", "after": "seams_after"}
 RECIPES = tuple(FIT)
 #: shipped edit programs measured on the fitted shapes (ngc_gen/conf/edit)
 EDITS = {"ant": "posed_ant_leg", "creature_0000": "bent_tail"}
@@ -68,16 +71,17 @@ def overrides(folder: Path, steps: int, resolution: int, recipe: str = "before")
     return ["stage=fit", "data=folder", f"data.path={folder}", f"trainer.max_steps={steps}",
             f"extract.resolution={resolution}", "trainer.enable_progress_bar=false",
             "logger=csv", *FIT[recipe],
-            f"prepare.cache_dir={ROOT}/.cache/prepared/seams/{folder.name}"]
+            f"prepare.cache_dir={ROOT}/.cache/prepared/{PREPARED[recipe]}/{folder.name}"]
 
 
 def prepare(folder: Path, steps: int, resolution: int) -> None:
-    """The shape's training samples, once for both recipes (they share the prepared cache)."""
+    """The shape's training samples of each recipe, once before its fits."""
     from ngc_gen.app.runtime.config import compose_config
     from ngc_gen.app.stages.prepare_data import prepare_dataset
 
-    prepare_dataset(compose_config(overrides=overrides(folder, steps, resolution)),
-                    verbose=False)
+    for recipe in RECIPES:
+        prepare_dataset(compose_config(overrides=overrides(folder, steps, resolution, recipe)),
+                        verbose=False)
 
 
 def fit_one(cache: FitCache, name: str, folder: Path, recipe: str, steps: int,
