@@ -1,5 +1,6 @@
-"""Seams benchmark: the min union (`before`) and the blended union (`after`, the default
-`model.union`) on the same fits in the same run, each scored where GCs meet against its ceiling.
+"""Seams benchmark: the min union on samples without outer-shell samples (`before`) and the
+default recipe (`after`: the blended union, half the volume samples in the GCs' outer shells),
+each scored where GCs meet against its ceiling.
 
     python -m bench.seams [--only ant creature_0000] [--steps 1500] [--resolution 256]
                           [--fit-workers 2] [--no-picture]
@@ -7,12 +8,13 @@
 Shapes (`SHAPES`): pyvista's ant and airplane with their hand-annotated GCs, two procedural
 creatures with their parts, and the rest poses of four animals (deer, horse, fox, wolf) with
 their rig's GCs; each fitted on its own as a user fits one asset (train.py stage=fit, one
-thread, `--steps`, meshed at `--resolution`) twice in the same run: `before` with the min union
-(`model.union.kind=min`, the paper's), `after` with the default recipe (the blend). Each is
-scored by its own fit stage (metrics.json, meshes/<name>.ply). The default loss does not depend
-on the union (`model.union.loss_shares` is off), so both train the same network: `same_network`
-records that the two checkpoints' weights are equal, and step_s is each fit's own measured
-training time per step. The meshes are staged by bench/_seams.py; fits go through the bench's
+thread, `--steps`, meshed at `--resolution`) twice: `before` with the min union
+(`model.union.kind=min`, the paper's) on uniform volume samples (`prepare.shell_fraction=0`),
+`after` with the default recipe. Each is scored by its own fit stage (metrics.json,
+meshes/<name>.ply). The default loss does not depend on the union (`model.union.loss_shares` is
+off) and both draw the same number of rows per batch, so a step costs the same; the networks
+differ by their samples (`same_network`: whether the two checkpoints' weights are equal), and
+step_s is each fit's own measured training time per step. The meshes are staged by bench/_seams.py; fits go through the bench's
 fit cache (`FitCache("seams")`: rerun to fill in what is missing, a stopped run keeps what it
 fitted).
 
