@@ -25,6 +25,7 @@ from ngc_gen.geometry import GeneralizedCylinder, bernstein_basis
 from .match import correspond
 from .orientation import choose
 from .refine import refine
+from .roots import owner_of
 from .transfer_settings import Transfer, TransferSettings
 from .verify import verify
 from .tree import BodyFrame, Tree, _curve_points, skeleton_tree, surface_share, template_rotation
@@ -109,8 +110,10 @@ class Placing:
 
     @property
     def owner(self) -> np.ndarray:
-        """The template GC index of every surface sample (its nearest tree node's)."""
-        return self.labels[cKDTree(self.tree.nodes).query(self.surface, k=1)[1]]
+        """The template GC index of every surface sample: its nearest tree node's, or a leg's
+        when nearer the column up to that leg's joint (``roots``)."""
+        return owner_of(self.surface, self.template, self.tree, self.labels, self.body,
+                        self.paths)
 
     def gc(self, tgc: TemplateGC, poly: np.ndarray, own: np.ndarray) -> GeneralizedCylinder:
         """The template GC through polyline `poly` fitted to its samples `own`, its `up` the
