@@ -23,6 +23,7 @@ from ngc_gen.data.rigs.rig_gcs import OWN_REACH, chain_polyline, template_gc
 from ngc_gen.geometry import GeneralizedCylinder, bernstein_basis
 
 from .match import correspond
+from .mirror import mirror_stand_in
 from .orientation import choose
 from .refine import refine
 from .roots import owner_of
@@ -195,10 +196,16 @@ def _refined_gcs(pl: Placing, owner: np.ndarray, left: np.ndarray) -> list[str]:
 
 
 def _missing_gc(pl: Placing, n: str, surface_body: np.ndarray) -> None:
-    """A GC from where a missing part would attach to the surface where it would end (a stub
-    the skeleton pruned), else a small one at its attachment."""
+    """A missing part of a pair as its found partner's mirror image where that lies on the
+    surface (``mirror``), else a GC from where it would attach to the surface where it would
+    end (a stub the skeleton pruned), else a small one at its attachment."""
     tgc = pl.template.gc(n)
     place, body = tgc.place, pl.body
+    if tgc.symmetric in pl.gcs and tgc.symmetric not in pl.missing:  # (mirror.py)
+        m = mirror_stand_in(pl.gcs[tgc.symmetric], body, n, pl.surface)
+        if m is not None:
+            pl.gcs[n] = m
+            return
     start = body.to_world(np.asarray(place["start"]))
     vec = (np.asarray(place["end"]) - np.asarray(place["start"])) * body.half @ body.R
     length = max(float(np.linalg.norm(vec)), pl.floor)
