@@ -7,7 +7,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import trimesh
-from scipy.spatial import cKDTree
 
 from ngc_gen.data.autogc.coverage import grow_to_cover, rho_matrix
 from ngc_gen.data.autogc.frame import to_template
