@@ -29,11 +29,14 @@ Pinocchio's two steps (a discrete embedding, then a continuous refinement) on ou
    junctions. Every other skeleton node (ears, antlers) goes to the GC nearest along the tree.
    Too few matched leaves, or a mean cost of the matched ones above ``max_match_cost``: the
    mesh does not match.
-4. GCs: each surface sample belongs to its nearest skeleton node's GC; a GC is the template's
+4. GCs: each surface sample belongs to its nearest skeleton node's GC, or a leg's when it is
+   the leg's parent's flank up to the leg's joint (``roots``); a GC is the template's
    degree of Bezier through its path (free ends extended to the surface), radii and caps from
    its own samples (``rig_gcs.template_gc``, as for a rig), the template's `up` turned into the
-   mesh's frame. A template part the mesh lacks reaches from its attachment to the surface
-   nearest where its tip would be (a pruned stub), else it is a small GC at its attachment.
+   mesh's frame. A template part the mesh lacks is its found symmetric partner's mirror
+   image where that lies on the surface (``mirror``), else it reaches from its attachment to
+   the surface nearest where its tip would be (a pruned stub), else it is a small GC at its
+   attachment.
 5. Refinement (torch, all GCs at once): control points and per-key radii so each GC's own
    samples lie at its radius from its curve (the union's boundary near the surface, the
    surface inside), children start inside their parents, curves stay smooth and symmetric
@@ -45,8 +48,8 @@ Pinocchio's two steps (a discrete embedding, then a continuous refinement) on ou
 
 Modules: transfer_settings (TransferSettings, Transfer), tree (body frame, skeleton tree),
 orientation (which way the mesh faces), match (correspondence, paths), verify (the template's
-checks), refine (torch refinement), assemble (the whole transfer), export (templates from
-annotated meshes).
+checks), roots (a leg's surface up to its joint), mirror (a missing part of a pair), refine
+(torch refinement), assemble (the whole transfer), export (templates from annotated meshes).
 """
 from .assemble import START_REACH, _moved_ends, _reach_back, transfer_template
 from .export import _attachment, _inferred_tree, export_template

@@ -7,7 +7,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import trimesh
-from scipy.spatial import cKDTree
 
 from ngc_gen.data.autogc.coverage import grow_to_cover, rho_matrix
 from ngc_gen.data.autogc.frame import to_template
@@ -23,8 +22,10 @@ from ngc_gen.data.rigs.rig_gcs import OWN_REACH, chain_polyline, template_gc
 from ngc_gen.geometry import GeneralizedCylinder, bernstein_basis
 
 from .match import correspond
+from .mirror import mirror_stand_in
 from .orientation import choose
 from .refine import refine
+from .roots import owner_of
 from .transfer_settings import Transfer, TransferSettings
 from .verify import verify
 from .tree import BodyFrame, Tree, _curve_points, skeleton_tree, surface_share, template_rotation
@@ -109,8 +110,10 @@ class Placing:
 
     @property
     def owner(self) -> np.ndarray:
-        """The template GC index of every surface sample (its nearest tree node's)."""
-        return self.labels[cKDTree(self.tree.nodes).query(self.surface, k=1)[1]]
+        """The template GC index of every surface sample: its nearest tree node's, or a leg's
+        when nearer the column up to that leg's joint (``roots``)."""
+        return owner_of(self.surface, self.template, self.tree, self.labels, self.body,
+                        self.paths)
 
     def gc(self, tgc: TemplateGC, poly: np.ndarray, own: np.ndarray) -> GeneralizedCylinder:
         """The template GC through polyline `poly` fitted to its samples `own`, its `up` the
@@ -192,10 +195,16 @@ def _refined_gcs(pl: Placing, owner: np.ndarray, left: np.ndarray) -> list[str]:
 
 
 def _missing_gc(pl: Placing, n: str, surface_body: np.ndarray) -> None:
-    """A GC from where a missing part would attach to the surface where it would end (a stub
-    the skeleton pruned), else a small one at its attachment."""
+    """A missing part of a pair as its found partner's mirror image where that lies on the
+    surface (``mirror``), else a GC from where it would attach to the surface where it would
+    end (a stub the skeleton pruned), else a small one at its attachment."""
     tgc = pl.template.gc(n)
     place, body = tgc.place, pl.body
+    if tgc.symmetric in pl.gcs and tgc.symmetric not in pl.missing:  # (mirror.py)
+        m = mirror_stand_in(pl.gcs[tgc.symmetric], body, n, pl.surface)
+        if m is not None:
+            pl.gcs[n] = m
+            return
     start = body.to_world(np.asarray(place["start"]))
     vec = (np.asarray(place["end"]) - np.asarray(place["start"])) * body.half @ body.R
     length = max(float(np.linalg.norm(vec)), pl.floor)
