@@ -32,7 +32,9 @@ counts OWN_SHARE of that. Rounds repeat until every point is inside; a
 last resort after ``max_rounds`` scales whole GCs (as ``grow_to_cover``).
 
 ``tighten`` (its own module) then fits each GC's radii and caps to the least volume that
-still holds its samples.
+still holds its samples; ``centred_on_held`` last moves each curve, ends too, to the middle
+of everything its GC holds (what it holds on one side only swells the centred ellipse as far
+on the other) where that holds it all for less volume.
 """
 from __future__ import annotations
 
