@@ -32,7 +32,9 @@ counts OWN_SHARE of that. Rounds repeat until every point is inside; a
 last resort after ``max_rounds`` scales whole GCs (as ``grow_to_cover``).
 
 ``tighten`` (its own module) then fits each GC's radii and caps to the least volume that
-still holds its samples.
+still holds its samples; ``centred_on_held`` last moves each curve, ends too, to the middle
+of everything its GC holds (what it holds on one side only swells the centred ellipse as far
+on the other) where that holds it all for less volume.
 """
 from __future__ import annotations
 
@@ -42,7 +44,7 @@ import numpy as np
 
 from ngc_gen.data.autogc.coverage import rho_matrix
 from ngc_gen.data.autogc.radii import ellipse_radii
-from ngc_gen.data.autogc.tighten import gc_volume
+from ngc_gen.data.autogc.tighten import gc_volume, tighten
 from ngc_gen.data.mesh.sampling import gc_membership
 from ngc_gen.geometry import GeneralizedCylinder, bernstein_basis
 
@@ -93,10 +95,11 @@ def hug_radii(gc: GeneralizedCylinder, own: np.ndarray, q: float, margin: float,
     return GeneralizedCylinder.from_dict(d)
 
 
-def _slices(gc: GeneralizedCylinder, own: np.ndarray, at: np.ndarray | None = None):
+def _slices(gc: GeneralizedCylinder, own: np.ndarray, at: np.ndarray | None = None,
+            thick: float = THICK):
     """The GC's own samples (M, 3) in its tube as (t, y, z, nearest key, body): arc t, offsets
-    y, z from the curve in its frame, the key each is nearest and whether it lies within THICK
-    x its slice's median distance from the curve (its key's slice has MIN_SLICE such)."""
+    y, z from the curve in its frame, the key each is nearest and whether it lies within
+    `thick` x its slice's median distance from the curve (its key's slice has MIN_SLICE such)."""
     d = gc.to_dict()
     key_t = np.array([k["t"] for k in d["keys"]])
     radii = np.array([k["radii"] for k in d["keys"]], dtype=np.float64)
@@ -110,23 +113,24 @@ def _slices(gc: GeneralizedCylinder, own: np.ndarray, at: np.ndarray | None = No
     nearest = np.argmin(np.abs(t[:, None] - at[None, :]), axis=1)
     count = np.bincount(nearest, minlength=len(at))
     med = np.array([np.median(r[nearest == k]) if count[k] else 0.0 for k in range(len(at))])
-    body = (count[nearest] >= MIN_SLICE) & (r <= THICK * med[nearest])
+    body = (count[nearest] >= MIN_SLICE) & (r <= thick * med[nearest])
     body &= np.bincount(nearest[body], minlength=len(at))[nearest] >= MIN_SLICE
     return t, y, z, nearest, body
 
 
-def recentred(gc: GeneralizedCylinder, own: np.ndarray, bins: int = 0) -> GeneralizedCylinder:
+def recentred(gc: GeneralizedCylinder, own: np.ndarray, bins: int = 0,
+              thick: float = THICK, ends: bool = False) -> GeneralizedCylinder:
     """gc with its curve moved to the middle of its own body samples (M, 3) (the midpoint of
-    their extent in each frame axis; THICK as in ``hug_radii``) at each key, or at `bins`
-    points evenly along it, lerped between: a curve off the middle of its part makes the
-    centred ellipse twice the offset wider. The ends stay (where the part attaches and ends,
+    their extent in each frame axis; within `thick` as in ``hug_radii``, inf: all of them)
+    at each key, or at `bins` points evenly along it, lerped between: a curve off the middle
+    of its part makes the centred ellipse twice the offset wider. The ends stay (where the part attaches and ends,
     as the template calibrates them); the moved centre line is refitted as a Bezier of the
     same degree; a slice without enough samples follows its neighbours."""
     d = gc.to_dict()
     key_t = np.array([k["t"] for k in d["keys"]])
     radii = np.array([k["radii"] for k in d["keys"]], dtype=np.float64)
     at = np.linspace(0.0, 1.0, bins) if bins else key_t
-    t, y, z, nearest, body = _slices(gc, own, at)
+    t, y, z, nearest, body = _slices(gc, own, at, thick)
     if not body.any() or d["curve"]["type"] != "bezier":
         return gc
     K = len(at)
@@ -141,8 +145,11 @@ def recentred(gc: GeneralizedCylinder, own: np.ndarray, bins: int = 0) -> Genera
         return gc
     s = np.linspace(0.0, 1.0, 64)
     r_s = np.stack([np.interp(s, key_t, radii[:, j]) for j in range(2)], 1)
-    c_s = np.stack([np.interp(s, np.r_[0.0, at[inner], 1.0], np.r_[0.0, shift[inner, j], 0.0])
-                    for j in range(2)], 1)
+    if ends:  # (`ends`: they move too, each with its nearest slice)
+        c_s = np.stack([np.interp(s, at[have], shift[have, j]) for j in range(2)], 1)
+    else:
+        c_s = np.stack([np.interp(s, np.r_[0.0, at[inner], 1.0], np.r_[0.0, shift[inner, j], 0.0])
+                        for j in range(2)], 1)
     line = np.asarray(gc.to_world(np.column_stack([2.0 * s - 1.0, c_s / r_s])), dtype=np.float64)
     d["curve"] = {"type": "bezier",
                   "points": _bezier_through(line, len(d["curve"]["points"]) - 1).tolist()}
@@ -163,6 +170,26 @@ def hugged(gc: GeneralizedCylinder, own: np.ndarray, q: float, margin: float,
         options.append(moved)
     held = [gc_volume(hug_to_cover([g], own)[0]) if len(own) else gc_volume(g) for g in options]
     return options[int(np.argmin(held))]
+
+
+def centred_on_held(gcs: list[GeneralizedCylinder], points: np.ndarray,
+                    fixed: set[int] = frozenset()) -> list[GeneralizedCylinder]:
+    """Each GC (but those `fixed`) with its curve, ends included, moved to the middle of
+    everything it holds of `points` (N, 3) at each key, if that holds all of it (grown to,
+    then tightened) for less volume: a section is an ellipse centred on the curve, so what a
+    GC holds on one side only (the legs' tops under a torso, a horn or an ear on a head, a
+    hump) widens it as much on the other side, where there is nothing. Every sample a GC held
+    it still holds, so no part's share of its surface falls."""
+    gcs = list(gcs)
+    pp, pg, _ = gc_membership(points, gcs)
+    for g, gc in enumerate(gcs):
+        held = points[pp[pg == g]]
+        if g in fixed or len(held) < MIN_SLICE:
+            continue
+        moved = tighten(hug_to_cover([recentred(gc, held, thick=np.inf, ends=True)], held), held)[0]
+        if gc_volume(moved) < gc_volume(gc):
+            gcs[g] = moved
+    return gcs
 
 
 def _bezier_through(P: np.ndarray, degree: int) -> np.ndarray:

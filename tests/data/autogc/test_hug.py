@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from ngc_gen.data.autogc.coverage import grow_to_cover
-from ngc_gen.data.autogc.hug import (hug_radii, hug_to_cover, hugged, min_area_factors, plan,
-                                     recentred)
+from ngc_gen.data.autogc.hug import (centred_on_held, hug_radii, hug_to_cover, hugged,
+                                     min_area_factors, plan, recentred)
 from ngc_gen.data.autogc.radii import ellipse_radii
 from ngc_gen.data.autogc.tighten import gc_volume, tighten
 from ngc_gen.data.mesh.sampling import gc_membership, sample_surface
@@ -175,3 +175,22 @@ def test_tighten_never_shrinks_a_cap_to_nothing():
     out = tighten([_straight(0.3)], pts)[0].to_dict()
     radii = np.array([k["radii"] for k in out["keys"]])
     assert min(out["caps"]) >= MIN_CAP * radii.min() * (1 - 1e-9)
+
+
+def test_a_gc_holding_more_on_one_side_moves_its_curve_there_ends_included():
+    """A torso (radius 0.1 along x) that holds its legs' tops below it: its centred ellipse
+    grows as far above the torso as the legs reach below. Centred on everything it holds, ends
+    too (the legs stand near them), it still holds every sample for at least 8% less volume
+    (the ends kept in place: about 5%); a GC left `fixed` is not moved."""
+    mesh = tubes([((-0.3, 0, 0), (0.3, 0, 0)), ((-0.2, 0, 0), (-0.2, 0, -0.4)),
+                  ((0.2, 0, 0), (0.2, 0, -0.4))], [0.1, 0.06, 0.06], h=0.01)
+    pts, _ = sample_surface(np.asarray(mesh.vertices), np.asarray(mesh.faces), 4000,
+                            np.random.default_rng(0))
+    held = pts[(pts[:, 2] > -0.22) & (np.abs(pts[:, 0]) < 0.28)]
+    start = tighten(hug_to_cover([_straight(0.1)], held), held)[0]
+    out = centred_on_held([start], held)[0]
+    assert len(np.unique(gc_membership(held, [out])[0])) == len(held)
+    assert gc_volume(out) < 0.92 * gc_volume(start)
+    line = out.centre_line(9)
+    assert line[4, 2] < -0.02 and line[[0, -1], 2].max() < -0.005   # down, ends too
+    assert centred_on_held([start], held, fixed={0})[0] is start

@@ -44,7 +44,8 @@ Pinocchio's two steps (a discrete embedding, then a continuous refinement) on ou
    are not mirror images); then radii and caps are refitted to
    the refined curves and the GCs cover the surface hugging it (``hug``, settings `hug`,
    `hug_quantile`: radii from each part's own slices, the rest by the cheapest local growth,
-   then tightened), or with `hug` off as for a rig (``coverage.grow_to_cover``).
+   then tightened and each curve centred on what its GC holds), or with `hug` off as for a
+   rig (``coverage.grow_to_cover``).
 
 Modules: transfer_settings (TransferSettings, Transfer), tree (body frame, skeleton tree),
 orientation (which way the mesh faces), match (correspondence, paths), verify (the template's

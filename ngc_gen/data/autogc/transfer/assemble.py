@@ -10,7 +10,7 @@ import trimesh
 
 from ngc_gen.data.autogc.coverage import grow_to_cover, rho_matrix
 from ngc_gen.data.autogc.frame import to_template
-from ngc_gen.data.autogc.hug import hug_to_cover, hugged
+from ngc_gen.data.autogc.hug import centred_on_held, hug_to_cover, hugged
 from ngc_gen.data.autogc.orient import Orientation, parse_axis
 from ngc_gen.data.autogc.skeleton import local_thickness, proxy_skeleton
 from ngc_gen.data.autogc.template import AT_KEYS, Template, TemplateGC
@@ -266,8 +266,9 @@ def _hugging(pl: Placing, ordered: list[GeneralizedCylinder],
             start = np.asarray(ordered[g].to_world(np.array([[-1.0, 0.0, 0.0]])))
             ordered[p] = hug_to_cover([ordered[p]], start)[0]
     own = np.where((owner >= 0) & found[np.clip(owner, 0, None)], owner, -1)
-    return tighten(hug_to_cover(ordered, surface, owner=own), surface, own,
-                   fixed={g for g in range(len(names)) if not found[g]})
+    fixed = {g for g in range(len(names)) if not found[g]}
+    return centred_on_held(tighten(hug_to_cover(ordered, surface, owner=own), surface, own,
+                                   fixed=fixed), surface, fixed)
 
 
 def _covering(pl: Placing, owner: np.ndarray) -> list[GeneralizedCylinder]:
