@@ -22,7 +22,7 @@ from ngc_gen.data.autogc.orient import Orientation, axis_name, detect_orientatio
 from ngc_gen.data.autogc.template import Template
 from ngc_gen.data.errors import DataError
 
-from .match import _tips, correspond
+from .match import LEG_DOWN, _tips, correspond
 from .tree import BodyFrame
 from .verify import verify
 
@@ -32,7 +32,6 @@ DISTINCT_DEG = 30.0  # the runner-up for the confidence: a frame at least this f
                      # puts some name on another part
 REFINE_ROUNDS = 2  # a detected candidate is turned to its match's implied frame this many times
 LEAF_WEIGHT = 0.5   # a swinging limb's direction counts this much in the implied frame
-LEG_DOWN = 0.5      # a part whose place ends this much lower than it starts is a leg
 LEVEL_FLAT = 0.15   # feet lie on one plane: the least spread across it over the next (4+ feet)
 LEVEL_DEG = (2.0, 45.0)  # a frame whose feet's plane is tilted this much is levelled on them
 TILT_DEG = 25.0     # each candidate also tilted this much about its left and its up axis: a long

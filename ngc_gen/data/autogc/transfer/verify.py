@@ -25,8 +25,9 @@ import numpy as np
 
 from ngc_gen.data.autogc.template import Template
 
+from .match import LEG_DOWN
+
 END_FRONT = 0.3    # a part whose place's middle lies this far (body units) front or back is an end
-LEG_DOWN = 0.5     # a part whose place ends this much lower than it starts reaches the ground
 SIDE = 0.2         # a symmetric part this far left or right tells left from right
 MIRROR_RATIO = 2.5  # a symmetric pair's path lengths differ by at most this factor
 HEAVY_RATIO = 2.0  # an end whose parts are this much larger in the template (neck and head: about
