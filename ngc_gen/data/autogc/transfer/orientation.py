@@ -124,7 +124,8 @@ def _try(ctx, o: Orientation, refine: bool) -> Trial:
             trial = Trial(o, body, e, str(e.what), float("inf"))
         else:
             held = np.bincount(found[1], weights=share, minlength=len(template.gcs))
-            verdict = verify(template, found[0], body.to_body(tree.nodes), held)
+            verdict = verify(template, found[0], body.to_body(tree.nodes), held, body.half,
+                            tree.radius)
             trial = Trial(o, body, found, verdict.failed, _score(found, T, st.missing_cost))
         if best is None or (trial.failed is None, -trial.score) > (best.failed is None, -best.score):
             best = trial
