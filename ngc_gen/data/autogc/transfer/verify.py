@@ -6,12 +6,15 @@ with where the template's `place` puts them:
 - ends: the parts off the torso's middle (neck, head, tail) lie on the template's side of the
   torso, front or back (head and tail at opposite ends, the neck toward the head);
 - ground: the parts that reach down (legs) end below the torso's middle, all of them;
-- spine: the torso's path (between where the limbs join it) runs as the template's torso does,
-  front to back, within SPINE_DEG in the frame's own lengths (the half extents): a frame that
-  stands the body on end, a tall animal turned about the line between its back and its neck
-  (front and up swapped, the neck taken for the back, front legs for a tail, hind legs
-  pointing backwards), puts every tip where the template's is in the box-scaled coordinates the
-  match reads, as well as the right frame does; only the body's own direction tells them;
+- spine (asked for a frame the search detected): the torso's path (between where the limbs
+  join it) runs as the template's torso does, front to back, within SPINE_DEG in the frame's
+  own lengths (the half extents): a frame that stands the body on end, a tall animal turned
+  about the line between its back and its neck (front and up swapped, the neck taken for the
+  back, front legs for a tail, hind legs pointing backwards), puts every tip where the
+  template's is in the box-scaled coordinates the match reads, as well as the right frame
+  does; only the body's own direction tells them. Not asked of given axes, an override or a
+  frame levelled on its feet: their up does not come from the search, and a torso's path may
+  slope far more than the back (a giraffe's or an elephant's runs up into the neck's base);
 - legs: the parts that reach down are alike in thickness, the thickest's outer half (a shin, a
   forearm) at most LEGS_RATIO x the thinnest's: a frame turned back to front in a gallop may
   take the head, or a bushy tail, for a hind leg and pass every other check;
@@ -63,12 +66,13 @@ def _mid(place: dict) -> np.ndarray:
 
 def verify(template: Template, paths: dict[str, np.ndarray], nodes_body: np.ndarray,
            surface: np.ndarray, half: np.ndarray | None = None,
-           radius: np.ndarray | None = None) -> Verdict:
+           radius: np.ndarray | None = None, spine: bool = False) -> Verdict:
     """The checks of the module docstring on matched `paths` (template GC name -> node indices,
     root side first) with the tree's nodes in body coordinates `nodes_body` (N, 3), the share
     of the mesh's surface each template GC holds, `surface` (G,) in template order, and the
     frame's half extents `half` (3,) (body units to lengths; None: alike) and the tree's
-    thickness at each node `radius` (N,) (None: the legs check is skipped)."""
+    thickness at each node `radius` (N,) (None: the legs check is skipped); spine: with the
+    spine check."""
     root = next(g.name for g in template.gcs if g.parent is None)
     if root not in paths:
         return Verdict(f"no {root} found")
@@ -87,7 +91,7 @@ def verify(template: Template, paths: dict[str, np.ndarray], nodes_body: np.ndar
         if down and p[-1][2] >= torso[2]:
             return Verdict(f"ground: {g.name} does not reach down below the {root}")
     failed = _spine(template.gc(root), nodes_body[paths[root]], np.ones(3) if half is None
-                    else np.asarray(half, dtype=np.float64))
+                    else np.asarray(half, dtype=np.float64)) if spine else None
     if failed:
         return Verdict(failed)
     failed = _weight(template, paths, surface, root, t_torso) or \
