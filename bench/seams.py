@@ -1,5 +1,6 @@
-"""Seams benchmark: the min union (`before`) and the blended union (`after`, the default
-`model.union`) on the same fits in the same run, each scored where GCs meet against its ceiling.
+"""Seams benchmark: the min union on samples without outer-shell samples (`before`) and the
+default recipe (`after`: the blended union, half the volume samples in the GCs' outer shells),
+each scored where GCs meet against its ceiling.
 
     python -m bench.seams [--only ant creature_0000] [--steps 1500] [--resolution 256]
                           [--fit-workers 2] [--no-picture]
@@ -7,12 +8,13 @@
 Shapes (`SHAPES`): pyvista's ant and airplane with their hand-annotated GCs, two procedural
 creatures with their parts, and the rest poses of four animals (deer, horse, fox, wolf) with
 their rig's GCs; each fitted on its own as a user fits one asset (train.py stage=fit, one
-thread, `--steps`, meshed at `--resolution`) twice in the same run: `before` with the min union
-(`model.union.kind=min`, the paper's), `after` with the default recipe (the blend). Each is
-scored by its own fit stage (metrics.json, meshes/<name>.ply). The default loss does not depend
-on the union (`model.union.loss_shares` is off), so both train the same network: `same_network`
-records that the two checkpoints' weights are equal, and step_s is each fit's own measured
-training time per step. The meshes are staged by bench/_seams.py; fits go through the bench's
+thread, `--steps`, meshed at `--resolution`) twice: `before` with the min union
+(`model.union.kind=min`, the paper's) on uniform volume samples (`prepare.shell_fraction=0`),
+`after` with the default recipe. Each is scored by its own fit stage (metrics.json,
+meshes/<name>.ply). The default loss does not depend on the union (`model.union.loss_shares` is
+off) and both draw the same number of rows per batch, so a step costs the same; the networks
+differ by their samples (`same_network`: whether the two checkpoints' weights are equal), and
+step_s is each fit's own measured training time per step. The meshes are staged by bench/_seams.py; fits go through the bench's
 fit cache (`FitCache("seams")`: rerun to fill in what is missing, a stopped run keeps what it
 fitted).
 
@@ -48,8 +50,11 @@ ROOT = Path(__file__).resolve().parents[1]
 SHAPES = (("ant", "annotated"), ("airplane", "annotated"), ("creature_0000", "annotated"),
           ("creature_0001", "annotated"), ("deer", "rig"), ("horse", "rig"), ("fox", "rig"),
           ("wolf", "rig"))
-#: recipe -> its train.py overrides: the min union (the paper's), the default (the blend)
-FIT = {"before": ["model.union.kind=min"], "after": []}
+#: recipe -> its train.py overrides: the min union (the paper's) on samples without shell
+#: samples, the defaults (the blend, `prepare.shell_fraction`)
+FIT = {"before": ["model.union.kind=min", "prepare.shell_fraction=0"], "after": []}
+#: recipe -> its prepared samples' folder under .cache/prepared (the recipes draw different ones)
+PREPARED = {"before": "seams", "after": "seams_after"}
 RECIPES = tuple(FIT)
 #: shipped edit programs measured on the fitted shapes (ngc_gen/conf/edit)
 EDITS = {"ant": "posed_ant_leg", "creature_0000": "bent_tail"}
@@ -68,16 +73,17 @@ def overrides(folder: Path, steps: int, resolution: int, recipe: str = "before")
     return ["stage=fit", "data=folder", f"data.path={folder}", f"trainer.max_steps={steps}",
             f"extract.resolution={resolution}", "trainer.enable_progress_bar=false",
             "logger=csv", *FIT[recipe],
-            f"prepare.cache_dir={ROOT}/.cache/prepared/seams/{folder.name}"]
+            f"prepare.cache_dir={ROOT}/.cache/prepared/{PREPARED[recipe]}/{folder.name}"]
 
 
 def prepare(folder: Path, steps: int, resolution: int) -> None:
-    """The shape's training samples, once for both recipes (they share the prepared cache)."""
+    """The shape's training samples of each recipe, once before its fits."""
     from ngc_gen.app.runtime.config import compose_config
     from ngc_gen.app.stages.prepare_data import prepare_dataset
 
-    prepare_dataset(compose_config(overrides=overrides(folder, steps, resolution)),
-                    verbose=False)
+    for recipe in RECIPES:
+        prepare_dataset(compose_config(overrides=overrides(folder, steps, resolution, recipe)),
+                        verbose=False)
 
 
 def fit_one(cache: FitCache, name: str, folder: Path, recipe: str, steps: int,

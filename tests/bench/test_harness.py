@@ -176,7 +176,7 @@ def test_a_setting_at_its_neutral_value_leaves_the_recipe_key_as_it_was():
     plain = h.config_recipe(compose_config(overrides=["stage=fit", "data=ant",
                                                       "prepare.shell_fraction=0"]))
     assert "shell_fraction" not in plain["prepare"] and "shell_width" not in plain["prepare"]
-    for over in ("junction_weight=2", "prepare.pair_margin=0.1", "prepare.shell_fraction=0.5"):
+    for over in ("junction_weight=2", "prepare.pair_margin=0.1", "prepare.shell_fraction=0"):
         other = h.config_recipe(compose_config(overrides=["stage=fit", "data=ant", over]))
         assert h.recipe_key(other) != h.recipe_key(recipe), over
 

@@ -1,6 +1,6 @@
 """bench/seams.py: an edited shape is judged against the truth moved by the same edit and that
-moved truth's own ceiling; both recipes train the same network (the loss does not see the
-union); the issue's bar per fit."""
+moved truth's own ceiling; both recipes train with the same loss (it does not see the union),
+`before` on samples without outer shells; the issue's bar per fit."""
 from __future__ import annotations
 
 import numpy as np
@@ -49,9 +49,9 @@ def test_an_edit_is_judged_by_its_excess_over_the_edited_ceiling():
 
 
 def test_both_recipes_train_with_the_same_loss():
-    """`after` (the default, the blend) and `before` (the min) differ only in the union the
-    fit stage meshes with: the loss weighs no row by a blend share, so the bench's two fits
-    train the same network (it records `same_network` from the checkpoints)."""
+    """`after` (the default: the blend, outer-shell samples) and `before` (the min on uniform
+    volume samples, the baseline) differ in the union the fit stage meshes with and in the
+    samples; the loss weighs no row by a blend share, so a step costs the same."""
     from ngc_gen.app.runtime.config import compose_config
     from ngc_gen.app.stages.fit import union_blend
 
@@ -61,6 +61,7 @@ def test_both_recipes_train_with_the_same_loss():
     a, b = (dict(c.model) for c in cfgs.values())
     a.pop("union"), b.pop("union")
     assert a == b
+    assert cfgs["before"].prepare.shell_fraction == 0.0 < cfgs["after"].prepare.shell_fraction
 
 
 def test_the_bar_needs_every_target():
