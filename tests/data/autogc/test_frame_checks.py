@@ -1,6 +1,6 @@
 """The template's checks that tell a right frame from a wrong one that fits as cheaply: a body
 stood on end (front and up swapped: a tall, long-necked animal's neck read as its back) fails
-`hang`, and a thick head or tail taken for a leg (a gallop read back to front) fails `legs`.
+`spine`, and a thick head or tail taken for a leg (a gallop read back to front) fails `legs`.
 Paths in body coordinates, as ``verify`` reads a match."""
 from __future__ import annotations
 
@@ -42,12 +42,13 @@ HELD = {"torso": 0.4, "neck": 0.12, "head": 0.08, "tail": 0.04, "leg_fl": 0.09, 
         "leg_bl": 0.09, "leg_br": 0.09}
 
 
-def test_a_body_stood_on_end_fails_the_hang_check(template):
+def test_a_body_stood_on_end_fails_the_spine_check(template):
     """A long-necked walking animal (an alpaca) turned about the line between its back and its
     neck: its neck runs forward, its back stands upright, the hind feet point backwards and a
     front leg is read as the tail. Head and tail lie at opposite ends, the feet below the torso,
-    the sides right, neck and head hold more surface than the tail: only the legs, pointing
-    backwards (56 degrees off the template's), tell it."""
+    the sides right, neck and head hold more surface than the tail: only the torso's direction
+    (50 degrees off the template's in this frame's lengths) tells it."""
+    half = np.array([0.76, 0.2, 0.83])
     on_end = {"torso": ((-0.27, -0.13, 0.11), (0.12, 0.01, -0.5)),
               "neck": ((0.0, 0.0, 0.22), (0.77, -0.1, 0.76)),
               "head": ((0.77, -0.1, 0.76), (0.89, 0.12, 0.77)),
@@ -60,13 +61,13 @@ def test_a_body_stood_on_end_fails_the_hang_check(template):
     paths, nodes = _paths(on_end)
     radius = np.full(len(nodes), 0.03)
     surface = _surface(template, held)
-    failed = verify(template, paths, nodes, surface, radius, hang=True).failed
-    assert failed is not None and failed.startswith("hang: the legs point 5"), failed
+    failed = verify(template, paths, nodes, surface, half, radius, spine=True).failed
+    assert failed is not None and failed.startswith("spine: the torso runs"), failed
     # given axes or a frame levelled on its feet are not asked: every other check passes
-    assert verify(template, paths, nodes, surface, radius).ok
-    paths, nodes = _paths(UPRIGHT)  # the upright animal passes
-    assert verify(template, paths, nodes, _surface(template, HELD), np.full(len(nodes), 0.03),
-                  hang=True).ok
+    assert verify(template, paths, nodes, surface, half, radius).ok
+    paths, nodes = _paths(UPRIGHT)  # the upright animal passes, in the same box
+    assert verify(template, paths, nodes, _surface(template, HELD), half,
+                  np.full(len(nodes), 0.03), spine=True).ok
 
 
 def test_a_head_taken_for_a_leg_fails_the_legs_check(template):
@@ -76,10 +77,10 @@ def test_a_head_taken_for_a_leg_fails_the_legs_check(template):
     paths, nodes = _paths(UPRIGHT)
     surface = _surface(template, HELD)
     radius = np.full(len(nodes), 0.025)
-    assert verify(template, paths, nodes, surface, radius).ok
+    assert verify(template, paths, nodes, surface, None, radius).ok
     radius[paths["leg_br"]] = 0.08
-    failed = verify(template, paths, nodes, surface, radius).failed
+    failed = verify(template, paths, nodes, surface, None, radius).failed
     assert failed is not None and failed.startswith("legs: leg_br is 3.2x as thick as"), failed
     radius[paths["leg_br"][:2]] = 0.025   # a thick thigh over a thin shin is a leg: the outer
     radius[paths["leg_br"][2:]] = 0.04    # half is what is compared, within 2.5x
-    assert verify(template, paths, nodes, surface, radius).ok
+    assert verify(template, paths, nodes, surface, None, radius).ok
