@@ -6,6 +6,18 @@ with where the template's `place` puts them:
 - ends: the parts off the torso's middle (neck, head, tail) lie on the template's side of the
   torso, front or back (head and tail at opposite ends, the neck toward the head);
 - ground: the parts that reach down (legs) end below the torso's middle, all of them;
+- spine (asked for a frame the search detected): the torso's path (between where the limbs
+  join it) runs as the template's torso does, front to back, within SPINE_DEG in the frame's
+  own lengths (the half extents): a frame that stands the body on end, a tall animal turned
+  about the line between its back and its neck (front and up swapped, the neck taken for the
+  back, front legs for a tail, hind legs pointing backwards), puts every tip where the
+  template's is in the box-scaled coordinates the match reads, as well as the right frame
+  does; only the body's own direction tells them. Not asked of given axes, an override or a
+  frame levelled on its feet: their up does not come from the search, and a torso's path may
+  slope far more than the back (a giraffe's or an elephant's runs up into the neck's base);
+- legs: the parts that reach down are alike in thickness, the thickest's outer half (a shin, a
+  forearm) at most LEGS_RATIO x the thinnest's: a frame turned back to front in a gallop may
+  take the head, or a bushy tail, for a hind leg and pass every other check;
 - sides: of a symmetric pair, the part the template puts on the left lies left of its partner;
 - mirror: a symmetric pair's paths are alike in length (within MIRROR_RATIO);
 - weight: of the two ends, the one whose parts the template makes HEAVY_RATIO x larger (neck and
@@ -33,6 +45,9 @@ MIRROR_RATIO = 2.5  # a symmetric pair's path lengths differ by at most this fac
 HEAVY_RATIO = 2.0  # an end whose parts are this much larger in the template (neck and head: about
                    # 4x the tail) must not hold clearly less of the mesh's surface than the other
 LIGHTER = 0.8      # end: less than this share of it (a thick tail as long as the neck: alike)
+LEGS_RATIO = 2.5   # legs' outer halves: the thickest at most this x the thinnest (alike: 1.0-1.6)
+SPINE_DEG = 35.0   # the torso's path runs within this of the template's torso (a jump or a gallop
+                   # pitches the back by up to about 20 degrees; a frame standing it on end, 40+)
 
 
 @dataclass(frozen=True)
@@ -51,10 +66,14 @@ def _mid(place: dict) -> np.ndarray:
 
 
 def verify(template: Template, paths: dict[str, np.ndarray], nodes_body: np.ndarray,
-           surface: np.ndarray) -> Verdict:
+           surface: np.ndarray, half: np.ndarray | None = None,
+           radius: np.ndarray | None = None, spine: bool = False) -> Verdict:
     """The checks of the module docstring on matched `paths` (template GC name -> node indices,
-    root side first) with the tree's nodes in body coordinates `nodes_body` (N, 3) and the
-    share of the mesh's surface each template GC holds, `surface` (G,) in template order."""
+    root side first) with the tree's nodes in body coordinates `nodes_body` (N, 3), the share
+    of the mesh's surface each template GC holds, `surface` (G,) in template order, and the
+    frame's half extents `half` (3,) (body units to lengths; None: alike) and the tree's
+    thickness at each node `radius` (N,) (None: the legs check is skipped); spine: with the
+    spine check."""
     root = next(g.name for g in template.gcs if g.parent is None)
     if root not in paths:
         return Verdict(f"no {root} found")
@@ -72,7 +91,12 @@ def verify(template: Template, paths: dict[str, np.ndarray], nodes_body: np.ndar
                            "at opposite ends, the neck toward the head)")
         if down and p[-1][2] >= torso[2]:
             return Verdict(f"ground: {g.name} does not reach down below the {root}")
-    failed = _weight(template, paths, surface, root, t_torso)
+    failed = _spine(template.gc(root), nodes_body[paths[root]], np.ones(3) if half is None
+                    else np.asarray(half, dtype=np.float64)) if spine else None
+    if failed:
+        return Verdict(failed)
+    failed = _weight(template, paths, surface, root, t_torso) or \
+        (_legs(template, paths, radius) if radius is not None else None)
     if failed:
         return Verdict(failed)
     for g in template.gcs:
@@ -87,6 +111,33 @@ def verify(template: Template, paths: dict[str, np.ndarray], nodes_body: np.ndar
             return Verdict(f"mirror: {g.name} and {s} differ in length {la / max(lb, 1e-9):.1f}x "
                            "(not mirror images)")
     return Verdict(None)
+
+
+def _spine(root, path: np.ndarray, half: np.ndarray) -> str | None:
+    """The spine check (module docstring) on the root's path (P, 3, body units): None when it
+    passes."""
+    got = (path[-1] - path[0]) * half
+    want = np.subtract(root.place["end"], root.place["start"]) * half
+    cos = float(got @ want) / max(float(np.linalg.norm(got) * np.linalg.norm(want)), 1e-12)
+    deg = float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))))
+    if deg > SPINE_DEG:
+        return (f"spine: the {root.name} runs {deg:.0f} degrees off the template's, at most "
+                f"{SPINE_DEG:.0f} (the body stood on end?)")
+    return None
+
+
+def _legs(template: Template, paths: dict, radius: np.ndarray) -> str | None:
+    """The legs check (module docstring): None when it passes."""
+    r = {g.name: float(np.median(radius[paths[g.name][len(paths[g.name]) // 2:]]))
+         for g in template.gcs if g.name in paths and len(paths[g.name]) >= 2 and
+         g.place["start"][2] - g.place["end"][2] >= LEG_DOWN}
+    if len(r) < 2:
+        return None
+    thick, thin = max(r, key=r.get), min(r, key=r.get)
+    if r[thick] > LEGS_RATIO * max(r[thin], 1e-12):
+        return (f"legs: {thick} is {r[thick] / max(r[thin], 1e-12):.1f}x as thick as {thin}, at "
+                f"most {LEGS_RATIO} (a head or a tail taken for a leg: front and back swapped?)")
+    return None
 
 
 def _weight(template: Template, paths: dict, surface: np.ndarray, root: str,
