@@ -46,6 +46,10 @@ HEAVY_RATIO = 2.0  # an end whose parts are this much larger in the template (ne
                    # 4x the tail) must not hold clearly less of the mesh's surface than the other
 LIGHTER = 0.8      # end: less than this share of it (a thick tail as long as the neck: alike)
 LEGS_RATIO = 2.5   # legs' outer halves: the thickest at most this x the thinnest (alike: 1.0-1.6)
+DOWNWARD = 0.5     # legs' mean downward share of their direction (cos 60 degrees; legs of a
+                   # standing or galloping animal: 0.85-1.0, a sprawling crocodile's 0.6)
+LEG_WEIGHT = 0.25  # a leg holds at least this x its template share of the matched parts' surface
+                   # (legs of one animal: 0.3-1.2; an ear taken for a leg: 0.2)
 SPINE_DEG = 35.0   # the torso's path runs within this of the template's torso (a jump or a gallop
                    # pitches the back by up to about 20 degrees; a frame standing it on end, 40+)
 
@@ -59,6 +63,11 @@ class Verdict:
     @property
     def ok(self) -> bool:
         return self.failed is None
+
+
+def _down(place: dict) -> bool:
+    """A part that reaches down (a leg)."""
+    return place["start"][2] - place["end"][2] >= LEG_DOWN
 
 
 def _mid(place: dict) -> np.ndarray:
@@ -91,14 +100,22 @@ def verify(template: Template, paths: dict[str, np.ndarray], nodes_body: np.ndar
                            "at opposite ends, the neck toward the head)")
         if down and p[-1][2] >= torso[2]:
             return Verdict(f"ground: {g.name} does not reach down below the {root}")
-    failed = _spine(template.gc(root), nodes_body[paths[root]], np.ones(3) if half is None
+    failed = _spine(template, paths, nodes_body, np.ones(3) if half is None
                     else np.asarray(half, dtype=np.float64)) if spine else None
     if failed:
         return Verdict(failed)
-    failed = _weight(template, paths, surface, root, t_torso) or \
+    failed = _downward(template, paths, nodes_body, half) or \
+        _weight(template, paths, surface, root, t_torso) or \
+        _leg_weight(template, paths, surface, root) or \
         (_legs(template, paths, radius) if radius is not None else None)
     if failed:
         return Verdict(failed)
+    for g in template.gcs:
+        side = _mid(g.place)[1]
+        if g.name in paths and abs(side) >= SIDE and \
+                np.sign(side) * (nodes_body[paths[g.name]].mean(0)[1] - torso[1]) < -SIDE:
+            return Verdict(f"sides: {g.name} lies {'right' if side > 0 else 'left'} of the "
+                           f"{root}'s middle, past {SIDE} (left and right swapped)")
     for g in template.gcs:
         s = g.symmetric
         if s is None or g.name not in paths or s not in paths or _mid(g.place)[1] < SIDE:
@@ -113,16 +130,63 @@ def verify(template: Template, paths: dict[str, np.ndarray], nodes_body: np.ndar
     return Verdict(None)
 
 
-def _spine(root, path: np.ndarray, half: np.ndarray) -> str | None:
-    """The spine check (module docstring) on the root's path (P, 3, body units): None when it
-    passes."""
-    got = (path[-1] - path[0]) * half
-    want = np.subtract(root.place["end"], root.place["start"]) * half
-    cos = float(got @ want) / max(float(np.linalg.norm(got) * np.linalg.norm(want)), 1e-12)
-    deg = float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))))
-    if deg > SPINE_DEG:
-        return (f"spine: the {root.name} runs {deg:.0f} degrees off the template's, at most "
-                f"{SPINE_DEG:.0f} (the body stood on end?)")
+def _spine(template: Template, paths: dict, nodes_body: np.ndarray,
+           half: np.ndarray) -> str | None:
+    """The spine check (module docstring): None when it passes."""
+    root = next(g for g in template.gcs if g.parent is None)
+    p = nodes_body[paths[root.name]]
+    runs = {root.name: (p[-1] - p[0], np.subtract(root.place["end"], root.place["start"]))}
+    legs = {end: [g for g in template.gcs if g.parent == root.name and g.name in paths and
+                  _down(g.place) and np.sign(_mid(g.place)[0] - _mid(root.place)[0]) == end]
+            for end in (1, -1)}
+    if all(legs.values()):  # the back itself: from the hind legs' roots to the front legs'
+        at = {e: (np.mean([nodes_body[paths[g.name][0]] for g in gs], 0),
+                  np.mean([g.place["start"] for g in gs], 0)) for e, gs in legs.items()}
+        runs["back"] = (at[1][0] - at[-1][0], at[1][1] - at[-1][1])
+    deg = {}
+    for what, (got, want) in runs.items():
+        got, want = got * half, want * half
+        cos = float(got @ want) / max(float(np.linalg.norm(got) * np.linalg.norm(want)), 1e-12)
+        deg[what] = float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))))
+    if min(deg.values()) > SPINE_DEG:
+        return ("spine: the " + " and the ".join(f"{w} runs {d:.0f}" for w, d in deg.items()) +
+                f" degrees off the template's, at most {SPINE_DEG:.0f} (the body stood on end?)")
+    return None
+
+
+def _downward(template: Template, paths: dict, nodes_body: np.ndarray,
+              half: np.ndarray | None) -> str | None:
+    """The downward check (module docstring): None when it passes."""
+    h = np.ones(3) if half is None else np.asarray(half, dtype=np.float64)
+    d = [(nodes_body[paths[g.name][-1]] - nodes_body[paths[g.name][0]]) * h
+         for g in template.gcs if g.name in paths and len(paths[g.name]) >= 2 and _down(g.place)]
+    if not d:
+        return None
+    down = float(np.mean([-v[2] / max(float(np.linalg.norm(v)), 1e-12) for v in d]))
+    if down < DOWNWARD:
+        return (f"downward: the legs run {np.degrees(np.arccos(np.clip(down, -1, 1))):.0f} "
+                f"degrees off down on average, at most "
+                f"{np.degrees(np.arccos(DOWNWARD)):.0f} (the body laid on its side or back?)")
+    return None
+
+
+def _leg_weight(template: Template, paths: dict, surface: np.ndarray,
+                root: str) -> str | None:
+    """The leg weight check (module docstring): None when it passes."""
+    parts = [g for g in template.gcs if g.name in paths and g.name != root]
+    size = {g.name: g.place["radius"] * float(np.linalg.norm(np.subtract(g.place["end"],
+                                                                          g.place["start"])))
+            for g in parts}
+    held = {g.name: float(surface[template.names.index(g.name)]) for g in parts}
+    total_size, total_held = sum(size.values()), max(sum(held.values()), 1e-12)
+    for g in parts:
+        if not _down(g.place):
+            continue
+        ratio = (held[g.name] / total_held) / max(size[g.name] / total_size, 1e-12)
+        if ratio < LEG_WEIGHT:
+            return (f"weight: {g.name} holds {held[g.name]:.1%} of the surface, "
+                    f"{ratio:.2f}x its template share, at least {LEG_WEIGHT} (an ear or a tail "
+                    "taken for a leg: the body upside down?)")
     return None
 
 
