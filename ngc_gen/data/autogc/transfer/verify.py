@@ -6,19 +6,26 @@ with where the template's `place` puts them:
 - ends: the parts off the torso's middle (neck, head, tail) lie on the template's side of the
   torso, front or back (head and tail at opposite ends, the neck toward the head);
 - ground: the parts that reach down (legs) end below the torso's middle, all of them;
+- downward: the legs' directions (root to foot, in the frame's lengths) point down within
+  DOWNWARD on average: a body laid on its side reads ears, a tail or a neck as legs that run
+  sideways and dip just below the torso, passing `ground`;
 - spine (asked for a frame the search detected): the torso's path (between where the limbs
-  join it) runs as the template's torso does, front to back, within SPINE_DEG in the frame's
-  own lengths (the half extents): a frame that stands the body on end, a tall animal turned
+  join it), or the back (from the hind legs' roots to the front legs', both pairs matched),
+  runs as the template's does, front to back, within SPINE_DEG in the frame's own lengths
+  (the half extents); either passes: a frame that stands the body on end, a tall animal turned
   about the line between its back and its neck (front and up swapped, the neck taken for the
   back, front legs for a tail, hind legs pointing backwards), puts every tip where the
   template's is in the box-scaled coordinates the match reads, as well as the right frame
-  does; only the body's own direction tells them. Not asked of given axes, an override or a
-  frame levelled on its feet: their up does not come from the search, and a torso's path may
-  slope far more than the back (a giraffe's or an elephant's runs up into the neck's base);
+  does; only the body's own direction tells them. An elephant's torso path runs up into the
+  neck's base (40+ degrees off in a nearly right frame) while its back stays level; a gallop's
+  crossed legs turn the back around while the torso's path stays right. Not asked of given
+  axes, an override or a frame levelled on its feet: their up does not come from the search;
 - legs: the parts that reach down are alike in thickness, the thickest's outer half (a shin, a
   forearm) at most LEGS_RATIO x the thinnest's: a frame turned back to front in a gallop may
   take the head, or a bushy tail, for a hind leg and pass every other check;
-- sides: of a symmetric pair, the part the template puts on the left lies left of its partner;
+- sides: of a symmetric pair, the part the template puts on the left lies left of its partner,
+  and no sided part lies more than SIDE across the torso's middle (a path down one leg and up
+  the other, two legs joined at the feet, named for the wrong one while its partner is missing);
 - mirror: a symmetric pair's paths are alike in length (within MIRROR_RATIO);
 - weight: of the two ends, the one whose parts the template makes HEAVY_RATIO x larger (neck and
   head against the tail: their surface, radius x length) does not hold clearly less (LIGHTER x)
@@ -26,7 +33,9 @@ with where the template's `place` puts them:
   and ears with their head): a frame turned back to front is consistent in itself, and only this
   tells it (the head's chain on the tail).
   The surface, not the thickness along a path: a head's path may end on a horn, thinner than a
-  tail, and a stubby tail's path runs inside the rump.
+  tail, and a stubby tail's path runs inside the rump. Each leg holds at least LEG_WEIGHT x
+  its template share (radius x length) of the matched parts' surface: a body upside down reads
+  its ears as hind legs.
 The first failing check names the mesh's refusal when no orientation passes.
 """
 from __future__ import annotations
@@ -50,7 +59,7 @@ DOWNWARD = 0.5     # legs' mean downward share of their direction (cos 60 degree
                    # standing or galloping animal: 0.85-1.0, a sprawling crocodile's 0.6)
 LEG_WEIGHT = 0.25  # a leg holds at least this x its template share of the matched parts' surface
                    # (legs of one animal: 0.3-1.2; an ear taken for a leg: 0.2)
-SPINE_DEG = 35.0   # the torso's path runs within this of the template's torso (a jump or a gallop
+SPINE_DEG = 35.0   # the torso's path or the back runs within this of the template's (a jump or a gallop
                    # pitches the back by up to about 20 degrees; a frame standing it on end, 40+)
 
 
