@@ -153,7 +153,8 @@ def _finer(pl: Placing, sk, thick: np.ndarray, samples: np.ndarray) -> None:
     held = np.bincount(again[1], weights=surface_share(fine, samples),
                        minlength=len(pl.template.gcs))
     if len(again[2]) < len(pl.missing) and \
-            verify(pl.template, again[0], pl.body.to_body(fine.nodes), held).ok:
+            verify(pl.template, again[0], pl.body.to_body(fine.nodes), held, pl.body.half,
+                   fine.radius).ok:
         pl.tree, (pl.paths, pl.labels, pl.missing, pl.cost) = fine, again
 
 

@@ -110,9 +110,10 @@ def _implied(template: Template, tree, body, paths: dict, leaves: set) -> np.nda
 
 
 def _try(ctx, o: Orientation, refine: bool) -> Trial:
-    """The orientation matched and checked; refined: turned to its match's implied frame
-    REFINE_ROUNDS times, the best of the rounds kept (passing first, then the lower score: a
-    round may turn a frame that matched into one that does not)."""
+    """The orientation matched and checked; refined (a detected candidate, checked with the
+    spine too): turned to its match's implied frame REFINE_ROUNDS times, the best of the rounds
+    kept (passing first, then the lower score: a round may turn a frame that matched into one
+    that does not)."""
     template, tree, surface, st, where, T, leaves, share = ctx
     best = None
     for step in range(1 + REFINE_ROUNDS if refine else 1):
@@ -123,7 +124,8 @@ def _try(ctx, o: Orientation, refine: bool) -> Trial:
             trial = Trial(o, body, e, str(e.what), float("inf"))
         else:
             held = np.bincount(found[1], weights=share, minlength=len(template.gcs))
-            verdict = verify(template, found[0], body.to_body(tree.nodes), held)
+            verdict = verify(template, found[0], body.to_body(tree.nodes), held, body.half,
+                            tree.radius, spine=refine)
             trial = Trial(o, body, found, verdict.failed, _score(found, T, st.missing_cost))
         if best is None or (trial.failed is None, -trial.score) > (best.failed is None, -best.score):
             best = trial
