@@ -109,3 +109,32 @@ def test_a_row_carries_the_local_and_net_figures_beside_its_ceiling(tmp_path):
     assert r["net_ratio_normal"] == pytest.approx(7.0 / 5.0)
     assert seams.net_ratio(fit, {}, "dist") is None       # an old ceiling without the means
     assert "1.11 / 1.20" in "\n".join(seams.rows_table([{**r, "same_network": True}]))
+
+
+def test_edit_figures_of_another_measure_are_computed_again(tmp_path, monkeypatch):
+    """A cached edit record from before the edit measure changed (no `measure`, or another
+    one) is measured again; the current one is reused (no mesh, no metric)."""
+    import json
+
+    from bench import _seams_close as close
+
+    calls = []
+
+    class Measuring(Exception):
+        pass
+
+    def measure(*a):
+        calls.append("truth")
+        raise Measuring
+
+    monkeypatch.setattr("bench._seams.truth_and_gcs", measure)
+    cached = tmp_path / "edit_bent_tail_after.json"
+    current = {"name": "creature_0000", "recipe": "after", "measure": close.EDIT_MEASURE}
+    cached.write_text(json.dumps(current))
+    runs = {("creature_0000", "after"): tmp_path}
+    assert close.edit_rows({"creature_0000": "bent_tail"}, runs, [], 64) == [current]
+    assert calls == []
+    cached.write_text(json.dumps({k: v for k, v in current.items() if k != "measure"}))
+    with pytest.raises(Measuring):           # stale: it goes on to measure the edit again
+        close.edit_rows({"creature_0000": "bent_tail"}, runs, [], 64)
+    assert calls == ["truth"]
