@@ -204,6 +204,7 @@ def file_identity(paths) -> dict:
 #: invalidate every cached fit (a fit with any other value gets its own key)
 NEUTRAL = {("junction_weight",): 0.0, ("prepare", "pair_margin"): 0.0,
            ("prepare", "shell_fraction"): 0.0, ("prepare", "shell_width"): 0.1,
+           ("prepare", "overlap_fraction"): 0.0,
            ("diffusion", "pose_transfer"): None, ("diffusion", "pca_complete"): "mean"}
 
 

@@ -10,6 +10,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 #: width of the weights that carry the truth's vertices along an edit (as the blend's fade)
 CARRY_WIDTH = 0.25
+#: version of the edit measure: cached edit figures of another version are computed again
+EDIT_MEASURE = 2
 
 
 def edited_truth(truth, gcs: list, edited: list):
@@ -47,12 +49,13 @@ def edited_ceiling(run_dir: Path, program: str, truth, gcs: list, edited: list,
     from ngc_gen.eval import junction_metrics
 
     cached = run_dir / f"edit_{program}_ceiling.json"
-    if cached.exists():
+    if _current(cached):
         return json.loads(cached.read_text())
     moved = edited_truth(truth, gcs, edited)
     mesh = exact_sdf_mesh(np.asarray(moved.vertices), np.asarray(moved.faces), resolution)
     m = junction_metrics(mesh, moved, edited)
     out = {k: m[k] for k in ("junction_ratio_dist", "junction_ratio_normal", "extra_pieces")}
+    out["measure"] = EDIT_MEASURE
     cached.write_text(json.dumps(out))
     return out
 
@@ -102,7 +105,7 @@ def edit_rows(programs: dict, runs: dict, rows: list[dict], resolution: int) -> 
             if run_dir is None:
                 continue
             cached = run_dir / f"edit_{program}_{recipe}.json"
-            if cached.exists():
+            if _current(cached):
                 out.append(json.loads(cached.read_text()))
                 continue
             truth, gcs = truth_and_gcs(run_dir, name)
@@ -116,6 +119,11 @@ def edit_rows(programs: dict, runs: dict, rows: list[dict], resolution: int) -> 
             cached.write_text(json.dumps(rec))
             out.append(rec)
     return out
+
+
+def _current(path: Path) -> bool:
+    """Whether a cached edit figure exists and was measured by this version (`EDIT_MEASURE`)."""
+    return path.exists() and json.loads(path.read_text()).get("measure") == EDIT_MEASURE
 
 
 def picture(rows: list[dict], runs: dict, path: Path, radius: float) -> Path | None:

@@ -56,7 +56,8 @@ class PrepareSettings:
     shell_fraction of the volume samples (volume_region="gcs") lie in the GCs' outer shells,
     relative radius in [1 - shell_width, 1], the rest uniform in the union: where a GC's field
     fades out in the blended union, and where a GC that alone holds a point must not dip
-    below zero far from the surface (a floater).
+    below zero far from the surface (a floater). overlap_fraction of them lie where two or more
+    GCs overlap (uniform there), taken from the uniform share.
     """
 
     n_samples: int
@@ -69,6 +70,7 @@ class PrepareSettings:
     pair_margin: float
     shell_fraction: float
     shell_width: float
+    overlap_fraction: float
 
     @classmethod
     def from_yaml(cls, **overrides) -> "PrepareSettings":
@@ -90,12 +92,15 @@ class PrepareSettings:
             "pair_margin": 0.0 <= self.pair_margin <= 1.0,
             "shell_fraction": 0.0 <= self.shell_fraction <= 1.0,
             "shell_width": 0.0 < self.shell_width <= 1.0,
+            "overlap_fraction": (0.0 <= self.overlap_fraction
+                                 and self.shell_fraction + self.overlap_fraction <= 1.0),
         }
         for name, ok in checks.items():
             if not ok:
                 raise DataError(f"invalid value {getattr(self, name)!r}", field=f"prepare.{name}",
                                 fix="n_samples, coverage_samples >= 1; volume_region gcs or box; surface_fraction, min_coverage, "
                                     "pair_margin, shell_fraction in [0, 1]; shell_width in (0, 1]; "
+                                    "overlap_fraction >= 0 with shell_fraction + overlap_fraction <= 1; "
                                     "offset_std >= 0")
 
 
@@ -163,6 +168,8 @@ def cache_key(mesh_bytes: bytes, annotation: Annotation, settings: PrepareSettin
     if not fields["shell_fraction"]:   # added later: samples without shells keep their keys
         fields.pop("shell_fraction")
         fields.pop("shell_width")
+    if not fields["overlap_fraction"]:   # added later: samples without it keep their keys
+        fields.pop("overlap_fraction")
     h.update(json.dumps(fields, sort_keys=True).encode())
     return h.hexdigest()
 
@@ -310,15 +317,22 @@ def compute_prepared(ann: Annotation, settings: PrepareSettings, key: str = "") 
 
 def union_volume(gcs: list, settings: PrepareSettings, n: int, rng: np.random.Generator):
     """n volume samples in the GC union, shell_fraction of them in the GCs' outer shells
-    (`sample_volume` with `shell`), with their membership pairs."""
+    (`sample_volume` with `shell`) and overlap_fraction where GCs overlap (`overlap`), with
+    their membership pairs."""
     n_shell = int(round(n * settings.shell_fraction))
-    vol, (vp, vg, vr) = sample_volume(gcs, n - n_shell, rng)
-    if not n_shell:
-        return vol, (vp, vg, vr)
-    shell, (sp, sg, sr) = sample_volume(gcs, n_shell, rng, shell=settings.shell_width)
-    return (np.concatenate([vol, shell]),
-            (np.concatenate([vp, sp + len(vol)]), np.concatenate([vg, sg]),
-             np.concatenate([vr, sr])))
+    n_overlap = int(round(n * settings.overlap_fraction))
+    parts = [sample_volume(gcs, n - n_shell - n_overlap, rng)]
+    if n_shell:
+        parts.append(sample_volume(gcs, n_shell, rng, shell=settings.shell_width))
+    if n_overlap:
+        parts.append(sample_volume(gcs, n_overlap, rng, overlap=True))
+    if len(parts) == 1:
+        return parts[0]
+    starts = np.cumsum([0] + [len(v) for v, _ in parts[:-1]])
+    return (np.concatenate([v for v, _ in parts]),
+            (np.concatenate([pp + s for (_, (pp, _, _)), s in zip(parts, starts)]),
+             np.concatenate([pg for _, (_, pg, _) in parts]),
+             np.concatenate([pr for _, (_, _, pr) in parts])))
 
 
 def prepare_shape(annotation: Annotation | str | os.PathLike, settings: PrepareSettings | None = None,

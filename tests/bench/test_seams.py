@@ -130,3 +130,32 @@ def test_the_table_reports_the_same_run_timing_beside_the_fits_own(monkeypatch):
     monkeypatch.setattr(seams, "rows_table", lambda rows: [])   # the rows are tested above
     text = seams.table(res)
     assert "after / before 1.020" in text and "2.000" in text
+
+
+def test_edit_figures_of_another_measure_are_computed_again(tmp_path, monkeypatch):
+    """A cached edit record from before the edit measure changed (no `measure`, or another
+    one) is measured again; the current one is reused (no mesh, no metric)."""
+    import json
+
+    from bench import _seams_close as close
+
+    calls = []
+
+    class Measuring(Exception):
+        pass
+
+    def measure(*a):
+        calls.append("truth")
+        raise Measuring
+
+    monkeypatch.setattr("bench._seams.truth_and_gcs", measure)
+    cached = tmp_path / "edit_bent_tail_after.json"
+    current = {"name": "creature_0000", "recipe": "after", "measure": close.EDIT_MEASURE}
+    cached.write_text(json.dumps(current))
+    runs = {("creature_0000", "after"): tmp_path}
+    assert close.edit_rows({"creature_0000": "bent_tail"}, runs, [], 64) == [current]
+    assert calls == []
+    cached.write_text(json.dumps({k: v for k, v in current.items() if k != "measure"}))
+    with pytest.raises(Measuring):           # stale: it goes on to measure the edit again
+        close.edit_rows({"creature_0000": "bent_tail"}, runs, [], 64)
+    assert calls == ["truth"]

@@ -309,3 +309,21 @@ def test_shell_samples_lie_where_a_gc_fades_out(sphere_file, write_yaml, gc_dict
         np.testing.assert_array_equal(vol_pairs, held)
     with pytest.raises(DataError, match="shell_width"):
         PrepareSettings.from_yaml(shell_width=0.0)
+
+
+def test_overlap_samples_lie_where_gcs_overlap(sphere_file, write_yaml, gc_dict, cache):
+    """With overlap_fraction f, f of the volume samples lie in two or more GCs (taken from the
+    uniform share; the shells keep theirs), paired with every GC holding them."""
+    path = write_yaml({"name": "two", "mesh": sphere_file.name,
+                       "gcs": [gc_dict("left", -0.6, 0.1), gc_dict("right", -0.1, 0.6)]})
+    plain = prepare_shape(path, SMALL, cache)
+    mixed = prepare_shape(path, dataclasses.replace(SMALL, overlap_fraction=0.25), cache)
+    assert mixed.key != plain.key
+    n_vol = len(mixed.points) - mixed.n_surface
+    n_overlap = round(0.25 * n_vol)
+    held = np.bincount(mixed.pair_point, minlength=len(mixed.points))
+    assert (held[len(mixed.points) - n_overlap:] >= 2).all()     # the overlap share: in both
+    before = np.bincount(plain.pair_point, minlength=len(plain.points))[plain.n_surface:]
+    assert (held[mixed.n_surface:] >= 2).mean() > (before >= 2).mean() + 0.1
+    with pytest.raises(DataError, match="overlap_fraction"):
+        dataclasses.replace(SMALL, overlap_fraction=0.6)          # 0.5 + 0.6 > 1

@@ -7,7 +7,7 @@ import pytest
 import trimesh
 from skimage.measure import marching_cubes
 
-from ngc_gen.eval.junctions import (boundary_faces, junction_mask, junction_metrics,
+from ngc_gen.eval.junctions import (boundary_faces, extra_pieces, junction_mask, junction_metrics,
                                     solid_pieces, worst_junction)
 from ngc_gen.geometry import GeneralizedCylinder
 
@@ -219,3 +219,21 @@ def test_the_local_ratio_sees_a_bump_at_the_junction_and_not_one_elsewhere(scene
     for k in ("dist", "normal"):
         assert seam[f"junction_ratio_{k}_local"] > 2.0
         assert away[f"junction_ratio_{k}_local"] < 0.8
+
+
+def test_true_parts_under_join_apart_are_one_piece_and_a_fit_may_keep_them_apart():
+    """Two closed spheres 0.0098 apart (a point contact, under join = 0.01) are one true
+    piece whatever the samples (an edit elsewhere must not change the count); a fit that keeps
+    them apart, its small sphere a little off, has no extra piece: it lies on a true part no
+    other fitted piece reaches (the ant's abdomen beside its waist)."""
+    big = trimesh.creation.icosphere(3, radius=0.3)
+    small = trimesh.creation.icosphere(2, radius=0.05).apply_translation([0.3598, 0, 0])
+    truth = trimesh.util.concatenate([big, small])
+    assert [solid_pieces(truth, join=0.01, seed=s)[1] for s in range(3)] == [1, 1, 1]
+    fit = trimesh.util.concatenate([big, small.copy().apply_translation([0.0, 0.03, 0.0])])
+    m = extra_pieces(fit, truth, join=0.01, sliver=0.008)
+    assert (m["gt_pieces"], m["pieces"], m["extra_pieces"]) == (1, 2, 0)
+    # a floater beside the big sphere is still extra: the big sphere's fit reaches its part
+    loose = trimesh.creation.icosphere(2, radius=0.03).apply_translation([0.0, 0.36, 0.0])
+    m = extra_pieces(trimesh.util.concatenate([fit, loose]), truth, join=0.01, sliver=0.008)
+    assert (m["pieces"], m["extra_pieces"]) == (3, 1)

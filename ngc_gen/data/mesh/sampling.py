@@ -80,7 +80,8 @@ def _sorted_pairs(pp: list, pg: list, pr: list) -> Pairs:
 
 
 def sample_volume(gcs: Sequence[GeneralizedCylinder], n: int, rng: np.random.Generator,
-                  max_rounds: int = 100, shell: float = 0.0) -> tuple[np.ndarray, Pairs]:
+                  max_rounds: int = 100, shell: float = 0.0,
+                  overlap: bool = False) -> tuple[np.ndarray, Pairs]:
     """n points uniform inside the union of the GCs, with their GC membership pairs.
 
     Candidates come from the mixture of GC bounding boxes (box chosen by volume), are kept if
@@ -91,6 +92,8 @@ def sample_volume(gcs: Sequence[GeneralizedCylinder], n: int, rng: np.random.Gen
     shell > 0: only points in the outer shell of their GC, relative radius in [1 - shell, 1]
     (where the blended union fades the GC out, and where a GC holding a point alone must still
     be right far from the surface).
+    overlap: only points inside two or more GCs (where their networks must agree), uniform
+    over the overlaps.
     """
     if n <= 0:
         return np.zeros((0, 3)), (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)))
@@ -121,6 +124,8 @@ def sample_volume(gcs: Sequence[GeneralizedCylinder], n: int, rng: np.random.Gen
         pp, pg, pr = _sorted_pairs([pp, np.arange(len(cand))], [pg, which], [pr, own_rel])
         k = np.bincount(pp, minlength=len(cand))  # >= 1: every candidate is in its own GC
         keep = rng.random(len(cand)) * k < 1.0
+        if overlap:
+            keep &= k >= 2
         new_index = np.cumsum(keep) - 1 + have
         sel = keep[pp]
         pts.append(cand[keep])
