@@ -105,6 +105,24 @@ def test_structure_maps_legs_sides_neck_head_tail_from_geometry(rig):
     assert owned == list(range(len(NAMES)))  # every bone skinned to exactly one GC
 
 
+def test_a_pelvis_the_tail_hangs_from_inside_the_hips_is_the_torsos(tmp_path):
+    # a pelvis bone between the hips and the tail, in front of the back legs' tops: it moves
+    # the rump (in 0 A.D. also the armour over it), so it is the torso's, on its curve, and
+    # the tail starts at the first joint past the back legs
+    at = NAMES.index("tail")
+    names = NAMES[:at] + ["pelvis"] + NAMES[at:]
+    parent = np.r_[PARENT[:at], 0, at, at + 1]
+    pos = np.vstack([POS[:at], [0.0, 2.1, 0.75], POS[at:]])
+    skel = read_skeletons(skeleton_xml(names, parent))[0]
+    rig = pmd_rig(read_pmd(pmd_bytes(pos), "pelvis.pmd"), skel)
+    jm = structure_map(rig)
+    chains = _names(rig, jm)
+    assert chains["tail"] == ["tail", "tail_tip"]
+    assert chains["torso"] == ["pelvis", "root", "spine", "chest"]
+    skinned = {g: sorted(rig.names[j] for j in r["skinned"]) for g, r in jm.resolved.items()}
+    assert "pelvis" in skinned["torso"] and skinned["tail"] == ["tail", "tail_tip"]
+
+
 def _turned(rig, R):
     """The rig with its whole body turned by R (3, 3) about the origin."""
     from ngc_gen.data.rigs.rig import matrix_trs
