@@ -3,7 +3,7 @@ default recipe (`after`: the blended union, half the volume samples in the GCs' 
 each scored where GCs meet against its ceiling.
 
     python -m bench.seams [--only ant creature_0000] [--steps 1500] [--resolution 256]
-                          [--fit-workers 2] [--no-picture]
+                          [--fit-workers 2] [--no-picture] [--no-timing]
 
 Shapes (`SHAPES`): pyvista's ant and airplane with their hand-annotated GCs, two procedural
 creatures with their parts, and the rest poses of four animals (deer, horse, fox, wolf) with
@@ -30,7 +30,9 @@ against the parts that meet there (`junction_ratio_*_local`); `net_ratio_*`: the
 beyond the ceiling's, at junctions over elsewhere (`net_ratio`). `edits`: the shipped edit programs on the
 ant and a creature (`EDITS`), each fit's junction ratios after the edit against the truth moved
 by the same edit (`edited_truth`) beside that moved truth's own ceiling, and the change of the
-excess (fit / ceiling) from the unedited fit's. `minutes`: this
+excess (fit / ceiling) from the unedited fit's. `step_time`: the two recipes' training seconds
+per step timed side by side in this run (`side_by_side`: {step_s: {before, after}, ratio,
+shape, steps, warmup, repeats}). `minutes`: this
 run's wall time. bench/results/seams.png: per shape, its worst junction close up (truth, before,
 after). The JSON is written after each shape (`complete`: false until every shape is in).
 """
@@ -186,10 +188,51 @@ def table(res: dict) -> str:
     for e in res.get("edits", []):
         lines.append(edit_line(e))
     done = "" if res.get("complete", True) else " (partial: not every shape is in)"
-    ratio = step_ratio(res["shapes"])
-    steps = "" if ratio is None else f"; training time per step, blend / min: {ratio:.3f}"
+    ratio, timed = step_ratio(res["shapes"]), res.get("step_time")
+    steps = "" if ratio is None else f"; the fits' own time per step, after / before: " \
+        f"{ratio:.3f} (fits from the cache ran at other loads)"
+    if timed:
+        steps += (f"; side by side in this run ({timed['shape']}, {timed['repeats']} x "
+                  f"{timed['steps']} steps of each, alternating): after / before "
+                  f"{timed['ratio']:.3f} ({1e3 * timed['step_s']['after']:.1f} / "
+                  f"{1e3 * timed['step_s']['before']:.1f} ms)")
     return "\n".join(lines) + f"\n\n{res['steps']} steps, {res['resolution']}^3, " \
         f"{res['minutes']:.1f} min{done}{steps}"
+
+
+#: the side-by-side timing: shape, timed steps per run, warm-up steps left out, runs per recipe
+TIMING = ("creature_0000", 120, 20, 2)
+
+
+def side_by_side(folder: Path, steps: int, warmup: int, repeats: int) -> dict:
+    """Training seconds per step of each recipe on one shape, measured in this run with the
+    recipes alternating (before, after, before, after) so a change of load hits both alike;
+    the fits' own step_s come from whichever run fitted them (the cache) and cannot be
+    compared. A StepTimer callback (bench/_step_timer.py) records every step's end."""
+    import tempfile
+
+    per_step = {r: [] for r in RECIPES}
+    with tempfile.TemporaryDirectory() as tmp:
+        for i in range(repeats):
+            for recipe in RECIPES:
+                out = Path(tmp) / f"{recipe}_{i}"
+                out.mkdir()
+                train_subprocess([*overrides(folder, steps, 16, recipe),
+                                  "+callbacks.timer._target_=bench._step_timer.StepTimer",
+                                  f"+callbacks.timer.out_dir={out}"], out,
+                                 f"the timing run of {recipe}")
+                per_step[recipe].append(json.loads((out / "rank0.json").read_text())["times"])
+    return step_seconds(per_step, warmup) | {"shape": folder.name, "steps": steps,
+                                             "warmup": warmup, "repeats": repeats}
+
+
+def step_seconds(step_ends: dict, warmup: int) -> dict:
+    """{step_s: {recipe: seconds per step over its runs, from the end of step `warmup` to the
+    last (epoch ends, checkpoints and data loading included, as in a fit)}, ratio: after /
+    before (target: <= 1.15)}. step_ends: recipe -> per run, the perf_counter at each step's end."""
+    per = {r: sum(e[-1] - e[warmup] for e in runs) / sum(len(e) - 1 - warmup for e in runs)
+           for r, runs in step_ends.items()}
+    return {"step_s": per, "ratio": per["after"] / per["before"]}
 
 
 def step_ratio(rows: list[dict]) -> float | None:
@@ -254,6 +297,8 @@ def main():
     ap.add_argument("--resolution", type=int, default=256)
     ap.add_argument("--fit-workers", type=int, default=2, help="fits side by side")
     ap.add_argument("--no-picture", action="store_true")
+    ap.add_argument("--no-timing", action="store_true",
+                    help="skip the side-by-side step timing of the two recipes")
     ap.add_argument("--refit", action="store_true",
                     help="fit again (the cache keys the config, not the code)")
     args = ap.parse_args()
@@ -272,6 +317,8 @@ def main():
     rows, edits, runs, lock = kept(bench.path, {n for n, _, _ in shapes}), [], {}, \
         threading.Lock()
     edits = [e for e in _old(bench.path).get("edits", []) if e["name"] in runs_of(rows)]
+    timed = {"step_time": _old(bench.path)["step_time"]} if "step_time" in _old(bench.path) \
+        else {}
 
     def one(shape) -> None:   # fit, then score at once: a stopped run keeps whole shapes
         name, _, folder = shape
@@ -294,12 +341,16 @@ def main():
         res = {"shapes": rows, "edits": edits, "steps": args.steps,
                "resolution": args.resolution,
                "complete": complete and {n for n, _ in SHAPES} <= runs_of(rows),
-               "minutes": (time.perf_counter() - t0) / 60.0}
+               "minutes": (time.perf_counter() - t0) / 60.0, **timed}
         bench.write(res)
         return res
 
     with ThreadPoolExecutor(max(1, args.fit_workers)) as pool:
         list(pool.map(one, shapes))
+    timing = next((f for n, _, f in shapes if n == TIMING[0]), None)
+    if timing is not None and not args.no_timing:
+        print(f"timing the recipes side by side on {TIMING[0]} ...", flush=True)
+        timed["step_time"] = side_by_side(timing, *TIMING[1:])
     res = write(complete=True)
     if not args.no_picture:
         close.picture(rows, runs, bench.path.parent / "seams.png", CLOSEUP)

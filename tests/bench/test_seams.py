@@ -109,3 +109,24 @@ def test_a_row_carries_the_local_and_net_figures_beside_its_ceiling(tmp_path):
     assert r["net_ratio_normal"] == pytest.approx(7.0 / 5.0)
     assert seams.net_ratio(fit, {}, "dist") is None       # an old ceiling without the means
     assert "1.11 / 1.20" in "\n".join(seams.rows_table([{**r, "same_network": True}]))
+
+
+def test_the_side_by_side_step_time_counts_every_step_after_the_warm_up():
+    """The same-run timing leaves out each run's warm-up and pools a recipe's runs over the
+    whole timed span, so a slow step (an epoch's end, a checkpoint) counts as in a fit."""
+    ends = {"before": [[0.0, 5.0, 5.2, 5.4, 5.6], [0.0, 5.0, 5.2, 5.4, 6.2]],
+            "after": [[0.0, 5.0, 5.3, 5.6, 5.9], [0.0, 5.0, 5.3, 5.6, 5.9]]}
+    out = seams.step_seconds(ends, warmup=1)
+    assert out["step_s"] == {"before": pytest.approx(1.8 / 6), "after": pytest.approx(0.3)}
+    assert out["ratio"] == pytest.approx(0.3 / 0.3)
+
+
+def test_the_table_reports_the_same_run_timing_beside_the_fits_own(monkeypatch):
+    res = {"shapes": [{"name": "a", "recipe": "before", "step_s": 0.2},
+                      {"name": "a", "recipe": "after", "step_s": 0.4}],
+           "steps": 1500, "resolution": 256, "minutes": 1.0,
+           "step_time": {"shape": "a", "repeats": 2, "steps": 120, "ratio": 1.02,
+                         "step_s": {"before": 0.25, "after": 0.255}}}
+    monkeypatch.setattr(seams, "rows_table", lambda rows: [])   # the rows are tested above
+    text = seams.table(res)
+    assert "after / before 1.020" in text and "2.000" in text
