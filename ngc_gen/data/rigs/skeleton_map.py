@@ -22,8 +22,9 @@ joint of the main tree):
   the tail; the leading joints of its main path not past the back legs' tops sit in the hips
   (a pelvis the tail hangs from moves the rump and whatever covers it: armour, a saddle
   cloth) and are the torso's, as is a first joint that sits on the spine. The spine from the
-  back legs' branch to the front legs', with what the neck and the tail gave it, is the
-  torso's curve; every other joint is skinned to the torso.
+  back legs' branch to the front legs', with what the neck and the tail gave it, less an end
+  joint that carries no skin (a root on the ground the legs hang from), is the torso's curve;
+  every other joint is skinned to the torso.
 
 A per-skeleton map file (`load_joint_map`) is the fallback a user writes where this is wrong.
 Template GCs are found by their names (torso, neck, head, tail, leg_fl, leg_fr, leg_bl, leg_br;
@@ -401,6 +402,10 @@ def _assemble(rig, template, P, par, active, load, up, axis, legs, pairs, size) 
     torso_chain = list(dict.fromkeys(hips[::-1] + _tree_path(par, legs.branch[pairs[0][0]],
                                                              legs.branch[pairs[1][0]])
                                      + behind))
+    while len(torso_chain) > 2 and load[torso_chain[-1]] <= 1e-6:
+        torso_chain.pop()  # an unskinned end (a root on the ground the legs hang from) is no body
+    while len(torso_chain) > 2 and load[torso_chain[0]] <= 1e-6:
+        torso_chain.pop(0)
     resolved["torso"] = {"chain": torso_chain,
                          "skinned": [j for j in range(len(par)) if j not in claimed]}
     names = ROLES if template is None else template.names

@@ -123,6 +123,25 @@ def test_a_pelvis_the_tail_hangs_from_inside_the_hips_is_the_torsos(tmp_path):
     assert "pelvis" in skinned["torso"] and skinned["tail"] == ["tail", "tail_tip"]
 
 
+def test_an_unskinned_root_on_the_ground_is_no_part_of_the_torsos_curve():
+    # the front legs and the neck hang from a joint that carries no skin and sits on the
+    # ground under the chest (0 A.D.'s sheep root): the torso's curve ends at the chest, not
+    # down at the ground
+    at = NAMES.index("neck")
+    names = NAMES[:at] + ["base"] + NAMES[at:]
+    parent = np.array([-1 if p < 0 else p + (p >= at) for p in PARENT])
+    parent = np.r_[parent[:at], at - 1, parent[at:]]
+    for child in ("neck", "r_arm", "l_arm"):
+        parent[names.index(child)] = at
+    pos = np.vstack([POS[:at], [0.0, 0.05, -1.0], POS[at:]])
+    skel = read_skeletons(skeleton_xml(names, parent))[0]
+    rig = pmd_rig(read_pmd(pmd_bytes(pos), "base.pmd"), skel)
+    rig.skin_joints[rig.skin_joints == at] = names.index("chest")  # its cube is the chest's
+    chains = _names(rig, structure_map(rig))
+    assert chains["torso"] == ["root", "spine", "chest"]
+    assert chains["leg_fl"] == EXPECTED["leg_fl"] and chains["tail"] == EXPECTED["tail"]
+
+
 def _turned(rig, R):
     """The rig with its whole body turned by R (3, 3) about the origin."""
     from ngc_gen.data.rigs.rig import matrix_trs
