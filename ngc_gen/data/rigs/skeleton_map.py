@@ -19,9 +19,12 @@ joint of the main tree):
   starts) the head is the deepest joint past the front legs' tops that, with what follows it,
   carries HEAD_SHARE of the piece's skin (a jaw or a trunk carries less); its joints behind
   the front legs' tops are the torso's. The piece that reaches farthest past the other end is
-  the tail (its first joint, where it sits on the spine, moves the rump: the torso's). The
-  spine from the back legs' branch to the front legs', with what the neck gave it, is the
-  torso's curve; every other joint is skinned to the torso.
+  the tail; the leading joints of its main path not past the back legs' tops sit in the hips
+  (a pelvis the tail hangs from moves the rump and whatever covers it: armour, a saddle
+  cloth) and are the torso's, as is a first joint that sits on the spine. The spine from the
+  back legs' branch to the front legs', with what the neck and the tail gave it, less an end
+  joint that carries no skin (a root on the ground the legs hang from), is the torso's curve;
+  every other joint is skinned to the torso.
 
 A per-skeleton map file (`load_joint_map`) is the fallback a user writes where this is wrong.
 Template GCs are found by their names (torso, neck, head, tail, leg_fl, leg_fr, leg_bl, leg_br;
@@ -302,6 +305,23 @@ def _neck_head(par, piece, P, load, axis, top):
     return neck, head_skin, path[:k], neck_chain, head
 
 
+def _tail(par, piece, P, load, axis, top, size):
+    """(tail chain, tail skinned, its main path's joints not past the back legs' tops `top`
+    along `axis`) of the piece at the back. Those leading joints sit inside the body at the
+    hips (a pelvis the tail hangs from): they move the rump (and what covers it: armour, a
+    saddle cloth), so they and their side branches are the torso's, on its curve; a first
+    joint past `top` that sits on its parent is skinned to the torso too."""
+    path = _main_path(par, piece, load)
+    k = 0
+    while k < len(path) - 1 and float(P[path[k]] @ axis) >= top:
+        k += 1
+    chain = path[k:]
+    skin = [j for j in _subtree(par, path[k]) if j in set(piece)]
+    if np.linalg.norm(P[path[k]] - P[par[path[k]]]) < SAME * size and len(skin) > 1:
+        skin = skin[1:]  # it sits on the spine: it moves the rump
+    return chain, skin, path[:k]
+
+
 def structure_map(rig: Rig, template: Template | None = None, up=None) -> JointMap:
     """The joint map of `rig` onto `template` (None: the ROLES alone) by its structure (module
     docstring); `up`: the rig's up axis (3,) when known. DataError with one line when it
@@ -366,11 +386,7 @@ def _assemble(rig, template, P, par, active, load, up, axis, legs, pairs, size) 
     tail_piece = max(at_a, key=lambda p: tops[0] - float((P[p] @ axis).min()))
     neck_skin, head_skin, behind, neck_chain, head = _neck_head(par, head_piece, P, load,
                                                                 axis, tops[1])
-    tail_chain = _main_path(par, tail_piece, load)
-    tail_skin = list(tail_piece)
-    if np.linalg.norm(P[tail_piece[0]] - P[par[tail_piece[0]]]) < SAME * size \
-            and len(tail_skin) > 1:
-        tail_skin = tail_skin[1:]  # it sits on the spine: it moves the rump
+    tail_chain, tail_skin, hips = _tail(par, tail_piece, P, load, axis, tops[0], size)
     resolved = {"neck": {"chain": neck_chain, "skinned": neck_skin},
                 "head": {"chain": [head], "skinned": head_skin},
                 "tail": {"chain": tail_chain, "skinned": tail_skin}}
@@ -383,9 +399,13 @@ def _assemble(rig, template, P, par, active, load, up, axis, legs, pairs, size) 
             raise _refuse(rig, f"two legs are both {name} (the feet do not pair left and right)")
         resolved[name] = {"chain": chain, "skinned": root + chain}
     claimed = {j for r in resolved.values() for j in r["skinned"]}
-    torso_chain = list(dict.fromkeys(_tree_path(par, legs.branch[pairs[0][0]],
-                                                legs.branch[pairs[1][0]])
+    torso_chain = list(dict.fromkeys(hips[::-1] + _tree_path(par, legs.branch[pairs[0][0]],
+                                                             legs.branch[pairs[1][0]])
                                      + behind))
+    while len(torso_chain) > 2 and load[torso_chain[-1]] <= 1e-6:
+        torso_chain.pop()  # an unskinned end (a root on the ground the legs hang from) is no body
+    while len(torso_chain) > 2 and load[torso_chain[0]] <= 1e-6:
+        torso_chain.pop(0)
     resolved["torso"] = {"chain": torso_chain,
                          "skinned": [j for j in range(len(par)) if j not in claimed]}
     names = ROLES if template is None else template.names

@@ -105,6 +105,43 @@ def test_structure_maps_legs_sides_neck_head_tail_from_geometry(rig):
     assert owned == list(range(len(NAMES)))  # every bone skinned to exactly one GC
 
 
+def test_a_pelvis_the_tail_hangs_from_inside_the_hips_is_the_torsos(tmp_path):
+    # a pelvis bone between the hips and the tail, in front of the back legs' tops: it moves
+    # the rump (in 0 A.D. also the armour over it), so it is the torso's, on its curve, and
+    # the tail starts at the first joint past the back legs
+    at = NAMES.index("tail")
+    names = NAMES[:at] + ["pelvis"] + NAMES[at:]
+    parent = np.r_[PARENT[:at], 0, at, at + 1]
+    pos = np.vstack([POS[:at], [0.0, 2.1, 0.75], POS[at:]])
+    skel = read_skeletons(skeleton_xml(names, parent))[0]
+    rig = pmd_rig(read_pmd(pmd_bytes(pos), "pelvis.pmd"), skel)
+    jm = structure_map(rig)
+    chains = _names(rig, jm)
+    assert chains["tail"] == ["tail", "tail_tip"]
+    assert chains["torso"] == ["pelvis", "root", "spine", "chest"]
+    skinned = {g: sorted(rig.names[j] for j in r["skinned"]) for g, r in jm.resolved.items()}
+    assert "pelvis" in skinned["torso"] and skinned["tail"] == ["tail", "tail_tip"]
+
+
+def test_an_unskinned_root_on_the_ground_is_no_part_of_the_torsos_curve():
+    # the front legs and the neck hang from a joint that carries no skin and sits on the
+    # ground under the chest (0 A.D.'s sheep root): the torso's curve ends at the chest, not
+    # down at the ground
+    at = NAMES.index("neck")
+    names = NAMES[:at] + ["base"] + NAMES[at:]
+    parent = np.array([-1 if p < 0 else p + (p >= at) for p in PARENT])
+    parent = np.r_[parent[:at], at - 1, parent[at:]]
+    for child in ("neck", "r_arm", "l_arm"):
+        parent[names.index(child)] = at
+    pos = np.vstack([POS[:at], [0.0, 0.05, -1.0], POS[at:]])
+    skel = read_skeletons(skeleton_xml(names, parent))[0]
+    rig = pmd_rig(read_pmd(pmd_bytes(pos), "base.pmd"), skel)
+    rig.skin_joints[rig.skin_joints == at] = names.index("chest")  # its cube is the chest's
+    chains = _names(rig, structure_map(rig))
+    assert chains["torso"] == ["root", "spine", "chest"]
+    assert chains["leg_fl"] == EXPECTED["leg_fl"] and chains["tail"] == EXPECTED["tail"]
+
+
 def _turned(rig, R):
     """The rig with its whole body turned by R (3, 3) about the origin."""
     from ngc_gen.data.rigs.rig import matrix_trs
