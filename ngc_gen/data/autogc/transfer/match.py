@@ -32,6 +32,11 @@ W_SHORT = 1.0      # second pass, a part on the mid-plane: weight of log(branch 
                    # a tail's reach, is no tail (a leg's branch may end where a bunched leg joins)
 
 
+
+def reaches_down(place: dict) -> bool:
+    """A template part whose place ends LEG_DOWN (body units) lower than it starts: a leg."""
+    return float(place["start"][2]) - float(place["end"][2]) >= LEG_DOWN
+
 def _children(template: Template) -> dict[str, list[str]]:
     out = {g.name: [] for g in template.gcs}
     for g in template.gcs:

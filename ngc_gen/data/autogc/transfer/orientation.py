@@ -22,7 +22,7 @@ from ngc_gen.data.autogc.orient import Orientation, axis_name, detect_orientatio
 from ngc_gen.data.autogc.template import Template
 from ngc_gen.data.errors import DataError
 
-from .match import LEG_DOWN, _tips, correspond
+from .match import _tips, correspond, reaches_down
 from .tree import BodyFrame
 from .verify import verify
 
@@ -157,7 +157,7 @@ def _levelled(ctx, trial: Trial) -> Trial:
     template, tree = ctx[0], ctx[1]
     paths = trial.found[0]
     feet = [n for n, p in paths.items() if len(p) >= 2 and
-            template.gc(n).place["start"][2] - template.gc(n).place["end"][2] >= LEG_DOWN]
+            reaches_down(template.gc(n).place)]
     if len(feet) < 4:
         return trial
     o = trial.orientation

@@ -20,7 +20,7 @@ from scipy.spatial import cKDTree
 
 from ngc_gen.data.autogc.template import Template
 
-from .match import LEG_DOWN
+from .match import reaches_down
 from .tree import BodyFrame, Tree
 
 THIN = 1.25  # a leg's path is the leg from its first node at most this x the median radius
@@ -28,11 +28,11 @@ THIN = 1.25  # a leg's path is the leg from its first node at most this x the me
 
 
 def _is_leg(template: Template, name: str) -> bool:
-    """A part on the root whose template place reaches down (LEG_DOWN, body units)."""
+    """A part on the root whose template place reaches down (`reaches_down`)."""
     tgc = template.gc(name)
     if tgc.parent is None or template.gc(tgc.parent).parent is not None:
         return False
-    return float(tgc.place["start"][2]) - float(tgc.place["end"][2]) >= LEG_DOWN
+    return reaches_down(tgc.place)
 
 
 def joint_columns(template: Template, tree: Tree, body: BodyFrame,

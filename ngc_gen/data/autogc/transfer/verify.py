@@ -46,7 +46,7 @@ import numpy as np
 
 from ngc_gen.data.autogc.template import Template
 
-from .match import LEG_DOWN
+from .match import reaches_down
 
 END_FRONT = 0.3    # a part whose place's middle lies this far (body units) front or back is an end
 SIDE = 0.2         # a symmetric part this far left or right tells left from right
@@ -74,10 +74,6 @@ class Verdict:
         return self.failed is None
 
 
-def _down(place: dict) -> bool:
-    """A part that reaches down (a leg)."""
-    return place["start"][2] - place["end"][2] >= LEG_DOWN
-
 
 def _mid(place: dict) -> np.ndarray:
     return (np.asarray(place["start"], float) + np.asarray(place["end"], float)) / 2.0
@@ -101,7 +97,7 @@ def verify(template: Template, paths: dict[str, np.ndarray], nodes_body: np.ndar
         if g.name == root or g.name not in paths:
             continue
         p, pl = nodes_body[paths[g.name]], g.place
-        down = pl["start"][2] - pl["end"][2] >= LEG_DOWN
+        down = reaches_down(pl)
         side = _mid(pl)[0] - t_torso[0]
         if not down and abs(side) >= END_FRONT and np.sign(p.mean(0)[0] - torso[0]) != np.sign(side):
             where = "front" if side > 0 else "back"
@@ -146,7 +142,7 @@ def _spine(template: Template, paths: dict, nodes_body: np.ndarray,
     p = nodes_body[paths[root.name]]
     runs = {root.name: (p[-1] - p[0], np.subtract(root.place["end"], root.place["start"]))}
     legs = {end: [g for g in template.gcs if g.parent == root.name and g.name in paths and
-                  _down(g.place) and np.sign(_mid(g.place)[0] - _mid(root.place)[0]) == end]
+                  reaches_down(g.place) and np.sign(_mid(g.place)[0] - _mid(root.place)[0]) == end]
             for end in (1, -1)}
     if all(legs.values()):  # the back itself: from the hind legs' roots to the front legs'
         at = {e: (np.mean([nodes_body[paths[g.name][0]] for g in gs], 0),
@@ -168,7 +164,8 @@ def _downward(template: Template, paths: dict, nodes_body: np.ndarray,
     """The downward check (module docstring): None when it passes."""
     h = np.ones(3) if half is None else np.asarray(half, dtype=np.float64)
     d = [(nodes_body[paths[g.name][-1]] - nodes_body[paths[g.name][0]]) * h
-         for g in template.gcs if g.name in paths and len(paths[g.name]) >= 2 and _down(g.place)]
+         for g in template.gcs
+         if g.name in paths and len(paths[g.name]) >= 2 and reaches_down(g.place)]
     if not d:
         return None
     down = float(np.mean([-v[2] / max(float(np.linalg.norm(v)), 1e-12) for v in d]))
@@ -189,7 +186,7 @@ def _leg_weight(template: Template, paths: dict, surface: np.ndarray,
     held = {g.name: float(surface[template.names.index(g.name)]) for g in parts}
     total_size, total_held = sum(size.values()), max(sum(held.values()), 1e-12)
     for g in parts:
-        if not _down(g.place):
+        if not reaches_down(g.place):
             continue
         ratio = (held[g.name] / total_held) / max(size[g.name] / total_size, 1e-12)
         if ratio < LEG_WEIGHT:
@@ -203,7 +200,7 @@ def _legs(template: Template, paths: dict, radius: np.ndarray) -> str | None:
     """The legs check (module docstring): None when it passes."""
     r = {g.name: float(np.median(radius[paths[g.name][len(paths[g.name]) // 2:]]))
          for g in template.gcs if g.name in paths and len(paths[g.name]) >= 2 and
-         g.place["start"][2] - g.place["end"][2] >= LEG_DOWN}
+         reaches_down(g.place)}
     if len(r) < 2:
         return None
     thick, thin = max(r, key=r.get), min(r, key=r.get)
@@ -219,7 +216,7 @@ def _weight(template: Template, paths: dict, surface: np.ndarray, root: str,
     ends: dict[int, list] = {1: [], -1: []}
     for g in template.gcs:
         side = _mid(g.place)[0] - t_torso[0]
-        if g.name != root and g.place["start"][2] - g.place["end"][2] < LEG_DOWN and \
+        if g.name != root and not reaches_down(g.place) and \
                 abs(side) >= END_FRONT:
             ends[int(np.sign(side))].append(g)
     if not all(any(g.name in paths for g in e) for e in ends.values()):
