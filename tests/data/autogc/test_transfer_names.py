@@ -214,3 +214,26 @@ def test_a_spur_out_of_one_hip_is_no_tail_the_thin_one_on_the_mid_plane_is(templ
     for attach in (False, True):
         C = match_cost(template, tree, BODY, ["tail"], leaves, attach=attach)[0]
         assert C[0] < C[1]
+
+
+def test_a_tail_ending_in_one_hips_flank_is_missing_one_on_the_mid_plane_stays(template):
+    """A giraffe's skeleton may join its tail to the hind legs, leaving a free end only for a
+    spur out of one hip: the best end for the tail, ending in that hip's flank, a quarter of the
+    body's thickest radius off the mid-plane. A tail leaves the body on the mid-plane and hangs
+    there (real tails end within a tenth of that radius of it): the spur is no tail, and the
+    tail is missing (a stand-in where the template puts it) rather than named on a hip; a tail
+    on the mid-plane and the legs stay."""
+    nodes = np.array([[0.0, 0.0, 0.0], [-0.8, 0.25, -0.4], [-0.9, 0.02, -0.4],
+                      [-0.7, 0.5, -0.9], [-0.7, -0.5, -0.9]])
+    radius = np.full(5, 0.02)
+    radius[0] = 0.2                                     # the body's thickest part
+    half = np.array([0.5, 0.2, 0.8])
+    body = BodyFrame(np.eye(3), np.zeros(3), half)
+    tree = Tree(nodes=nodes * half, radius=radius, graph=None, main=np.ones(5, bool),
+                branch_of=np.arange(5), branch_dir=np.tile([0, 0, -1.0], (5, 1)),
+                branch_r=np.full(5, 0.02), branch_root=nodes * half)
+    legs = {"leg_bl": 3, "leg_br": 4}
+    spur = match_module._on_mid_plane(template, tree, body, {"tail": 1, **legs})
+    assert spur == legs                                 # 0.25 x 0.2 / 0.2 = 0.25 off: out
+    real = match_module._on_mid_plane(template, tree, body, {"tail": 2, **legs})
+    assert real == {"tail": 2, **legs}                  # 0.02 x 0.2 / 0.2 = 0.02 off: stays

@@ -21,7 +21,7 @@ from ngc_gen.data.mesh.sampling import gc_membership, sample_surface
 from ngc_gen.data.rigs.rig_gcs import OWN_REACH, chain_polyline, template_gc
 from ngc_gen.geometry import GeneralizedCylinder, bernstein_basis
 
-from .match import correspond
+from .match import correspond, reaches_down
 from .mirror import mirror_stand_in
 from .orientation import choose
 from .refine import refine
@@ -212,7 +212,10 @@ def _missing_gc(pl: Placing, n: str, surface_body: np.ndarray) -> None:
     p = tgc.parent
     while p is not None and p not in pl.gcs:
         p = pl.template.gc(p).parent
-    if p is not None:
+    if p is not None and (reaches_down(place) or pl.template.gc(p).parent is not None):
+        # on its parent's curve; an end's part on the root (a tail) where the template starts
+        # it: a torso's path runs between the limbs' junctions and may end at the hips, half
+        # a body length in front of the rump a tail leaves (its stub then out of reach)
         C = _curve_points(pl.gcs[p])
         start = C[np.argmin(np.linalg.norm(C - start, axis=1))]
     # the part's stub (a short tail the skeleton pruned) is the surface nearest its place's

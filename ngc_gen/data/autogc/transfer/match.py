@@ -25,6 +25,9 @@ LEG_DOWN = 0.5     # a limb whose place ends this much lower than it starts is a
 REACH_OUT = 0.2    # a limb whose chain ends this much further front (back) than it starts is an
                    # end's (a head, a tail): its free end lies beyond where the chain starts
 SIDE_SLACK = 0.05  # a left limb's free end lies at most this far (body units) right of the middle
+MID_SLACK = 0.15   # a tail's free end lies at most this x the body's thickest radius off the
+                   # mid-plane (tails of standing animals: 0.00-0.09; spurs in one hip's flank
+                   # where the skeleton joined the tail to the hind legs: 0.23, 0.37)
 END_REACH = 1.5    # a chain's path passing this x SIGMA_TIP from where its template part ends
                    # ends the template's part there (_template_end)
 W_SHORT = 1.0      # second pass, a part on the mid-plane: weight of log(branch length / the
@@ -301,7 +304,7 @@ def _assign(template: Template, tree: Tree, body: BodyFrame, settings: TransferS
         for r, c in zip(*linear_sum_assignment(C2)):
             if C2[r, c] < settings.missing_cost:
                 assign[left_gcs[r]] = int(free[c])
-    assign = _on_sides(template, tree, body, assign)
+    assign = _on_mid_plane(template, tree, body, _on_sides(template, tree, body, assign))
     if len(assign) < max(need, 2):
         raise DataError(f"does not match template {template.name} ({template.source}): "
                         f"{len(assign)} of {T} limbs matched on their own sides, need "
@@ -322,6 +325,24 @@ def _on_sides(template: Template, tree: Tree, body: BodyFrame,
         side = float(template.gc(n).place["end"][1])
         if template.gc(n).symmetric is not None and abs(side) >= SIDE_SLACK and \
                 body.to_body(tree.nodes[leaf])[1] * np.sign(side) < -SIDE_SLACK:
+            del out[n]
+    return out
+
+
+def _on_mid_plane(template: Template, tree: Tree, body: BodyFrame,
+                  assign: dict[str, int]) -> dict[str, int]:
+    """The assignment without a part on the mid-plane straight on the root (a tail) whose free
+    end lies more than MID_SLACK x the body's thickest radius to one side of the mid-plane: a
+    tail leaves the body on the mid-plane and hangs there, a spur out of one hip (where the
+    skeleton joined the tail to the hind legs) ends inside that hip's flank. Such a part is
+    missing, and stands in where the template puts it, rather than named on the hip."""
+    out = dict(assign)
+    root = next(g.name for g in template.gcs if g.parent is None)
+    thick = float(tree.radius[tree.main].max())
+    for n, leaf in assign.items():
+        g = template.gc(n)
+        if g.symmetric is None and g.parent == root and abs(float(g.place["end"][1])) < SIDE_SLACK \
+                and abs(body.to_body(tree.nodes[leaf])[1]) * body.half[1] > MID_SLACK * thick:
             del out[n]
     return out
 
