@@ -19,7 +19,8 @@ Pinocchio's two steps (a discrete embedding, then a continuous refinement) on ou
    head, galloping legs) the free ends left over that lie within their reach: at the limb
    chain's length from where it attaches, on its own side (a mid-plane part's branch not much
    shorter than its template part: a spur in the hip is no tail); a paired limb whose end lies
-   across the mid-plane is left out, and a tail whose end lies off it (a spur in one hip). Still missing: matched once more
+   across the mid-plane is left out, and a tail whose end lies off it (a spur in one hip).
+   Still missing: matched once more
    on a finer tree (spurs ``FINER`` x as long kept: a short tail). Tree-consistent by
    construction: a leaf's path toward the template root's place is its own up to where it
    meets another matched leaf's path (its junction); a chain
