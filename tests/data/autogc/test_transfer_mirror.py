@@ -5,12 +5,16 @@ from __future__ import annotations
 
 import numpy as np
 
+from ngc_gen.data.autogc.coverage import rho_matrix
+from ngc_gen.data.autogc.template import load_template
 from ngc_gen.data.autogc.tighten import gc_volume
 from ngc_gen.data.autogc.transfer import BodyFrame
+from ngc_gen.data.autogc.transfer.assemble import Placing, _missing_gc, _straight
 from ngc_gen.data.autogc.transfer.mirror import mirror_stand_in, mirrored_gc
 from ngc_gen.data.mesh.sampling import sample_surface
 from ngc_gen.geometry import GeneralizedCylinder
 
+from ...helpers import ROOT
 from .shapes import tubes
 
 # the body frame: rows front, left, up = world z, x, y (y up, facing +z, as the animals)
@@ -59,12 +63,6 @@ def test_a_missing_tail_starts_where_the_template_starts_it_not_at_the_torsos_en
     of the rump (a rhino's, a giraffe's). The missing tail's stand-in starts where the template
     starts a tail, inside the rump, and reaches the stub behind it; started at the torso's end,
     the stub lay beyond the tail's reach and the stand-in was a small GC at the hips."""
-    from ngc_gen.data.autogc.template import load_template
-    from ngc_gen.data.autogc.transfer.assemble import Placing, _missing_gc, _straight
-    from ngc_gen.data.autogc.coverage import rho_matrix
-
-    from ...helpers import ROOT
-
     template = load_template(ROOT / "datasets/animals/quadruped_transfer.yaml")
     body = BodyFrame(np.eye(3), np.zeros(3), np.array([1.0, 0.4, 0.5]))   # front, left, up
     rump = tubes([((-0.9, 0.0, 0.0), (0.9, 0.0, 0.0))], [0.2])
