@@ -216,24 +216,27 @@ def test_a_spur_out_of_one_hip_is_no_tail_the_thin_one_on_the_mid_plane_is(templ
         assert C[0] < C[1]
 
 
-def test_a_tail_ending_in_one_hips_flank_is_missing_one_on_the_mid_plane_stays(template):
+def test_a_short_tail_ending_in_one_hips_flank_is_missing_a_tail_swung_aside_stays(template):
     """A giraffe's skeleton may join its tail to the hind legs, leaving a free end only for a
-    spur out of one hip: the best end for the tail, ending in that hip's flank, a quarter of the
-    body's thickest radius off the mid-plane. A tail leaves the body on the mid-plane and hangs
-    there (real tails end within a tenth of that radius of it): the spur is no tail, and the
-    tail is missing (a stand-in where the template puts it) rather than named on a hip; a tail
-    on the mid-plane and the legs stay."""
-    nodes = np.array([[0.0, 0.0, 0.0], [-0.8, 0.25, -0.4], [-0.9, 0.02, -0.4],
-                      [-0.7, 0.5, -0.9], [-0.7, -0.5, -0.9]])
-    radius = np.full(5, 0.02)
-    radius[0] = 0.2                                     # the body's thickest part
+    short spur out of one hip: the best end for the tail, ending in that hip's flank, a quarter
+    of the body's thickest radius off the mid-plane. A tail leaves the body on the mid-plane
+    and hangs there (standing animals' tails end within a tenth of that radius of it) or swings
+    aside at its full length (a posed horse's): the spur is no tail, and the tail is missing (a
+    stand-in where the template puts it) rather than named on a hip; a tail on the mid-plane, a
+    long tail swung aside and the legs stay."""
     half = np.array([0.5, 0.2, 0.8])
     body = BodyFrame(np.eye(3), np.zeros(3), half)
-    tree = Tree(nodes=nodes * half, radius=radius, graph=None, main=np.ones(5, bool),
-                branch_of=np.arange(5), branch_dir=np.tile([0, 0, -1.0], (5, 1)),
-                branch_r=np.full(5, 0.02), branch_root=nodes * half)
-    legs = {"leg_bl": 3, "leg_br": 4}
-    spur = match_module._on_mid_plane(template, tree, body, {"tail": 1, **legs})
-    assert spur == legs                                 # 0.25 x 0.2 / 0.2 = 0.25 off: out
-    real = match_module._on_mid_plane(template, tree, body, {"tail": 2, **legs})
-    assert real == {"tail": 2, **legs}                  # 0.02 x 0.2 / 0.2 = 0.02 off: stays
+    spur = np.linspace([-0.7, 0.05, -0.3], [-0.8, 0.25, -0.4], 4)        # 0.07 long
+    real = np.linspace([-0.7, 0.0, -0.3], [-0.9, 0.02, -0.4], 4)
+    swung = np.linspace([-0.7, 0.0, -0.3], [-1.0, 0.6, -0.6], 6)         # 0.3 long
+    legs = [np.linspace([-0.7, 0.2, -0.3], [-0.7, 0.5, -0.9], 4),
+            np.linspace([-0.7, -0.2, -0.3], [-0.7, -0.5, -0.9], 4)]
+    core = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 0.01]])
+    for tail, kept in ((spur, False), (real, True), (swung, True)):
+        tree = _tree([b * half for b in (core, tail, *legs)])
+        tree.radius[0] = 0.2                            # the body's thickest part
+        ends = np.cumsum([len(core), len(tail), len(legs[0]), len(legs[1])]) - 1
+        assign = {"tail": int(ends[1]), "leg_bl": int(ends[2]), "leg_br": int(ends[3])}
+        got = match_module._on_mid_plane(template, tree, body, assign)
+        want = dict(assign) if kept else {k: v for k, v in assign.items() if k != "tail"}
+        assert got == want

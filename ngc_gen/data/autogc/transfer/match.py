@@ -332,17 +332,22 @@ def _on_sides(template: Template, tree: Tree, body: BodyFrame,
 def _on_mid_plane(template: Template, tree: Tree, body: BodyFrame,
                   assign: dict[str, int]) -> dict[str, int]:
     """The assignment without a part on the mid-plane straight on the root (a tail) whose free
-    end lies more than MID_SLACK x the body's thickest radius to one side of the mid-plane: a
-    tail leaves the body on the mid-plane and hangs there, a spur out of one hip (where the
-    skeleton joined the tail to the hind legs) ends inside that hip's flank. Such a part is
-    missing, and stands in where the template puts it, rather than named on the hip."""
+    end lies more than MID_SLACK x the body's thickest radius to one side of the mid-plane on a
+    branch shorter than the part's template length: a tail leaves the body on the mid-plane and
+    hangs there or swings aside at its full length (a posed horse's), a spur out of one hip
+    (where the skeleton joined the tail to the hind legs) is short and ends inside that hip's
+    flank. Such a part is missing, and stands in where the template puts it, rather than
+    named on the hip."""
     out = dict(assign)
     root = next(g.name for g in template.gcs if g.parent is None)
     thick = float(tree.radius[tree.main].max())
+    long = branch_lengths(tree)
     for n, leaf in assign.items():
         g = template.gc(n)
         if g.symmetric is None and g.parent == root and abs(float(g.place["end"][1])) < SIDE_SLACK \
-                and abs(body.to_body(tree.nodes[leaf])[1]) * body.half[1] > MID_SLACK * thick:
+                and abs(body.to_body(tree.nodes[leaf])[1]) * body.half[1] > MID_SLACK * thick \
+                and long[tree.branch_of[leaf]] < body.length(np.subtract(g.place["end"],
+                                                                         g.place["start"])):
             del out[n]
     return out
 
