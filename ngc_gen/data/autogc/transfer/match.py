@@ -26,8 +26,9 @@ REACH_OUT = 0.2    # a limb whose chain ends this much further front (back) than
                    # end's (a head, a tail): its free end lies beyond where the chain starts
 SIDE_SLACK = 0.05  # a left limb's free end lies at most this far (body units) right of the middle
 MID_SLACK = 0.15   # a tail's free end lies at most this x the body's thickest radius off the
-                   # mid-plane (tails of standing animals: 0.00-0.09; spurs in one hip's flank
-                   # where the skeleton joined the tail to the hind legs: 0.23, 0.37)
+                   # mid-plane unless its branch is a tail's length (tails of standing animals:
+                   # 0.00-0.09; short spurs in one hip's flank where the skeleton joined the
+                   # tail to the hind legs: 0.23, 0.37)
 END_REACH = 1.5    # a chain's path passing this x SIGMA_TIP from where its template part ends
                    # ends the template's part there (_template_end)
 W_SHORT = 1.0      # second pass, a part on the mid-plane: weight of log(branch length / the
