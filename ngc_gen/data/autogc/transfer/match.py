@@ -25,10 +25,8 @@ LEG_DOWN = 0.5     # a limb whose place ends this much lower than it starts is a
 REACH_OUT = 0.2    # a limb whose chain ends this much further front (back) than it starts is an
                    # end's (a head, a tail): its free end lies beyond where the chain starts
 SIDE_SLACK = 0.05  # a left limb's free end lies at most this far (body units) right of the middle
-MID_SLACK = 0.15   # a tail's free end lies at most this x the body's thickest radius off the
-                   # mid-plane unless its branch is a tail's length (tails of standing animals:
-                   # 0.00-0.09; short spurs in one hip's flank where the skeleton joined the
-                   # tail to the hind legs: 0.23, 0.37)
+MID_SLACK = 0.15   # a short tail's end lies at most this x the body's thickest radius off the
+                   # mid-plane (standing animals' tails: 0.00-0.09; spurs in one hip: 0.23, 0.37)
 END_REACH = 1.5    # a chain's path passing this x SIGMA_TIP from where its template part ends
                    # ends the template's part there (_template_end)
 W_SHORT = 1.0      # second pass, a part on the mid-plane: weight of log(branch length / the
@@ -333,12 +331,10 @@ def _on_sides(template: Template, tree: Tree, body: BodyFrame,
 def _on_mid_plane(template: Template, tree: Tree, body: BodyFrame,
                   assign: dict[str, int]) -> dict[str, int]:
     """The assignment without a part on the mid-plane straight on the root (a tail) whose free
-    end lies more than MID_SLACK x the body's thickest radius to one side of the mid-plane on a
-    branch shorter than the part's template length: a tail leaves the body on the mid-plane and
-    hangs there or swings aside at its full length (a posed horse's), a spur out of one hip
-    (where the skeleton joined the tail to the hind legs) is short and ends inside that hip's
-    flank. Such a part is missing, and stands in where the template puts it, rather than
-    named on the hip."""
+    end lies MID_SLACK x the body's thickest radius off the mid-plane on a branch shorter than
+    its template part: a tail leaves the body on the mid-plane and hangs there or swings aside
+    at full length (a posed horse's), a short spur out of one hip (the skeleton joined the tail
+    to the hind legs) ends in that hip's flank. Missing (a stand-in), not named on the hip."""
     out = dict(assign)
     root = next(g.name for g in template.gcs if g.parent is None)
     thick = float(tree.radius[tree.main].max())
