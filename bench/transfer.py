@@ -427,19 +427,19 @@ def _collections_table(col: dict) -> list[str]:
         c = col.get(key) or {}
         if not c.get("n") or c.get("matched") is None:
             continue
-        cpu, s = c.get("cpu_s_per_mesh"), c.get("s_per_mesh")
+        s, wall = c.get("s_per_mesh"), c.get("wall_s_per_mesh")
         rows.append([label, c["n"], pct(c["matched"], 1)]
                     + ["" if c.get(k) is None else pct(c[k], 1) for k in ("names_right",)]
                     + [c.get("silently_wrong", "")]
                     + ["" if c.get(k) is None else pct(c[k], 1)
                        for k in ("purity_mean", "purity_worst", "orientation_right")]
-                    + ["" if s is None else f"{s:.1f}" + (f" ({cpu:.1f})" if cpu is not None else "")])
+                    + ["" if s is None else f"{s:.1f}" + (f" ({wall:.1f})" if wall is not None else "")])
     if not rows:
         return []
     return ["", "Collections, each mesh turned by a seeded random rotation, no axes given (the "
             "animals also with their axes given):", ""] + rows_table(
         ["collection", "meshes", "matched", "names right", "silently wrong", "purity mean",
-         "purity worst", "orientation within 20 deg", "s / mesh (cpu s)"], rows)
+         "purity worst", "orientation within 20 deg", "s / mesh, one thread (wall s)"], rows)
 
 
 def table(r: dict) -> str:

@@ -78,11 +78,16 @@ def orientation_of(O: np.ndarray, source: tuple[str, str]) -> Orientation:
 
 def distinct(orientations: list[Orientation], within_deg: float = 15.0) -> list[Orientation]:
     """The orientations with those within `within_deg` of an earlier one left out."""
-    out: list[Orientation] = []
-    for o in orientations:
-        if all(angle_deg(o.matrix @ k.matrix.T) > within_deg for k in out):
-            out.append(o)
-    return out
+    if not orientations:
+        return []
+    M = np.stack([o.matrix for o in orientations])             # (n, 3, 3), built once
+    kept: list[int] = []
+    for i in range(len(M)):   # greedy in order: a loop over the candidates, each against all kept
+        tr = np.einsum("ij,kij->k", M[i], M[kept])               # trace(M_i @ M_k.T)
+        ang = np.degrees(np.arccos(np.clip((tr - 1.0) / 2.0, -1.0, 1.0)))
+        if np.all(ang > within_deg):
+            kept.append(i)
+    return [orientations[i] for i in kept]
 
 
 def override_orientation(spec, where, field: str = "frame") -> Orientation:

@@ -13,7 +13,12 @@ are clockwise: w = -1 inside), and a model's pieces need not agree; read as they
 mesh is empty inside and its proxy a hollow slab around the surface (two nested shells whose
 skeleton is no curve skeleton). So each connected piece (vertices merged by position: UV seams
 split a surface into patches) is turned outward first, by the sign of its enclosed volume
-(``outward_faces``).
+(``outward_faces``). A piece that encloses no volume (a flat card: a game model's fringe,
+tassel or decal, often a single quad) has no outside: the sign of its volume is rounding
+noise that the file's winding decided (read reversed, such a piece turned the other way, its
+surface samples and winding with it, and the proxy's surface moved near it), so it takes one
+orientation fixed by its vertex indices. The proxy is then the same whichever way the input's
+faces are wound.
 
 Cost is kept near the surface: the exact distance (libigl) is computed in a band of a few voxels
 around dense surface samples; the winding number is evaluated in that band and at a few voxels
@@ -35,6 +40,9 @@ from ngc_gen.data.mesh.sampling import sample_surface
 
 BAND = 3.0  # voxels of exact distance around the surface
 MERGE = 1e-6  # vertices closer than this x the bounding box are one (``outward_faces``)
+#: a piece whose |enclosed volume| is below this x its area^1.5 encloses nothing (a flat card;
+#: a closed sphere has 0.094, a cube 0.068)
+FLAT = 1e-6
 
 
 @dataclass
@@ -54,17 +62,12 @@ class Proxy:
         return self.origin + np.asarray(ijk, dtype=np.float64) * self.h
 
 
-def outward_faces(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """faces (F, 3) with every connected piece whose signed volume (about its own centre) is
-    negative turned over (its faces wound inward); pieces connect through vertices at the same
-    position (within MERGE x the size)."""
+def _pieces(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(piece (F,) of each face, signed volume (P,) about each piece's own centre, area (P,)):
+    pieces connect through vertices at the same position (within MERGE x the size)."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
-    V = np.asarray(vertices, dtype=np.float64)
-    F = np.asarray(faces, dtype=np.int64)
-    if len(F) == 0:
-        return F
     size = max(float(np.ptp(V, axis=0).max()), 1e-30)
     _, same = np.unique(np.rint(V / (MERGE * size)).astype(np.int64), axis=0, return_inverse=True)
     G = same.reshape(-1)[F]                                        # (F, 3) merged vertex ids
@@ -77,8 +80,36 @@ def outward_faces(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     np.add.at(centre, piece, T.mean(1))
     centre /= np.bincount(piece)[:, None]
     T = T - centre[piece][:, None, :]
+    cross = np.cross(T[:, 1] - T[:, 0], T[:, 2] - T[:, 0])
     vol = np.bincount(piece, weights=np.einsum("ij,ij->i", T[:, 0], np.cross(T[:, 1], T[:, 2])))
-    flip = vol[piece] < 0
+    area = np.bincount(piece, weights=np.linalg.norm(cross, axis=1) / 2.0)
+    return piece, vol, area
+
+
+def _ascending(F: np.ndarray) -> np.ndarray:
+    """(F,) bool: the face's corners, read from its smallest vertex index, ascend (a fixed
+    orientation for a piece that has no outside)."""
+    lo = F.argmin(1)
+    nxt = F[np.arange(len(F)), (lo + 1) % 3]
+    prv = F[np.arange(len(F)), (lo + 2) % 3]
+    return nxt < prv
+
+
+def outward_faces(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """faces (F, 3) with every connected piece whose signed volume (about its own centre) is
+    negative turned over (its faces wound inward); pieces connect through vertices at the same
+    position (within MERGE x the size). A piece enclosing no volume (|volume| < FLAT x
+    area^1.5) is turned so that its first face's corners ascend (`_ascending`): the same
+    whichever way the input is wound."""
+    V = np.asarray(vertices, dtype=np.float64)
+    F = np.asarray(faces, dtype=np.int64)
+    if len(F) == 0:
+        return F
+    piece, vol, area = _pieces(V, F)
+    flat = np.abs(vol) < FLAT * area ** 1.5
+    first = np.full(len(vol), len(F))
+    np.minimum.at(first, piece, np.arange(len(F)))
+    flip = np.where(flat, ~_ascending(F[first]), vol < 0)[piece]
     return np.where(flip[:, None], F[:, ::-1], F)
 
 

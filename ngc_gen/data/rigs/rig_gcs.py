@@ -103,7 +103,8 @@ class PosedShape:
     gcs: GC dicts in template order (normalised frame); coverage: share of the check samples
     inside the union; purity (G,): share of each GC's own check samples inside it; joints
     (J, 3): the posed joints in the normalised frame; center, scale: normalised = (posed -
-    center) * scale."""
+    center) * scale; owner (V,): per vertex of `mesh`, the template GC (index) that holds most
+    of the skin weight there (what the rig says moves it; a carved GC's part moved to it)."""
 
     mesh: trimesh.Trimesh
     gcs: list[dict]
@@ -112,6 +113,7 @@ class PosedShape:
     joints: np.ndarray
     center: np.ndarray
     scale: float
+    owner: np.ndarray
 
 
 def joint_depth(rig: Rig) -> np.ndarray:
@@ -479,4 +481,4 @@ def pose_shape(rig: Rig, template: Template, clip: str | None = None, time: floa
                             "part a GC in the template")
     return PosedShape(mesh=ps.mesh, gcs=[rounded_gc_dict(g.to_dict()) for g in gcs],
                       coverage=coverage, purity=purity, joints=ps.joints, center=ps.center,
-                      scale=ps.scale)
+                      scale=ps.scale, owner=owner[:len(MV)].copy())

@@ -21,7 +21,10 @@ joint of the main tree):
   the front legs' tops are the torso's. The piece that reaches farthest past the other end is
   the tail; the leading joints of its main path not past the back legs' tops sit in the hips
   (a pelvis the tail hangs from moves the rump and whatever covers it: armour, a saddle
-  cloth) and are the torso's, as is a first joint that sits on the spine. The spine from the
+  cloth) and are the torso's, as is a first joint that sits on the spine, and so are the
+  leading joints past them whose skin spans more than WIDE of the body's width at the back
+  legs' tops (a spine end past the hips that moves the top of the rump: a tail is far
+  narrower than the body it leaves). The spine from the
   back legs' branch to the front legs', with what the neck and the tail gave it, less an end
   joint that carries no skin (a root on the ground the legs hang from), is the torso's curve;
   every other joint is skinned to the torso.
@@ -49,6 +52,8 @@ GROUND = 0.1    # a foot ends within this share of the mesh's height of its lowe
 MIDLINE = 0.5   # leading leg joints nearer the mid-plane than this x their foot sit in the body
 HEAD_SHARE = 0.5  # the head and what follows it carry this share of the neck + head's skin
 SAME = 0.01     # joints nearer than this x the skeleton's size sit at the same place
+WIDE = 2 / 3    # a tail joint whose skin spans this share of the body's width moves the rump
+SECTION = 0.05  # the body's section at the back legs' tops: within this x its size
 AXES = np.vstack([np.eye(3), -np.eye(3)])
 
 
@@ -305,15 +310,30 @@ def _neck_head(par, piece, P, load, axis, top):
     return neck, head_skin, path[:k], neck_chain, head
 
 
-def _tail(par, piece, P, load, axis, top, size):
-    """(tail chain, tail skinned, its main path's joints not past the back legs' tops `top`
-    along `axis`) of the piece at the back. Those leading joints sit inside the body at the
-    hips (a pelvis the tail hangs from): they move the rump (and what covers it: armour, a
-    saddle cloth), so they and their side branches are the torso's, on its curve; a first
-    joint past `top` that sits on its parent is skinned to the torso too."""
+def _spans_body(across: np.ndarray, owner: np.ndarray, j: int, section: float) -> bool:
+    """Whether the vertices whose skin joint j holds most of (`owner`: per vertex, its joint)
+    span more than WIDE of `section` (the body's width) in `across` (per vertex, its position
+    across the body)."""
+    own = across[owner == j]
+    return len(own) > 1 and float(np.ptp(own)) > WIDE * section
+
+
+def _tail(par, piece, P, load, axis, top, size, rig, up):
+    """(tail chain, tail skinned, its main path's joints that are the torso's) of the piece at
+    the back. Its leading joints not past the back legs' tops `top` along `axis` sit inside
+    the body at the hips (a pelvis the tail hangs from): they move the rump (and what covers
+    it: armour, a saddle cloth); so do the next ones whose skin spans the body's width there
+    (`_spans_body`). They and their side branches are the torso's, on its curve; a first
+    tail joint that sits on its parent is skinned to the torso too."""
     path = _main_path(par, piece, load)
     k = 0
     while k < len(path) - 1 and float(P[path[k]] @ axis) >= top:
+        k += 1
+    V = rig.posed()
+    across, owner = V @ np.cross(up, axis), rig.dominant_joint()
+    band = np.abs(V @ axis - top) <= SECTION * size
+    section = float(np.ptp(across[band])) if band.sum() > 1 else 0.0
+    while k < len(path) - 2 and section > 0 and _spans_body(across, owner, path[k], section):
         k += 1
     chain = path[k:]
     skin = [j for j in _subtree(par, path[k]) if j in set(piece)]
@@ -386,7 +406,8 @@ def _assemble(rig, template, P, par, active, load, up, axis, legs, pairs, size) 
     tail_piece = max(at_a, key=lambda p: tops[0] - float((P[p] @ axis).min()))
     neck_skin, head_skin, behind, neck_chain, head = _neck_head(par, head_piece, P, load,
                                                                 axis, tops[1])
-    tail_chain, tail_skin, hips = _tail(par, tail_piece, P, load, axis, tops[0], size)
+    tail_chain, tail_skin, hips = _tail(par, tail_piece, P, load, axis, tops[0], size,
+                                           rig, up)
     resolved = {"neck": {"chain": neck_chain, "skinned": neck_skin},
                 "head": {"chain": [head], "skinned": head_skin},
                 "tail": {"chain": tail_chain, "skinned": tail_skin}}

@@ -132,3 +132,20 @@ def test_a_frame_override_naming_no_axis_is_one_line(tmp_path):
     o, where = read_override(tmp_path / "cow.ply")
     assert o.up.tolist() == [0, 1, 0] and o.front.tolist() == [0, 0, -1]
     assert read_override(tmp_path / "pig.ply") == (None, None)
+
+
+def test_body_frames_from_the_hulls_points_are_the_surfaces():
+    """orientation.choose builds a body frame per candidate from the surface's extreme points
+    only: the same bounding box in every frame as from all of them."""
+    from ngc_gen.data.autogc.frame import pca_candidates
+    from ngc_gen.data.autogc.transfer.tree import BodyFrame, extreme_points
+
+    X = np.random.default_rng(0).normal(size=(20000, 3)) * [3.0, 2.0, 1.0]
+    E = extreme_points(X)
+    assert len(E) < len(X) // 20
+    for o in pca_candidates(X @ np.linalg.qr(np.ones((3, 3)) + np.eye(3))[0]):
+        a, b = BodyFrame.of(X, o), BodyFrame.of(E, o)
+        np.testing.assert_array_equal(a.center, b.center)
+        np.testing.assert_array_equal(a.half, b.half)
+    flat = X * [1.0, 1.0, 0.0]                         # no hull: every point
+    assert len(extreme_points(flat)) == len(flat)

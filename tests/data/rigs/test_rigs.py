@@ -209,6 +209,10 @@ def test_template_gcs_on_a_rig_follow_its_chains(tmp_path):
     assert up[0][1] < shoulder[1] - 0.01 and abs(up[0][0] - shoulder[0]) < 1e-6
     np.testing.assert_allclose(low[0], elbow, atol=1e-6)
     assert low[-1][0] > hand[0] + 0.01
+    # each vertex of the closed mesh carries the GC its skin weights give it
+    V = np.asarray(ps.mesh.vertices)
+    assert ps.owner.shape == (len(V),)
+    assert (ps.owner[V[:, 1] < shoulder[1]] == 0).all() and (ps.owner[V[:, 0] > hand[0]] == 1).all()
 
 
 def test_a_one_joint_chain_follows_its_bone_not_its_antlers(small):

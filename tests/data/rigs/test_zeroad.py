@@ -123,6 +123,31 @@ def test_a_pelvis_the_tail_hangs_from_inside_the_hips_is_the_torsos(tmp_path):
     assert "pelvis" in skinned["torso"] and skinned["tail"] == ["tail", "tail_tip"]
 
 
+@pytest.mark.parametrize("wide", [True, False])
+def test_a_tail_joint_whose_skin_spans_the_rump_is_the_torsos(wide):
+    # a spine end just past the back legs' tops that the tail hangs from: when the vertices
+    # its skin holds span the body's width there (the top of the rump: 0 A.D.'s cattle), it is
+    # the torso's and the tail starts after it; when they are a tail's narrow tube, it stays
+    # the tail's first joint
+    at = NAMES.index("tail")
+    names = NAMES[:at] + ["rump"] + NAMES[at:]
+    parent = np.r_[PARENT[:at], 0, at, at + 1]
+    pos = np.vstack([POS[:at], [0.0, 2.05, 1.15], POS[at:]])
+    skel = read_skeletons(skeleton_xml(names, parent))[0]
+    rig = pmd_rig(read_pmd(pmd_bytes(pos), "rump.pmd"), skel)
+    if wide:  # the rump's cube stretched across the body, wider than the hind legs stand
+        rig.vertices[rig.skin_joints[:, 0] == at, 0] *= 6.0
+    jm = structure_map(rig)
+    chains = _names(rig, jm)
+    skinned = {g: sorted(rig.names[j] for j in r["skinned"]) for g, r in jm.resolved.items()}
+    if wide:
+        assert chains["tail"] == ["tail", "tail_tip"] and chains["torso"][0] == "rump"
+        assert "rump" in skinned["torso"] and skinned["tail"] == ["tail", "tail_tip"]
+    else:
+        assert chains["tail"] == ["rump", "tail", "tail_tip"]
+        assert "rump" not in chains["torso"] and "rump" in skinned["tail"]
+
+
 def test_an_unskinned_root_on_the_ground_is_no_part_of_the_torsos_curve():
     # the front legs and the neck hang from a joint that carries no skin and sits on the
     # ground under the chest (0 A.D.'s sheep root): the torso's curve ends at the chest, not

@@ -23,7 +23,7 @@ from ngc_gen.data.autogc.template import Template
 from ngc_gen.data.errors import DataError
 
 from .match import _tips, correspond, reaches_down
-from .tree import BodyFrame
+from .tree import BodyFrame, extreme_points
 from .verify import verify
 
 SNAP_DEG = 10.0     # a detected frame this close to signed world axes is snapped to them
@@ -184,7 +184,7 @@ def choose(template: Template, tree, surface: np.ndarray, share: np.ndarray, st,
     """The orientation for this mesh (module docstring); share (N,): the surface nearest each
     tree node (``tree.surface_share``)."""
     tips = _tips(template)[0]
-    ctx = (template, tree, surface, st, where, len(tips), set(tips), share)
+    ctx = (template, tree, extreme_points(surface), st, where, len(tips), set(tips), share)
     if override is not None:
         trial = _try(ctx, override, refine=False)
         if trial.failed:

@@ -40,6 +40,19 @@ class BodyFrame:
         return float(np.linalg.norm(np.asarray(b_vec) * self.half))
 
 
+def extreme_points(points: np.ndarray) -> np.ndarray:
+    """The points (N, 3) that can be extreme along some direction (the convex hull's
+    vertices), for ``BodyFrame.of`` in many orientations: the same bounding box from a few
+    hundred points instead of every surface sample; all of them when there is no hull (flat)."""
+    from scipy.spatial import ConvexHull, QhullError
+
+    P = np.asarray(points, dtype=np.float64)
+    try:
+        return P[ConvexHull(P).vertices]
+    except (QhullError, ValueError):
+        return P
+
+
 def template_rotation(template: Template, orientation: Orientation) -> np.ndarray:
     """(3, 3) M turning a direction in the template's frame into the mesh's: M @ v."""
     tf = Orientation(template.up, template.front)
