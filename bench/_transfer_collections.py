@@ -16,7 +16,7 @@ median processor seconds of the transfer call in a worker computing on one threa
 numba, BLAS and libigl; what the other worker and a busy machine do not inflate, and what one
 core takes per mesh; cpu_s_per_mesh the same figure) and wall_s_per_mesh (the median wall
 clock, which counts the other processes' turns), with `timing` saying what was timed: the
-workers, each one's threads as it reported them, the cores and the load at start and end,
+workers, each one's threads as it reported them, and the cores (the load is in the machine record),
 outside_volume_ratio (the volume of the GCs' union outside the mesh over the mesh's volume, by
 Monte Carlo; median over meshes). zeroad also: outside_volume_ratio_before, the same on the
 same turned meshes transferred with the older growth (annotate.hug=false), and
@@ -145,9 +145,9 @@ def _threads() -> dict:
             **{k: os.environ.get(k, "default") for k in ONE_THREAD_ENV}}
 
 
-def _timing(rows: list[dict], workers: int, load: tuple[str, str]) -> dict:
+def _timing(rows: list[dict], workers: int) -> dict:
     """What s_per_mesh timed (module docstring): the workers, their threads (every setting
-    seen), the cores and the 1-minute load average at start and end."""
+    seen) and the cores; the load is the machine record's (bench/_harness.py)."""
     import os
 
     seen = {}
@@ -156,15 +156,7 @@ def _timing(rows: list[dict], workers: int, load: tuple[str, str]) -> dict:
             seen.setdefault(k, set()).add(v)
     return {"timed": "processor seconds of transfer_template per mesh (median), per worker process",
             "workers": workers, "threads": {k: sorted(v, key=str) for k, v in seen.items()},
-            "cpus": os.cpu_count(), "loadavg_start": load[0], "loadavg_end": load[1]}
-
-
-def _loadavg() -> str:
-    """The 1, 5 and 15-minute load averages ("" where /proc has none)."""
-    try:
-        return " ".join(Path("/proc/loadavg").read_text().split()[:3])
-    except OSError:
-        return ""
+            "cpus": os.cpu_count()}
 
 
 def _legs_on_sides(tr, truth, mesh) -> bool:
@@ -270,12 +262,11 @@ def collections(animals: list[dict], workers: int, deb: str | None, limit: int |
                       for i, r in enumerate(zero)]
     out, per_mesh = {}, {}
     for key, tasks in runs.items():
-        t0, load0 = time.perf_counter(), _loadavg()
+        t0 = time.perf_counter()
         rows = list(map_shapes(one, tasks, workers, min_items=4)) if tasks else []
         out[key] = summary(rows, names) if rows else {"n": 0, "note": runs_note}
         if rows:
-            out[key]["timing"] = _timing(rows, worker_count(len(tasks), workers, 4),
-                                         (load0, _loadavg()))
+            out[key]["timing"] = _timing(rows, worker_count(len(tasks), workers, 4))
         per_mesh[key] = [_finite(r) for r in rows]
         for r in rows:
             print(f"  {key} {r['mesh']}: " + (f"refused: {r['error']}" if "error" in r else

@@ -483,6 +483,11 @@ def headline(r):
         line += (f"; generator on transferred GCs vs rig GCs: MMD-CD "
                  f"{100 * (tr['mmd_cd'] / rig['mmd_cd'] - 1):+.1f}%, 1-NNA "
                  f"{100 * (tr['nna_cd'] / rig['nna_cd'] - 1):+.1f}%")
+    z = (r.get("collections") or {}).get("zeroad") or {}
+    if z.get("n"):
+        line += (f"; {z['n']} 0 A.D. quadrupeds turned at random, no axes: {pct(z['matched'], 1)} "
+                 f"matched, names right {pct(z['names_right'], 1)}, {z['silently_wrong']} silently "
+                 f"wrong, {z['s_per_mesh']:.1f} s per mesh")
     return line
 
 
