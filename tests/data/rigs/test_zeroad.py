@@ -105,16 +105,22 @@ def test_structure_maps_legs_sides_neck_head_tail_from_geometry(rig):
     assert owned == list(range(len(NAMES)))  # every bone skinned to exactly one GC
 
 
+def _rig_with_tail_joint(name: str, at: list[float]):
+    """The test rig with a joint `name` at `at` between the root and the tail, the tail's
+    parent."""
+    i = NAMES.index("tail")
+    names = NAMES[:i] + [name] + NAMES[i:]
+    parent = np.r_[PARENT[:i], 0, i, i + 1]
+    pos = np.vstack([POS[:i], at, POS[i:]])
+    skel = read_skeletons(skeleton_xml(names, parent))[0]
+    return pmd_rig(read_pmd(pmd_bytes(pos), f"{name}.pmd"), skel)
+
+
 def test_a_pelvis_the_tail_hangs_from_inside_the_hips_is_the_torsos(tmp_path):
     # a pelvis bone between the hips and the tail, in front of the back legs' tops: it moves
     # the rump (in 0 A.D. also the armour over it), so it is the torso's, on its curve, and
     # the tail starts at the first joint past the back legs
-    at = NAMES.index("tail")
-    names = NAMES[:at] + ["pelvis"] + NAMES[at:]
-    parent = np.r_[PARENT[:at], 0, at, at + 1]
-    pos = np.vstack([POS[:at], [0.0, 2.1, 0.75], POS[at:]])
-    skel = read_skeletons(skeleton_xml(names, parent))[0]
-    rig = pmd_rig(read_pmd(pmd_bytes(pos), "pelvis.pmd"), skel)
+    rig = _rig_with_tail_joint("pelvis", [0.0, 2.1, 0.75])
     jm = structure_map(rig)
     chains = _names(rig, jm)
     assert chains["tail"] == ["tail", "tail_tip"]
@@ -129,12 +135,8 @@ def test_a_tail_joint_whose_skin_spans_the_rump_is_the_torsos(wide):
     # its skin holds span the body's width there (the top of the rump: 0 A.D.'s cattle), it is
     # the torso's and the tail starts after it; when they are a tail's narrow tube, it stays
     # the tail's first joint
+    rig = _rig_with_tail_joint("rump", [0.0, 2.05, 1.15])
     at = NAMES.index("tail")
-    names = NAMES[:at] + ["rump"] + NAMES[at:]
-    parent = np.r_[PARENT[:at], 0, at, at + 1]
-    pos = np.vstack([POS[:at], [0.0, 2.05, 1.15], POS[at:]])
-    skel = read_skeletons(skeleton_xml(names, parent))[0]
-    rig = pmd_rig(read_pmd(pmd_bytes(pos), "rump.pmd"), skel)
     if wide:  # the rump's cube stretched across the body, wider than the hind legs stand
         rig.vertices[rig.skin_joints[:, 0] == at, 0] *= 6.0
     jm = structure_map(rig)
