@@ -10,6 +10,7 @@ from scipy.spatial import cKDTree
 from ngc_gen.data.autogc.template import Template
 from ngc_gen.data.errors import DataError
 
+from .leg_order import LEG_DOWN, _legs_by_start, reaches_down
 from .side_pairs import paired_junction
 from .transfer_settings import TransferSettings
 from .tree import BodyFrame, Tree
@@ -21,11 +22,8 @@ W_ATTACH = 1.0     # weight of that attachment term
 MAX_ATTACH = 3.0   # at most this much: a galloping animal's skeleton may join its legs mid-body
 W_THICKNESS = 0.5  # weight of log(thickness ratio)^2
 BEYOND = 1e3       # the cost of a free end above where a leg attaches (second pass)
-LEG_DOWN = 0.5     # a limb whose place ends this much lower than it starts is a leg
 REACH_OUT = 0.2    # a limb whose chain ends this much further front (back) than it starts is an
                    # end's (a head, a tail): its free end lies beyond where the chain starts
-START_SLACK = 0.1  # a front leg's path may start this far (body units) behind its hind
-                   # partner's (a skeleton joining a pair mid-body; a gallop's swapped pair: 0.3)
 SIDE_SLACK = 0.05  # a left limb's free end lies at most this far (body units) right of the middle
 MID_SLACK = 0.15   # a short tail's end lies at most this x the body's thickest radius off the
                    # mid-plane (standing animals' tails: 0.00-0.09; spurs in one hip: 0.23, 0.37)
@@ -35,11 +33,6 @@ W_SHORT = 1.0      # second pass, a part on the mid-plane: weight of log(branch 
                    # GC's template length)^2 for a shorter branch: a spur inside the hip, within
                    # a tail's reach, is no tail (a leg's branch may end where a bunched leg joins)
 
-
-
-def reaches_down(place: dict) -> bool:
-    """A template part whose place ends LEG_DOWN (body units) lower than it starts: a leg."""
-    return float(place["start"][2]) - float(place["end"][2]) >= LEG_DOWN
 
 def _children(template: Template) -> dict[str, list[str]]:
     out = {g.name: [] for g in template.gcs}
@@ -364,57 +357,12 @@ def correspond(template: Template, tree: Tree, body: BodyFrame, settings: Transf
                         path=where, field="mesh",
                         fix="give this mesh its own annotation, or use a template of its kind")
     assign, cost = _assign(template, tree, body, settings, where, leaf_gcs, leaves)
+    assign = _legs_by_start(template, body.to_body(tree.nodes), assign,
+                            _paths(template, tree, body, assign)[0])   # (leg_order)
     paths, chained = _paths(template, tree, body, assign)
-    named = _legs_by_start(template, body.to_body(tree.nodes), assign, paths)
-    if named != assign:
-        assign = named
-        paths, chained = _paths(template, tree, body, assign)
     labels = _labels(template, tree, paths, chained)
     missing = [n for n in template.names if n not in paths]
     return {k: np.asarray(v) for k, v in paths.items()}, labels, missing, cost
-
-
-def _legs_by_start(template: Template, nodes_body: np.ndarray, assign: dict[str, int],
-                   paths: dict) -> dict[str, int]:
-    """The legs named front or hind by where their paths start (where each leaves the body:
-    shoulder or hip, front to back in body x), not where their feet are: a gathered gallop's
-    hind feet land under the belly, in front of the front feet, and a front foot pressed
-    against a hind leg merges into it (no free end of its own). On one side, a front leg
-    starting more than START_SLACK behind its hind partner swaps with it; a leg alone on its
-    side takes the name (front or hind) of the other side's leg whose start is nearer its own."""
-    root = next(g for g in template.gcs if g.parent is None)
-    mid = _mid_x(root.place)
-    legs = [g for g in template.gcs if g.parent == root.name and reaches_down(g.place) and
-            g.symmetric is not None]
-    front = {g.name: g.name for g in legs if _mid_x(g.place) > mid}
-    # sides: front leg -> its hind leg on the same side
-    pair = {f: next(h.name for h in legs if h.name not in front and
-                    np.sign(h.place["end"][1]) == np.sign(template.gc(f).place["end"][1]))
-            for f in front}
-    start = {n: float(nodes_body[paths[n][0]][0]) for n in assign if n in paths and
-             any(n == g.name for g in legs)}
-    out = dict(assign)
-    for f, h in pair.items():
-        if f in start and h in start and start[f] < start[h] - START_SLACK:
-            out[f], out[h] = assign[h], assign[f]
-            start[f], start[h] = start[h], start[f]
-    for f, h in pair.items():
-        other = [(g, pair[g]) for g in pair if g != f]
-        if (f in start) == (h in start) or not other:
-            continue
-        of, oh = other[0]
-        if of not in start or oh not in start:
-            continue
-        alone = f if f in start else h
-        nearer_front = abs(start[alone] - start[of]) < abs(start[alone] - start[oh])
-        want = f if nearer_front else h
-        if want != alone:
-            out[want] = out.pop(alone)
-    return out
-
-
-def _mid_x(place: dict) -> float:
-    return float(place["start"][0] + place["end"][0]) / 2.0
 
 
 def _chain_cuts(template: Template, tree: Tree, body: BodyFrame, own: list[int],
