@@ -41,14 +41,16 @@ def quadruped(length=0.8, leg=0.75, neck=0.45, tail=0.4, rotation=None, grazing=
         neck_top = (0.0, y + neck * 0.8, z1 + neck * 0.5)
         head_tip = (0.0, neck_top[1] - 0.05, neck_top[2] + 0.25)
     tail_tip = (0.0, y - tail * tail_dir[0], z0 - tail * tail_dir[1])
+    taper = np.atleast_1d(np.asarray(tail_radius, dtype=float))
+    knots = np.linspace((0, y, z0), tail_tip, len(taper) + 1)
     segs = [((0, y, z0), (0, y, z1))] + [(hips[k], feet[k]) for k in feet] + [
-        ((0, y, z1), neck_top), (neck_top, head_tip), ((0, y, z0), tail_tip)]
-    radii = [0.16, 0.06, 0.06, 0.06, 0.06, 0.07, 0.09, tail_radius]
+        ((0, y, z1), neck_top), (neck_top, head_tip)] + list(zip(knots[:-1], knots[1:]))
+    radii = [0.16, 0.06, 0.06, 0.06, 0.06, 0.07, 0.09, *taper]
     if not tail:
-        segs, radii = segs[:-1], radii[:-1]
+        segs, radii = segs[:-len(taper)], radii[:-len(taper)]
     mesh = tubes(segs, radii)
     points = {"foot_fl": feet["fl"], "head_tip": head_tip, "tail_tip": tail_tip,
-              "torso": (0.0, y, 0.0)}
+              "torso": (0.0, y, 0.0), "tail_root": (0.0, y, z0)}
     points = {k: np.asarray(v, dtype=float) for k, v in points.items()}
     if rotation is not None:
         mesh = trimesh.Trimesh(mesh.vertices @ np.asarray(rotation).T, mesh.faces, process=False)

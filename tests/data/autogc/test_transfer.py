@@ -114,6 +114,19 @@ def test_a_stub_tail_the_skeleton_never_finds_still_gets_a_tail_gc_over_it(templ
     assert not bool(tail.contains(pts["torso"][None])[0])
 
 
+def test_a_tail_that_tapers_out_of_the_body_starts_behind_the_hips(template):
+    """A crocodile's tail tapers out of the body: the skeleton's tail branch leaves the surface
+    far behind the hips, where the tail has thinned, while a rig's tail starts just behind the
+    hips. The tail GC reaches back to the found hind legs' row (as far behind it as the
+    template's tail start lies behind its hind legs), so it holds the tail's root too."""
+    mesh, pts = _normalised(*quadruped(tail=0.6, tail_radius=(0.12, 0.08, 0.05),
+                                       tail_dir=(0.0, 1.0)))
+    tr = transfer_template(mesh, template, FAST, "tapering tail")
+    tail = tr.gcs[template.names.index("tail")]
+    assert tr.missing == [] and bool(tail.contains(pts["tail_tip"][None])[0])
+    assert bool(tail.contains(pts["tail_root"][None])[0])
+
+
 def test_a_galloping_front_foot_behind_the_hind_foot_keeps_its_legs_name(template):
     """Left side of a gallop: the front foot lands behind the hind foot, so by where the feet
     are the two legs swap; where each skeleton branch leaves the body (shoulder in front, hip
