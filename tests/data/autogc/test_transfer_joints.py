@@ -9,7 +9,7 @@ import pytest
 
 from ngc_gen.data.autogc.template import load_template
 from ngc_gen.data.autogc.transfer import TransferSettings, transfer_template
-from ngc_gen.data.autogc.transfer.chain_joints import bend_near, waist_near
+from ngc_gen.data.autogc.transfer.chain_joints import bend_near, joint_near, waist_near
 from ngc_gen.data.mesh.io import normalize
 
 from ...helpers import ROOT
@@ -65,3 +65,16 @@ def test_a_path_without_a_waist_is_cut_at_its_bend():
     skull = tapering.copy()
     skull[18:26] = 0.09                                    # the skull from node 18 on
     assert waist_near(skull, arc, 20) == 17
+
+
+def test_a_waist_past_where_the_templates_chain_ends_is_no_joint():
+    """An elephant's path runs on past where the template's head ends, down its trunk, which
+    thins with rings and the tusks' junction along it: those waists belong to the head, whose
+    joint with the neck is looked for only up to the template's end (else at the bend)."""
+    s = np.linspace(0.0, 1.0, 41)
+    P = np.stack([np.zeros_like(s), s, np.zeros_like(s)], 1)
+    arc = s.copy()
+    trunk = np.linspace(0.25, 0.04, 41)
+    trunk[30:33] = 0.12                                    # a ring around the trunk
+    assert joint_near(P, trunk, arc, 26, end=40) == 29
+    assert joint_near(P, trunk, arc, 26, end=27) == bend_near(P, arc, 26)

@@ -368,7 +368,7 @@ def _chain_cuts(template: Template, tree: Tree, body: BodyFrame, own: list[int],
         if len(chain) > 1 else len(own) - 1
     cut = _split_by(arc[: k + 1], lengths)[:-1] + [len(own) - 1] if k + 1 > len(chain) else \
         list(np.linspace(0, len(own) - 1, len(chain) + 1).astype(int))
-    cut = [cut[0]] + [joint_near(tree.nodes[own], tree.radius[own], arc, c)
+    cut = [cut[0]] + [joint_near(tree.nodes[own], tree.radius[own], arc, c, k)
                       for c in cut[1:-1]] + [cut[-1]]
     cut = _before_side_branches(np.asarray(own), arc, cut, tree.degree)
     if len(chain) > 1 and all(template.gc(c).symmetric is None for c in chain):
