@@ -22,6 +22,7 @@ HIND = [((-0.6, y, -0.1), (-0.6, y, -0.5)) for y in (0.12, -0.12)]
 FRONT = [((0.6, y, -0.1), (0.6, y, -0.5)) for y in (0.12, -0.12)]
 STUB = ((-0.9, 0.0, 0.12), (-1.12, 0.0, 0.2))      # along the back's line, at its top
 HANGING = ((-0.98, 0.0, 0.02), (-1.02, 0.0, -0.42))  # down behind the rump
+PAWS = [((-0.6, y, -0.5), (-0.78, y / 2, -0.5)) for y in (0.12, -0.12)]  # back, on the ground
 
 
 @pytest.fixture(scope="module")
@@ -35,14 +36,17 @@ def _samples(seg, r, n):
                           np.random.default_rng(0))[0]
 
 
-def _placing(template, tail=None):
+def _placing(template, tail=None, paws=False):
     """The torso and four legs found (fitted to their own samples as the transfer fits them),
-    the tail missing; `tail` (a segment): the mesh has that tail."""
+    the tail missing; `tail` (a segment): the mesh has that tail; `paws`: hind paws reaching
+    back toward the mid-plane on the ground, which the leg GCs leave out."""
     parts = {"torso": (TORSO, 0.2, 3000)}
     parts.update({n: (s, 0.06, 600) for n, s in zip(("leg_bl", "leg_br"), HIND)})
     parts.update({n: (s, 0.06, 600) for n, s in zip(("leg_fl", "leg_fr"), FRONT)})
     own = {n: _samples(s, r, k) for n, (s, r, k) in parts.items()}
-    surface = np.vstack(list(own.values()) + ([_samples(tail, 0.04, 400)] if tail else []))
+    extra = ([_samples(tail, 0.04, 400)] if tail else []) + \
+        ([_samples(p, 0.045, 300) for p in PAWS] if paws else [])
+    surface = np.vstack(list(own.values()) + extra)
     pl = Placing(template, TransferSettings.from_yaml(), None, surface, None, BODY, np.eye(3),
                  {}, None, ["tail"], 0.0, floor=1e-3)
     for n, (seg, _, _) in parts.items():
@@ -64,13 +68,16 @@ def test_a_missing_tail_stands_in_over_the_surface_the_body_leaves_unexplained(t
     assert not gc.contains(np.array([[0.0, 0.0, 0.0], [-0.6, 0.12, -0.5]])).any()
 
 
-def test_a_tailless_rear_keeps_the_small_stand_in_at_its_attachment(template):
-    """Behind a tailless rump the torso and legs explain every sample: no tail grows over the
-    rump or the thighs (the template's stand-in stays)."""
-    pl = _placing(template)
+@pytest.mark.parametrize("paws", [False, True], ids=["legs", "paws reaching back"])
+def test_a_tailless_rear_keeps_the_small_stand_in_at_its_attachment(template, paws):
+    """Behind a tailless rump the torso and legs explain every sample above the feet (paws on
+    the ground the leg GCs leave out are no tail): no tail grows over the rump, the thighs or
+    the feet (the template's stand-in stays)."""
+    pl = _placing(template, paws=paws)
     assert stray_stand_in(pl, template.gc("tail"), np.array([-0.66, 0.0, 0.15]),
                           BODY.to_body(pl.surface)) is None
     _missing_gc(pl, "tail", BODY.to_body(pl.surface))
     gc = pl.gcs["tail"]
     thighs = np.vstack([_samples(s, 0.06, 300) for s in HIND])
     assert not gc.contains(thighs).any()
+    assert not gc.contains(np.array([p[1] for p in PAWS])).any()

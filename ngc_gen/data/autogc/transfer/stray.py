@@ -7,9 +7,10 @@ template alone (from its start toward its end) misses all three. The surface its
 where the tail is: beyond the part's template start along the front-back axis (behind the
 rump), near the mid-plane, above the found legs' feet, and outside every GC already found
 (the torso and legs do not explain it). When that surface is there (at least MIN_SHARE of
-the samples), the stand-in runs from its attachment through the surface's middle to its far end along the surface's
-principal direction, fitted to and grown over that surface; otherwise (a tailless rear, whose
-surface the torso and legs explain) it returns None and the caller keeps its template stub.
+the samples), the stand-in runs from its attachment through the surface's middle to its far
+end along the surface's principal direction, fitted to and grown over that surface;
+otherwise (a tailless rear, whose surface the torso and legs explain) it returns None and the
+caller keeps its template stub.
 """
 from __future__ import annotations
 
@@ -35,7 +36,7 @@ LOW = 0.25         # the found legs' lower quarter (the feet) is left out: a foo
 def stray_surface(pl: "Placing", tgc: TemplateGC, surface_body: np.ndarray) -> np.ndarray:
     """(k,) indices of the surface samples where the missing `tgc` would be that no found GC
     holds: beyond its template start along the front-back axis, toward its end's side of
-    the body, within MID_BAND of its start across the mid-plane."""
+    the body, within MID_BAND of its start across the mid-plane, above the found legs' feet."""
     start, end = (np.asarray(tgc.place[k], np.float64) for k in ("start", "end"))
     back = np.sign(end[0] - start[0]) or -1.0
     near = np.flatnonzero(((surface_body[:, 0] - start[0]) * back > 0.0)
