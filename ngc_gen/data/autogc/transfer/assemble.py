@@ -37,6 +37,8 @@ MISSING_SIGMA = np.array([1.0, 1.0, 2.0])  # how far from its place's end (front
 MISSING_PAST = 0.1   # its length (and that much past it); else it is a quarter of its length
 START_REACH = 2.0  # a part on the root reaches back toward its template start by at most this x
                    # its top radius (_reach_back)
+REAR_TIE = 0.05    # root parts whose template starts lie this close along the body count as one
+                   # row (a pair of hind legs) for _rear_start
 FINER = 0.4        # a mesh with parts missing is matched again on spurs this x as long kept
 
 
@@ -61,20 +63,42 @@ def _safe_up(up: np.ndarray, direction: np.ndarray) -> np.ndarray:
     return np.eye(3)[int(np.argmin(np.abs(d)))]
 
 
-def _reach_back(poly: np.ndarray, to_body, start: np.ndarray, radius: float) -> np.ndarray:
+def _reach_back(poly: np.ndarray, to_body, start: np.ndarray, radius: float,
+                reach: float | None = None) -> np.ndarray:
     """A part on the root (a leg, the tail, the neck) as a rig has it: its skeleton path begins
     where it leaves the body's surface, a rig's limb at the joint inside (a hip above the
     thigh). The polyline (P, 3) is extended back along its own direction toward the template's
-    `start` (body frame), at most START_REACH x its top `radius`."""
+    `start` (body frame), at most START_REACH x its top `radius` (`reach`: at most that)."""
     tan = poly[min(8, len(poly) - 1)] - poly[0]
     tan /= max(float(np.linalg.norm(tan)), 1e-12)
     b0 = to_body(poly[0])
     back = to_body(poly[0] - tan) - b0                   # one world unit back, in body units
     length = float((start - b0) @ back / max(float(back @ back), 1e-12))
-    length = min(max(length, 0.0), START_REACH * radius)
+    length = min(max(length, 0.0), START_REACH * radius if reach is None else reach)
     if length <= 0.0:
         return poly
     return np.concatenate([np.linspace(poly[0] - length * tan, poly[0], 8)[:-1], poly])
+
+
+def _rear_start(pl: Placing, n: str, start: np.ndarray) -> np.ndarray | None:
+    """Where the rearmost part on the root (its template start behind every other's: the tail)
+    starts relative to the found roots of the parts nearest it along the body (the hind legs):
+    its template start moved forward by as much as those roots lie ahead of the template's.
+    A tail that tapers out of a long body (a crocodile's) leaves the surface far behind the
+    hips, while a rig's tail starts just behind them. None: not the rearmost part, no such
+    root found, or the roots not ahead of the template's."""
+    t = pl.template
+    root = next(g.name for g in t.gcs if g.parent is None)
+    xs = {g.name: float(g.place["start"][0]) for g in t.gcs if g.parent == root and g.name != n}
+    if not xs or start[0] >= min(xs.values()):
+        return None
+    gap = {m: x - start[0] for m, x in xs.items()}
+    near = [m for m in xs if gap[m] <= min(gap.values()) + REAR_TIE and m in pl.paths]
+    if not near:
+        return None
+    found = np.mean([pl.body.to_body(pl.tree.nodes[pl.paths[m][0]])[0] for m in near])
+    shift = float(found) - float(np.mean([xs[m] for m in near]))
+    return start + np.array([shift, 0.0, 0.0]) if shift > 0.0 else None
 
 
 def _moved_ends(gc: GeneralizedCylinder, place: dict, n: int = 64) -> np.ndarray:
@@ -189,7 +213,10 @@ def _refined_gcs(pl: Placing, owner: np.ndarray, left: np.ndarray) -> list[str]:
         tgc = t.gc(n)
         poly = bernstein_basis(len(c) - 1, dense_s) @ c
         if tgc.parent == root_name:
-            poly = _reach_back(poly, pl.body.to_body, np.asarray(tgc.place["start"]), float(r[0]))
+            start = np.asarray(tgc.place["start"], dtype=np.float64)
+            rear = _rear_start(pl, n, start)
+            poly = _reach_back(poly, pl.body.to_body, start if rear is None else rear, float(r[0]),
+                               None if rear is None else np.inf)
         pl.gcs[n] = pl.gc(tgc, poly, own)
         if any(k in tgc.place for k in AT_KEYS):  # the annotator's ends
             pl.gcs[n] = pl.gc(tgc, _moved_ends(pl.gcs[n], tgc.place), own)
