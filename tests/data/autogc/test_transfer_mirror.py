@@ -8,7 +8,7 @@ import numpy as np
 from ngc_gen.data.autogc.coverage import rho_matrix
 from ngc_gen.data.autogc.template import load_template
 from ngc_gen.data.autogc.tighten import gc_volume
-from ngc_gen.data.autogc.transfer import BodyFrame
+from ngc_gen.data.autogc.transfer import BodyFrame, TransferSettings
 from ngc_gen.data.autogc.transfer.assemble import Placing, _missing_gc, _straight
 from ngc_gen.data.autogc.transfer.mirror import mirror_stand_in, mirrored_gc
 from ngc_gen.data.mesh.sampling import sample_surface
@@ -72,8 +72,8 @@ def test_a_missing_tail_starts_where_the_template_starts_it_not_at_the_torsos_en
                          for m, n in ((rump, 4000), (stub, 400))])
     torso = _straight(template.gc("torso"), np.array([0.3, 0.0, 0.0]), np.array([-1.0, 0, 0]),
                       0.6, 0.2, np.array([0.0, 0.0, 1.0]))        # ends at x = -0.3: the hips
-    pl = Placing(template, None, None, surface, None, body, np.eye(3), {}, None, ["tail"], 0.0,
-                 floor=1e-3, gcs={"torso": torso})
+    pl = Placing(template, TransferSettings.from_yaml(), None, surface, None, body, np.eye(3), {},
+                 None, ["tail"], 0.0, floor=1e-3, gcs={"torso": torso})
     _missing_gc(pl, "tail", body.to_body(surface))
     tail = pl.gcs["tail"]
     start = np.asarray(tail.to_world(np.array([[-1.0, 0.0, 0.0]])))[0]

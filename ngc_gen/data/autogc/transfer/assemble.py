@@ -26,6 +26,7 @@ from .mirror import mirror_stand_in
 from .orientation import choose
 from .refine import refine
 from .roots import owner_of
+from .stray import stray_stand_in
 from .transfer_settings import Transfer, TransferSettings
 from .verify import verify
 from .tree import BodyFrame, Tree, _curve_points, skeleton_tree, surface_share, template_rotation
@@ -245,6 +246,11 @@ def _missing_gc(pl: Placing, n: str, surface_body: np.ndarray) -> None:
         # a body length in front of the rump a tail leaves (its stub then out of reach)
         C = _curve_points(pl.gcs[p])
         start = C[np.argmin(np.linalg.norm(C - start, axis=1))]
+    if _end_part(pl.template, tgc):  # over the surface no found GC explains (stray.py)
+        gc = stray_stand_in(pl, tgc, start, surface_body)
+        if gc is not None:
+            pl.gcs[n] = gc
+            return
     # the part's stub (a short tail the skeleton pruned) is the surface nearest its place's
     # end: the GC reaches it, within the part's length (else the template's direction)
     off = (surface_body - np.asarray(place["end"])) / MISSING_SIGMA
@@ -261,6 +267,13 @@ def _missing_gc(pl: Placing, n: str, surface_body: np.ndarray) -> None:
     if stub:  # grown over the surface around its tip (the stub itself)
         near = pl.surface[np.linalg.norm(pl.surface - tip, axis=1) <= 3.0 * r]
         pl.gcs[n] = grow_to_cover([pl.gcs[n]], near)[0]
+
+
+def _end_part(template: Template, tgc: TemplateGC) -> bool:
+    """A part on the root that ends the body (a tail): no leg, no children."""
+    root = next(g.name for g in template.gcs if g.parent is None)
+    return tgc.parent == root and not reaches_down(tgc.place) and \
+        not any(g.parent == tgc.name for g in template.gcs)
 
 
 def _grown(pl: Placing, owner: np.ndarray) -> list[GeneralizedCylinder]:

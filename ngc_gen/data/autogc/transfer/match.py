@@ -10,6 +10,7 @@ from scipy.spatial import cKDTree
 from ngc_gen.data.autogc.template import Template
 from ngc_gen.data.errors import DataError
 
+from .chain_joints import joint_near
 from .leg_order import LEG_DOWN, _legs_by_start, reaches_down
 from .side_pairs import paired_junction
 from .transfer_settings import TransferSettings
@@ -218,21 +219,6 @@ def _template_end(path: list[int], nodes: np.ndarray, body: BodyFrame, place: di
     return k if d[k] <= END_REACH < d[-1] and k > 0 else len(path) - 1
 
 
-def _bend_near(P: np.ndarray, arc: np.ndarray, i: int, window: float = 0.2) -> int:
-    """The index within `window` x the path's length of i where the path (P, 3) bends most
-    (the angle between the chords over that window before and after): a neck meets its head
-    at a bend, not at a fixed share of the length."""
-    w = window * arc[-1]
-    cand = np.flatnonzero((np.abs(arc - arc[i]) <= w) & (arc >= w / 2) & (arc <= arc[-1] - w / 2))
-    if len(cand) == 0:
-        return i
-    before = P[cand] - P[np.searchsorted(arc, arc[cand] - w / 2).clip(0, len(P) - 1)]
-    after = P[np.searchsorted(arc, arc[cand] + w / 2).clip(0, len(P) - 1)] - P[cand]
-    cos = (before * after).sum(1) / np.maximum(
-        np.linalg.norm(before, axis=1) * np.linalg.norm(after, axis=1), 1e-12)
-    return int(np.clip(cand[int(np.argmin(cos))], 1, len(P) - 2))
-
-
 def _before_side_branches(path: np.ndarray, arc: np.ndarray, cut: list[int], degree: np.ndarray,
                           window: float = 0.2) -> list[int]:
     """Inner cuts of a chain's path (node indices, junction first) moved to just before the
@@ -369,9 +355,9 @@ def _chain_cuts(template: Template, tree: Tree, body: BodyFrame, own: list[int],
                 chain: list[str]) -> list[int]:
     """Where a chain of template GCs (top -> leaf) cuts its path `own` (junction -> tip): by
     the template's lengths up to where the template's chain ends (``_template_end``), each
-    inner cut moved to the nearest bend and before side branches; on the mid-plane, the last
-    GC (a head) started where a mirrored pair of side branches leaves the path
-    (``side_pairs``)."""
+    inner cut moved to a waist or bend near it (``chain_joints``) and before side branches;
+    on the mid-plane, the last GC (a head) started where a mirrored pair of side branches
+    leaves the path (``side_pairs``)."""
     arc = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(tree.nodes[own], axis=0), axis=1))]
     lengths = [body.length(np.subtract(template.gc(c).place["end"],
                                        template.gc(c).place["start"]) / 1.0) for c in chain]
@@ -379,7 +365,8 @@ def _chain_cuts(template: Template, tree: Tree, body: BodyFrame, own: list[int],
         if len(chain) > 1 else len(own) - 1
     cut = _split_by(arc[: k + 1], lengths)[:-1] + [len(own) - 1] if k + 1 > len(chain) else \
         list(np.linspace(0, len(own) - 1, len(chain) + 1).astype(int))
-    cut = [cut[0]] + [_bend_near(tree.nodes[own], arc, c) for c in cut[1:-1]] + [cut[-1]]
+    cut = [cut[0]] + [joint_near(tree.nodes[own], tree.radius[own], arc, c, k)
+                      for c in cut[1:-1]] + [cut[-1]]
     cut = _before_side_branches(np.asarray(own), arc, cut, tree.degree)
     if len(chain) > 1 and all(template.gc(c).symmetric is None for c in chain):
         # a chain on the mid-plane: its free end's part (a head on its neck) starts at the
