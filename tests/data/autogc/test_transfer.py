@@ -305,3 +305,33 @@ def test_a_mesh_lying_on_its_side_keeps_the_folders_layout(template, transfers):
     by = {g.name: g for g in tr.gcs}
     for point, gc in (("foot_fl", "leg_fl"), ("head_tip", "head"), ("tail_tip", "tail")):
         assert bool(by[gc].contains(p[point][None])[0]), (point, gc)
+
+
+def test_a_gathered_gallops_legs_are_named_by_where_they_leave_the_body(template):
+    """A gathered gallop (a fox's): the hind feet land under the belly, in front of where the
+    front feet reach, and the front-left foot pressed against the left hind leg has no free end
+    of its own. Named by where the feet are, the right hind foot took leg_fr, the right front
+    foot leg_br and the left hind foot leg_fl. Where each leg's path leaves the body (the
+    hips with the tail, the shoulder) names them: the right pair swaps, the left leg alone is
+    the hind one, as the right hind leg that leaves the body where it does. A standing animal,
+    and a skeleton joining a pair mid-body (starts within START_SLACK), keep their names."""
+    from ngc_gen.data.autogc.transfer.leg_order import START_SLACK, _legs_by_start
+
+    starts = {"leg_fl": -0.12, "leg_fr": -0.12, "leg_br": 0.18, "head": 0.75, "tail": -0.11}
+    nodes = np.array([[x, 0.0, 0.0] for x in starts.values()])
+    paths = {n: np.array([i]) for i, n in enumerate(starts)}
+    by_feet = {n: 10 + i for i, n in enumerate(starts)}
+    named = _legs_by_start(template, nodes, by_feet, paths)
+    assert named == {"leg_fr": by_feet["leg_br"], "leg_br": by_feet["leg_fr"],
+                     "leg_bl": by_feet["leg_fl"], "head": by_feet["head"],
+                     "tail": by_feet["tail"]}
+    standing = {"leg_fl": 0.25, "leg_fr": 0.25, "leg_bl": -0.57, "leg_br": -0.57}
+    nodes = np.array([[x, 0.0, 0.0] for x in standing.values()])
+    paths = {n: np.array([i]) for i, n in enumerate(standing)}
+    assign = {n: 10 + i for i, n in enumerate(standing)}
+    assert _legs_by_start(template, nodes, assign, paths) == assign
+    joined = {"leg_fl": 0.0, "leg_bl": START_SLACK / 2}      # one junction mid-body
+    nodes = np.array([[x, 0.0, 0.0] for x in joined.values()])
+    paths = {n: np.array([i]) for i, n in enumerate(joined)}
+    assign = {n: 10 + i for i, n in enumerate(joined)}
+    assert _legs_by_start(template, nodes, assign, paths) == assign

@@ -15,7 +15,8 @@ Pinocchio's two steps (a discrete embedding, then a continuous refinement) on ou
    template's; any template leaf
    may stay unmatched at ``missing_cost``. Two limbs of one side whose branches leave the body
    in the other order than the template starts them (a gallop's crossed legs) are swapped
-   (``_front_to_back``). A second pass gives the limbs left out (a grazing
+   (``_front_to_back``); once the paths are known, the legs are named front or hind by
+   where their paths leave the body (``_legs_by_start``). A second pass gives the limbs left out (a grazing
    head, galloping legs) the free ends left over that lie within their reach: at the limb
    chain's length from where it attaches, on its own side (a mid-plane part's branch not much
    shorter than its template part: a spur in the hip is no tail); a paired limb whose end lies
@@ -49,7 +50,8 @@ Pinocchio's two steps (a discrete embedding, then a continuous refinement) on ou
    rig (``coverage.grow_to_cover``).
 
 Modules: transfer_settings (TransferSettings, Transfer), tree (body frame, skeleton tree),
-orientation (which way the mesh faces), match (correspondence, paths), verify (the template's
+orientation (which way the mesh faces), match (correspondence, paths), leg_order (legs
+named front or hind by where they leave the body), verify (the template's
 checks), roots (a leg's surface up to its joint), mirror (a missing part of a pair), refine
 (torch refinement), assemble (the whole transfer), export (templates from annotated meshes).
 """

@@ -11,6 +11,7 @@ from ngc_gen.data.autogc.template import Template
 from ngc_gen.data.errors import DataError
 
 from .chain_joints import joint_near
+from .leg_order import LEG_DOWN, _legs_by_start, reaches_down
 from .side_pairs import paired_junction
 from .transfer_settings import TransferSettings
 from .tree import BodyFrame, Tree
@@ -22,7 +23,6 @@ W_ATTACH = 1.0     # weight of that attachment term
 MAX_ATTACH = 3.0   # at most this much: a galloping animal's skeleton may join its legs mid-body
 W_THICKNESS = 0.5  # weight of log(thickness ratio)^2
 BEYOND = 1e3       # the cost of a free end above where a leg attaches (second pass)
-LEG_DOWN = 0.5     # a limb whose place ends this much lower than it starts is a leg
 REACH_OUT = 0.2    # a limb whose chain ends this much further front (back) than it starts is an
                    # end's (a head, a tail): its free end lies beyond where the chain starts
 SIDE_SLACK = 0.05  # a left limb's free end lies at most this far (body units) right of the middle
@@ -34,11 +34,6 @@ W_SHORT = 1.0      # second pass, a part on the mid-plane: weight of log(branch 
                    # GC's template length)^2 for a shorter branch: a spur inside the hip, within
                    # a tail's reach, is no tail (a leg's branch may end where a bunched leg joins)
 
-
-
-def reaches_down(place: dict) -> bool:
-    """A template part whose place ends LEG_DOWN (body units) lower than it starts: a leg."""
-    return float(place["start"][2]) - float(place["end"][2]) >= LEG_DOWN
 
 def _children(template: Template) -> dict[str, list[str]]:
     out = {g.name: [] for g in template.gcs}
@@ -348,6 +343,8 @@ def correspond(template: Template, tree: Tree, body: BodyFrame, settings: Transf
                         path=where, field="mesh",
                         fix="give this mesh its own annotation, or use a template of its kind")
     assign, cost = _assign(template, tree, body, settings, where, leaf_gcs, leaves)
+    assign = _legs_by_start(template, body.to_body(tree.nodes), assign,
+                            _paths(template, tree, body, assign)[0])   # (leg_order)
     paths, chained = _paths(template, tree, body, assign)
     labels = _labels(template, tree, paths, chained)
     missing = [n for n in template.names if n not in paths]
