@@ -114,17 +114,15 @@ def test_a_stub_tail_the_skeleton_never_finds_still_gets_a_tail_gc_over_it(templ
     assert not bool(tail.contains(pts["torso"][None])[0])
 
 
-def test_a_tail_that_tapers_out_of_the_body_starts_behind_the_hips(template):
-    """A crocodile's tail tapers out of the body, as thick as the body at its root: the
-    skeleton's tail branch leaves it a third of the tail's length behind the hips, where the
-    tail has thinned, while a rig's tail starts just behind them. The tail GC reaches back to
-    the found hind legs' row (as far behind it as the template's tail start lies behind its
-    hind legs), so it holds the tail's root too. The body is a crocodile's: long and low on
-    short legs, a thick neck holding a big head up. (A thin raised neck with a small head on
-    such a tail would leave the two ends alike in surface, thickness and height, and the match
-    reads that body back to front: docs/transfer.md, "Orientation", the weight check.)"""
-    mesh, pts = _normalised(*quadruped(length=1.0, leg=0.3, neck=0.25, neck_radius=0.12,
-                                       head=(0.35, 0.1), tail=0.9, tail_dir=(0.0, 1.0),
+def test_a_tail_that_tapers_out_of_the_body_is_held_from_its_root_to_its_tip(template):
+    """A crocodile's tail tapers out of the body, as thick as the body at its root, so the
+    skeleton's tail branch leaves the surface well behind the hips, where the tail has thinned;
+    the tail GC must still hold the tail's root (the rearmost root part reaches back to the
+    found hind legs' row). The body is a crocodile's: long and low on short legs, a thick neck
+    holding a big head up. (A thin raised neck with a small head on such a tail leaves the two
+    ends alike in surface, thickness and height: docs/transfer.md, "Orientation".)"""
+    mesh, pts = _normalised(*quadruped(length=1.0, leg=0.3, neck=0.3, neck_radius=0.12,
+                                       head=(0.4, 0.12), tail=0.9, tail_dir=(0.0, 1.0),
                                        tail_radius=(0.16, 0.13, 0.1, 0.07, 0.04)))
     tr = transfer_template(mesh, template, FAST, "tapering tail")
     by = {g.name: g for g in tr.gcs}

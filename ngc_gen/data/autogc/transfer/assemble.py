@@ -21,7 +21,8 @@ from ngc_gen.data.mesh.sampling import gc_membership, sample_surface
 from ngc_gen.data.rigs.rig_gcs import OWN_REACH, chain_polyline, template_gc
 from ngc_gen.geometry import GeneralizedCylinder, bernstein_basis
 
-from .match import correspond, reaches_down
+from .leg_order import reaches_down
+from .match import correspond
 from .mirror import mirror_stand_in
 from .orientation import choose
 from .refine import refine

@@ -11,7 +11,7 @@ from ngc_gen.data.autogc.template import Template
 from ngc_gen.data.errors import DataError
 
 from .chain_joints import joint_near
-from .leg_order import LEG_DOWN, _legs_by_start, reaches_down
+from .leg_order import LEG_DOWN, _legs_by_start
 from .side_pairs import paired_junction
 from .transfer_settings import TransferSettings
 from .tree import BodyFrame, Tree

@@ -22,7 +22,8 @@ from ngc_gen.data.autogc.orient import Orientation, axis_name, detect_orientatio
 from ngc_gen.data.autogc.template import Template
 from ngc_gen.data.errors import DataError
 
-from .match import _tips, correspond, reaches_down
+from .leg_order import reaches_down
+from .match import _tips, correspond
 from .tree import BodyFrame, extreme_points
 from .verify import verify
 

@@ -20,7 +20,7 @@ from scipy.spatial import cKDTree
 
 from ngc_gen.data.autogc.template import Template
 
-from .match import reaches_down
+from .leg_order import reaches_down
 from .tree import BodyFrame, Tree
 
 THIN = 1.25  # a leg's path is the leg from its first node at most this x the median radius

@@ -14,18 +14,13 @@ caller keeps its template stub.
 """
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 
 from ngc_gen.data.autogc.coverage import grow_to_cover, rho_matrix
 from ngc_gen.data.autogc.template import TemplateGC
 from ngc_gen.geometry import GeneralizedCylinder
 
-from .match import reaches_down
-
-if TYPE_CHECKING:
-    from .assemble import Placing
+from .leg_order import reaches_down
 
 MID_BAND = 0.5     # body units left/right of the part's template start: near the mid-plane
 MIN_SHARE = 0.002  # the unexplained surface stands in when it holds this share of the samples
@@ -33,9 +28,9 @@ CLEAR = 1.0        # a sample is unexplained when outside every found GC (rho > 
 LOW = 0.25         # the found legs' lower quarter (the feet) is left out: a foot is no tail
 
 
-def stray_surface(pl: "Placing", tgc: TemplateGC, surface_body: np.ndarray) -> np.ndarray:
+def stray_surface(pl, tgc: TemplateGC, surface_body: np.ndarray) -> np.ndarray:
     """(k,) indices of the surface samples where the missing `tgc` would be that no found GC
-    holds: beyond its template start along the front-back axis, toward its end's side of
+    holds (`pl`: the assembly's Placing, passed in, not imported, so the modules stay a tree): beyond its template start along the front-back axis, toward its end's side of
     the body, within MID_BAND of its start across the mid-plane, above the found legs' feet."""
     start, end = (np.asarray(tgc.place[k], np.float64) for k in ("start", "end"))
     back = np.sign(end[0] - start[0]) or -1.0
@@ -49,7 +44,7 @@ def stray_surface(pl: "Placing", tgc: TemplateGC, surface_body: np.ndarray) -> n
     return near[rho.min(axis=0) > CLEAR]
 
 
-def _feet_level(pl: "Placing") -> float:
+def _feet_level(pl) -> float:
     """The body height (up, body units) below which the found legs' lower LOW of their length
     lies: the feet, whose soles and inner sides the leg GCs may leave out; -inf without legs."""
     ends = [pl.body.to_body(_curve_ends(g)) for n, g in pl.gcs.items()
@@ -63,7 +58,7 @@ def _curve_ends(gc: GeneralizedCylinder) -> np.ndarray:
     return np.asarray(gc.to_world(np.array([[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0]])))
 
 
-def stray_stand_in(pl: "Placing", tgc: TemplateGC, start: np.ndarray,
+def stray_stand_in(pl, tgc: TemplateGC, start: np.ndarray,
                    surface_body: np.ndarray) -> GeneralizedCylinder | None:
     """The missing `tgc` from `start` (its attachment, world) over the unexplained surface where
     it would be (module docstring); None when there is too little of it."""

@@ -46,7 +46,7 @@ import numpy as np
 
 from ngc_gen.data.autogc.template import Template
 
-from .match import reaches_down
+from .leg_order import reaches_down
 
 END_FRONT = 0.3    # a part whose place's middle lies this far (body units) front or back is an end
 SIDE = 0.2         # a symmetric part this far left or right tells left from right
