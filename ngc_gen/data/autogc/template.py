@@ -127,6 +127,11 @@ class Template:
     def names(self) -> list[str]:
         return [g.name for g in self.gcs]
 
+    @property
+    def root(self) -> str:
+        """The name of the GC with no parent (the torso): the one every chain hangs from."""
+        return next(g.name for g in self.gcs if g.parent is None)
+
     def gc(self, name: str) -> TemplateGC:
         if name not in self.names:
             raise DataError(f"template has no GC {name!r}", path=self.source, field="gcs",

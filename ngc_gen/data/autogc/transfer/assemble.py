@@ -89,7 +89,7 @@ def _rear_start(pl: Placing, n: str, start: np.ndarray) -> np.ndarray | None:
     hips, while a rig's tail starts just behind them. None: not the rearmost part, no such
     root found, or the roots not ahead of the template's."""
     t = pl.template
-    root = next(g.name for g in t.gcs if g.parent is None)
+    root = t.root
     xs = {g.name: float(g.place["start"][0]) for g in t.gcs if g.parent == root and g.name != n}
     if not xs or start[0] >= min(xs.values()):
         return None
@@ -209,7 +209,7 @@ def _refined_gcs(pl: Placing, owner: np.ndarray, left: np.ndarray) -> list[str]:
     ctrls = refine(ctrls, own_of, r0, parent_ix, partner_ix, (pl.body.to_world(np.zeros(3)), left),
                    pl.st.refine_steps, pl.st.seed)
     dense_s = np.linspace(0.0, 1.0, 64)
-    root_name = next(n for n in names if t.gc(n).parent is None)
+    root_name = t.root
     for n, c, own, r in zip(matched, ctrls, own_of, r0):
         tgc = t.gc(n)
         poly = bernstein_basis(len(c) - 1, dense_s) @ c
@@ -272,7 +272,7 @@ def _missing_gc(pl: Placing, n: str, surface_body: np.ndarray) -> None:
 
 def _end_part(template: Template, tgc: TemplateGC) -> bool:
     """A part on the root that ends the body (a tail): no leg, no children."""
-    root = next(g.name for g in template.gcs if g.parent is None)
+    root = template.root
     return tgc.parent == root and not reaches_down(tgc.place) and \
         not any(g.parent == tgc.name for g in template.gcs)
 
@@ -320,7 +320,7 @@ def _covering(pl: Placing, owner: np.ndarray) -> list[GeneralizedCylinder]:
     """The GCs in template order grown to cover (`_grown`); the root must be a tube (step 5),
     judged by its radii as grown (hugging: also before they are refitted)."""
     names = pl.template.names
-    root = next(n for n in names if pl.template.gc(n).parent is None)
+    root = pl.template.root
     if pl.st.hug and root in pl.paths:
         _check_tube(pl, root, pl.gcs[root])
     ordered = _grown(pl, owner)

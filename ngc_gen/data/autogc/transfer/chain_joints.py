@@ -20,9 +20,12 @@ def joint_near(P: np.ndarray, radius: np.ndarray, arc: np.ndarray, i: int, end: 
     return bend_near(P, arc, i, window) if w is None else w
 
 
-def _candidates(arc: np.ndarray, i: int, window: float) -> np.ndarray:
-    w = window * arc[-1]
-    return np.flatnonzero((np.abs(arc - arc[i]) <= w) & (arc >= w / 2) & (arc <= arc[-1] - w / 2))
+def _candidates(arc: np.ndarray, i: int, window: float, length: float | None = None) -> np.ndarray:
+    """Indices within `window` x the path's `length` (default: arc's) of i, half a window
+    clear of either end."""
+    whole = arc[-1] if length is None else length
+    w = window * whole
+    return np.flatnonzero((np.abs(arc - arc[i]) <= w) & (arc >= w / 2) & (arc <= whole - w / 2))
 
 
 def waist_near(radius: np.ndarray, arc: np.ndarray, i: int, window: float = 0.2,
@@ -33,9 +36,8 @@ def waist_near(radius: np.ndarray, arc: np.ndarray, i: int, window: float = 0.2,
     the skull is wider than that (the poll, behind the jaw): the head begins at that waist,
     which a head held level with a bent muzzle does not show as its sharpest bend (the
     forehead-to-muzzle bend is sharper); a neck that thins into a narrower head has none."""
-    whole = arc[-1] if length is None else length
-    w = window * whole
-    cand = np.flatnonzero((np.abs(arc - arc[i]) <= w) & (arc >= w / 2) & (arc <= whole - w / 2))
+    w = window * (arc[-1] if length is None else length)
+    cand = _candidates(arc, i, window, length)
     cand = cand[(cand > 0) & (cand < len(arc) - 1)]
     if len(cand) == 0:
         return None

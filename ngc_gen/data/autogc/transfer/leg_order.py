@@ -33,7 +33,7 @@ def _legs_by_start(template: Template, nodes_body: np.ndarray,
     side takes the name (front or hind) of the other side's leg whose start is nearer its own.
     nodes_body (N, 3): the tree's nodes in the body frame; paths: each matched GC's node
     indices, root side first."""
-    root = next(g for g in template.gcs if g.parent is None)
+    root = template.gc(template.root)
     mid = _mid_x(root.place)
     legs = [g for g in template.gcs if g.parent == root.name and g.symmetric is not None and
             reaches_down(g.place)]

@@ -64,7 +64,7 @@ def _tips(template: Template) -> tuple[list[str], dict[str, list[str]], dict[str
     continuing children (``_end_children``)."""
     kids = _children(template)
     ends = _end_children(template, kids)
-    root = next(g.name for g in template.gcs if g.parent is None)
+    root = template.root
     tips = [g.name for g in template.gcs if not ends[g.name] and (g.name != root or not kids[root])]
     below: dict[str, list[str]] = {}
 
@@ -317,7 +317,7 @@ def _on_mid_plane(template: Template, tree: Tree, body: BodyFrame,
     at full length (a posed horse's), a short spur out of one hip (the skeleton joined the tail
     to the hind legs) ends in that hip's flank. Missing (a stand-in), not named on the hip."""
     out = dict(assign)
-    root = next(g.name for g in template.gcs if g.parent is None)
+    root = template.root
     thick = float(tree.radius[tree.main].max())
     long = branch_lengths(tree)
     for n, leaf in assign.items():
@@ -343,9 +343,11 @@ def correspond(template: Template, tree: Tree, body: BodyFrame, settings: Transf
                         path=where, field="mesh",
                         fix="give this mesh its own annotation, or use a template of its kind")
     assign, cost = _assign(template, tree, body, settings, where, leaf_gcs, leaves)
-    assign = _legs_by_start(template, body.to_body(tree.nodes), assign,
-                            _paths(template, tree, body, assign)[0])   # (leg_order)
     paths, chained = _paths(template, tree, body, assign)
+    by_start = _legs_by_start(template, body.to_body(tree.nodes), assign, paths)  # (leg_order)
+    if by_start != assign:
+        assign = by_start
+        paths, chained = _paths(template, tree, body, assign)
     labels = _labels(template, tree, paths, chained)
     missing = [n for n in template.names if n not in paths]
     return {k: np.asarray(v) for k, v in paths.items()}, labels, missing, cost
@@ -386,7 +388,7 @@ def _paths(template: Template, tree: Tree, body: BodyFrame,
     kids = _children(template)
     leaf_gcs, below, ends = _tips(template)
     names = template.names
-    root_gc = next(g.name for g in template.gcs if g.parent is None)
+    root_gc = template.root
     rp = template.gc(root_gc).place
     root_pos = body.to_world((np.asarray(rp["start"]) + np.asarray(rp["end"])) / 2.0)
     main_idx = np.flatnonzero(tree.main)

@@ -30,8 +30,9 @@ LOW = 0.25         # the found legs' lower quarter (the feet) is left out: a foo
 
 def stray_surface(pl, tgc: TemplateGC, surface_body: np.ndarray) -> np.ndarray:
     """(k,) indices of the surface samples where the missing `tgc` would be that no found GC
-    holds (`pl`: the assembly's Placing, passed in, not imported, so the modules stay a tree): beyond its template start along the front-back axis, toward its end's side of
-    the body, within MID_BAND of its start across the mid-plane, above the found legs' feet."""
+    holds: beyond its template start along the front-back axis, toward its end's side of the
+    body, within MID_BAND of its start across the mid-plane, above the found legs' feet.
+    `pl`: the assembly's Placing (passed in, not imported: assemble imports this module)."""
     start, end = (np.asarray(tgc.place[k], np.float64) for k in ("start", "end"))
     back = np.sign(end[0] - start[0]) or -1.0
     near = np.flatnonzero(((surface_body[:, 0] - start[0]) * back > 0.0)

@@ -88,7 +88,7 @@ def verify(template: Template, paths: dict[str, np.ndarray], nodes_body: np.ndar
     frame's half extents `half` (3,) (body units to lengths; None: alike) and the tree's
     thickness at each node `radius` (N,) (None: the legs check is skipped); spine: with the
     spine check."""
-    root = next(g.name for g in template.gcs if g.parent is None)
+    root = template.root
     if root not in paths:
         return Verdict(f"no {root} found")
     torso = nodes_body[paths[root]].mean(0)
@@ -138,7 +138,7 @@ def verify(template: Template, paths: dict[str, np.ndarray], nodes_body: np.ndar
 def _spine(template: Template, paths: dict, nodes_body: np.ndarray,
            half: np.ndarray) -> str | None:
     """The spine check (module docstring): None when it passes."""
-    root = next(g for g in template.gcs if g.parent is None)
+    root = template.gc(template.root)
     p = nodes_body[paths[root.name]]
     runs = {root.name: (p[-1] - p[0], np.subtract(root.place["end"], root.place["start"]))}
     legs = {end: [g for g in template.gcs if g.parent == root.name and g.name in paths and
